@@ -1,0 +1,19 @@
+# claychain: CT scan -> porosity grid -> micro pellet model -> upscaling -> macro mock-up.
+# Run:   snakemake --cores 2            (config/config.yaml, validated at start)
+# Rerun one stage:  snakemake --cores 2 -R imaging_rev -U imaging_rev
+from snakemake.utils import min_version
+
+min_version("9.0")
+
+
+configfile: "config/config.yaml"
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/imaging.smk"
+
+
+rule all:
+    input:
+        get_final_outputs(),
+    default_target: True

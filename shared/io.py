@@ -1,0 +1,192 @@
+"""netCDF input and output with CF attributes, provenance and atomic writes.
+
+Every file of the chain goes through :func:`write_dataset`: it checks that each variable
+carries ``units`` and ``long_name``, turns attributes netCDF cannot store (bools, dicts,
+lists, None) into numbers and JSON strings, adds the provenance attributes of
+DESIGN.md section 2, compresses, and writes to a temporary name in the target folder
+before renaming, so an interrupted run never leaves a readable but wrong file.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Iterable, Mapping
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from shared.provenance import code_sha256, code_version, config_sha256, inputs_record
+
+__all__ = ["OutputError", "read_dataset", "write_dataset", "netcdf_safe_attrs"]
+
+_STAGE_SOURCES = {
+    "imaging": ("imaging/*.py", "shared/*.py"),
+    "packing": ("imaging", "shared/*.py"),
+    "micro": ("micro", "shared"),
+    "studies": ("micro", "shared"),
+    "upscaling": ("micro", "shared"),
+    "macro": ("macro", "shared"),
+}
+
+
+class OutputError(ValueError):
+    """A dataset that does not meet the data contract, or a file that cannot be read."""
+
+
+def netcdf_safe_attrs(attrs: Mapping[str, Any]) -> dict[str, Any]:
+    """Return attributes that netCDF can store: strings, numbers and 1-D numeric arrays.
+
+    Bools become 0/1, mappings and lists of non-numbers become JSON strings, None is
+    dropped (xarray issues #1681, #3743).
+    """
+    safe: dict[str, Any] = {}
+    for key, value in attrs.items():
+        if value is None:
+            continue
+        if isinstance(value, (bool, np.bool_)):
+            safe[key] = int(value)
+        elif isinstance(value, (str, int, float, np.integer, np.floating)):
+            safe[key] = value
+        elif isinstance(value, Mapping):
+            safe[key] = json.dumps(value, sort_keys=True, default=str)
+        elif isinstance(value, (list, tuple, np.ndarray)):
+            array = np.asarray(value)
+            if array.ndim == 1 and array.dtype.kind in "iuf" and array.size > 0:
+                safe[key] = array
+            else:
+                safe[key] = json.dumps(np.asarray(value).tolist(), default=str)
+        else:
+            safe[key] = str(value)
+    return safe
+
+
+def _check_contract(ds: xr.Dataset) -> None:
+    for name, var in ds.variables.items():
+        if name in ds.dims and var.dtype.kind not in "iuf":
+            continue
+        missing = [a for a in ("units", "long_name") if a not in var.attrs]
+        if missing:
+            raise OutputError(f"variable {name!r} lacks attribute(s) {missing}")
+    anonymous = [d for d in ds.dims if str(d).startswith("dim_")]
+    if anonymous:
+        raise OutputError(f"anonymous dimension(s) {anonymous}: name every dimension")
+
+
+def write_dataset(
+    ds: xr.Dataset,
+    path: str | Path,
+    *,
+    stage: str,
+    title: str,
+    config: Mapping[str, Any] | None = None,
+    seed: int | None = None,
+    inputs: Iterable[str | Path] = (),
+    rule: str | None = None,
+    wildcards: Mapping[str, str] | None = None,
+    references: str | None = None,
+    comment: str | None = None,
+) -> Path:
+    """Write a dataset to netCDF atomically, with CF and provenance attributes.
+
+    Parameters
+    ----------
+    ds
+        Dataset whose variables all carry ``units`` and ``long_name``.
+    path
+        Target ``.nc`` path; its folder is created.
+    stage
+        Pipeline stage (``imaging``, ``packing``, ``micro``, ...).
+    title
+        CF ``title``.
+    config
+        The stage's configuration section; its sha256 is recorded.
+    seed
+        Random seed of the run (``-1`` is recorded when the run uses none).
+    inputs
+        Input files; their paths and sha256 are recorded.
+    rule, wildcards
+        Snakemake rule name and wildcards, when called from a rule.
+    references, comment
+        CF ``references`` and ``comment``.
+
+    Returns
+    -------
+    Path
+        The written path.
+
+    Raises
+    ------
+    OutputError
+        If a variable lacks ``units`` or ``long_name`` or a dimension is anonymous.
+    """
+    _check_contract(ds)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    now = datetime.now(timezone.utc).replace(microsecond=0).isoformat()
+    version = code_version()
+    sources = _STAGE_SOURCES.get(stage, ("shared",))
+    out = ds.copy()
+    out.attrs = netcdf_safe_attrs(
+        {
+            **ds.attrs,
+            "Conventions": "CF-1.11",
+            "title": title,
+            "institution": "claychain",
+            "source": f"claychain {stage} {version}",
+            "history": f"{now} claychain {stage}" + (f" rule {rule}" if rule else ""),
+            "references": references,
+            "comment": comment,
+            "stage": stage,
+            "created": now,
+            "code_version": version,
+            "code_sha256": code_sha256(*sources),
+            "config_sha256": config_sha256(config),
+            "config_json": json.dumps(config if config is not None else {}, default=str),
+            "seed": -1 if seed is None else int(seed),
+            "inputs": inputs_record(inputs),
+            "snakemake_rule": rule,
+            "wildcards_json": json.dumps(dict(wildcards or {}), sort_keys=True),
+        }
+    )
+    for name in out.variables:
+        out[name].attrs = netcdf_safe_attrs(out[name].attrs)
+    encoding = {
+        name: {"zlib": True, "complevel": 4, "shuffle": True}
+        for name, var in out.data_vars.items()
+        if var.dtype.kind in "iuf" and var.ndim > 0
+    }
+    handle, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(handle)
+    try:
+        out.to_netcdf(tmp_name, engine="netcdf4", encoding=encoding)
+        os.replace(tmp_name, path)
+    except BaseException:
+        Path(tmp_name).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def read_dataset(path: str | Path, required: Iterable[str] = ()) -> xr.Dataset:
+    """Load a netCDF file fully into memory and check that it holds the named variables.
+
+    Raises
+    ------
+    OutputError
+        If the file is missing, unreadable, or lacks a required variable.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise OutputError(f"{path}: no such file")
+    try:
+        ds = xr.load_dataset(path, engine="netcdf4")
+    except (OSError, ValueError) as err:
+        raise OutputError(f"{path}: not a readable netCDF file ({err})") from err
+    missing = [name for name in required if name not in ds.variables]
+    if missing:
+        raise OutputError(f"{path}: missing variable(s) {missing}")
+    return ds

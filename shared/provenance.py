@@ -1,0 +1,88 @@
+"""Provenance: hashes of code, configuration and input files, and the code version."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import subprocess
+from collections.abc import Iterable, Mapping
+from functools import lru_cache
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+__all__ = ["code_sha256", "code_version", "config_sha256", "file_sha256", "inputs_record"]
+
+_REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+def file_sha256(path: str | Path, chunk_bytes: int = 1 << 20) -> str:
+    """Return the hex sha256 of a file's bytes, read in chunks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(chunk_bytes), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def config_sha256(section: Mapping[str, Any] | None) -> str:
+    """Return the sha256 of a configuration mapping in canonical JSON form.
+
+    Keys are sorted so that two configurations that differ only in key order hash alike.
+    """
+    text = json.dumps(section if section is not None else {}, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def code_sha256(*patterns: str) -> str:
+    """Return one sha256 over the project's Python sources matching glob patterns.
+
+    Snakemake's code trigger only sees a rule's own script, not the modules it imports;
+    rules pass this hash as a parameter so that an edit of the code they use reruns them.
+
+    Parameters
+    ----------
+    *patterns
+        Globs relative to the repository root: ``"imaging/*.py"``, ``"shared/io.py"``; a
+        bare folder name (``"micro"``) means every ``.py`` file below it.
+    """
+    digest = hashlib.sha256()
+    sources: set[Path] = set()
+    for pattern in patterns:
+        folder = _REPO_ROOT / pattern
+        matches = sorted(folder.rglob("*.py")) if folder.is_dir() else sorted(_REPO_ROOT.glob(pattern))
+        if not matches:
+            raise ValueError(f"no project source matches {pattern!r}")
+        sources.update(matches)
+    for source in sorted(sources):
+        digest.update(str(source.relative_to(_REPO_ROOT)).encode())
+        digest.update(source.read_bytes())
+    return digest.hexdigest()
+
+
+@lru_cache(maxsize=1)
+def code_version() -> str:
+    """Return ``git describe`` of the checkout, else the installed package version."""
+    try:
+        out = subprocess.run(
+            ["git", "describe", "--always", "--dirty", "--tags"],
+            cwd=_REPO_ROOT,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        )
+        return out.stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        try:
+            return metadata.version("claychain")
+        except metadata.PackageNotFoundError:
+            return "unknown"
+
+
+def inputs_record(paths: Iterable[str | Path]) -> str:
+    """Return a JSON list of ``{"path", "sha256"}`` records for existing input files."""
+    records = [
+        {"path": str(p), "sha256": file_sha256(p)} for p in paths if Path(p).is_file()
+    ]
+    return json.dumps(records)

@@ -1,0 +1,39 @@
+"""Configuration validation: defaults filled in, errors that name the key."""
+
+import copy
+
+import pytest
+
+from shared.config import ConfigError, load_config, validate_config
+
+
+@pytest.fixture(scope="module")
+def default_config():
+    return load_config("config/config.yaml")
+
+
+def test_defaults_are_filled_in(default_config):
+    assert default_config["imaging"]["calibration"]["muscovite_density_kg_m3"] == 3900.0
+    assert default_config["imaging"]["calibration"]["air_density_kg_m3"] == 1.13
+
+
+@pytest.mark.parametrize(
+    ("edit", "key"),
+    [
+        (lambda c: c["samples"]["pellet"].update(voxel_size_m=0.0), "samples.pellet.voxel_size_m"),
+        (lambda c: c["samples"]["pellet"].update(voxel_size_m="big"), "samples.pellet.voxel_size_m"),
+        (lambda c: c["imaging"]["rev"].update(n_positions=1.5), "imaging.rev.n_positions"),
+        (lambda c: c["imaging"].update(colour="red"), "imaging.colour"),
+        (lambda c: c["samples"]["pellet"].update(source="jpeg"), "samples.pellet.source"),
+    ],
+)
+def test_errors_name_the_key(default_config, edit, key):
+    config = copy.deepcopy(default_config)
+    edit(config)
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+        validate_config(config)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(ConfigError, match="no such configuration file"):
+        load_config(tmp_path / "absent.yaml")

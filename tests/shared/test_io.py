@@ -1,0 +1,76 @@
+"""netCDF writer: round trip, contract checks, provenance and atomicity."""
+
+import json
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from shared.io import OutputError, read_dataset, write_dataset
+from shared.provenance import config_sha256, file_sha256
+
+
+def _dataset() -> xr.Dataset:
+    z = xr.Variable(("z",), np.linspace(0, 1e-3, 4), {"units": "m", "long_name": "height"})
+    return xr.Dataset(
+        {"porosity": (("z",), np.array([0.2, 0.25, np.nan, 0.3]),
+                      {"units": "1", "long_name": "porosity"})},
+        coords={"z": z},
+    )
+
+
+def test_round_trip_is_identical(tmp_path):
+    ds = _dataset()
+    path = write_dataset(ds, tmp_path / "a" / "out.nc", stage="imaging", title="test",
+                         config={"b": [1, 2], "a": True}, seed=4)
+    back = read_dataset(path, ["porosity"])
+    xr.testing.assert_identical(back.drop_attrs(deep=False), ds)
+    assert back.attrs["seed"] == 4
+    assert back.attrs["config_sha256"] == config_sha256({"a": True, "b": [1, 2]})
+    assert back.attrs["Conventions"] == "CF-1.11"
+
+
+def test_inputs_are_hashed(tmp_path):
+    source = tmp_path / "in.txt"
+    source.write_text("grey values")
+    path = write_dataset(_dataset(), tmp_path / "o.nc", stage="imaging", title="t", inputs=[source])
+    record = json.loads(read_dataset(path).attrs["inputs"])
+    assert record == [{"path": str(source), "sha256": file_sha256(source)}]
+
+
+def test_attributes_netcdf_cannot_hold_are_converted(tmp_path):
+    ds = _dataset()
+    ds.attrs.update(flag=True, nested={"k": 1}, nothing=None, words=["a", "b"])
+    back = read_dataset(write_dataset(ds, tmp_path / "o.nc", stage="micro", title="t"))
+    assert back.attrs["flag"] == 1
+    assert json.loads(back.attrs["nested"]) == {"k": 1}
+    assert "nothing" not in back.attrs
+    assert json.loads(back.attrs["words"]) == ["a", "b"]
+
+
+def test_variable_without_units_is_refused_and_nothing_written(tmp_path):
+    ds = _dataset()
+    del ds["porosity"].attrs["units"]
+    with pytest.raises(OutputError, match="'porosity' lacks attribute"):
+        write_dataset(ds, tmp_path / "o.nc", stage="imaging", title="t")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_failed_write_leaves_the_old_file_and_no_temporary(tmp_path):
+    path = write_dataset(_dataset(), tmp_path / "o.nc", stage="imaging", title="first")
+    bad = _dataset()
+    bad["text"] = (("z",), np.array([object()] * 4, dtype=object), {"units": "1", "long_name": "x"})
+    with pytest.raises(Exception):
+        write_dataset(bad, path, stage="imaging", title="second")
+    assert read_dataset(path).attrs["title"] == "first"
+    assert [p.name for p in tmp_path.iterdir()] == ["o.nc"]
+
+
+def test_unreadable_file_is_named(tmp_path):
+    junk = tmp_path / "junk.nc"
+    junk.write_bytes(b"not netcdf")
+    with pytest.raises(OutputError, match="junk.nc"):
+        read_dataset(junk)
+    with pytest.raises(OutputError, match="missing variable"):
+        read_dataset(write_dataset(_dataset(), tmp_path / "o.nc", stage="imaging", title="t"),
+                     ["permeability"])

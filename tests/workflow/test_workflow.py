@@ -1,0 +1,121 @@
+"""The Snakemake workflow end to end on a tiny configuration, in a temporary copy."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from shared.io import read_dataset
+
+ROOT = Path(__file__).resolve().parents[2]
+
+TINY = {
+    "samples": {"pellet": {"source": "phantom", "voxel_size_m": 3.0e-4}},
+    "phantom": {"shape": [40, 40, 40], "seed": 1},
+    "imaging": {"rev": {"n_sizes": 5, "n_positions": 16, "tolerance": 0.05}},
+    "micro": {"specimen_size_m": 7.0e-3, "n_points": 800},
+}
+
+
+def _workdir(tmp: Path, config: dict) -> Path:
+    shutil.copy(ROOT / "Snakefile", tmp / "Snakefile")
+    shutil.copytree(ROOT / "workflow", tmp / "workflow")
+    (tmp / "config").mkdir()
+    (tmp / "config" / "config.yaml").write_text(yaml.safe_dump(config))
+    return tmp
+
+
+def _snakemake(workdir: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "snakemake", "--cores", "2", *args],
+        cwd=workdir, capture_output=True, text=True, timeout=600,
+    )
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    workdir = _workdir(tmp_path_factory.mktemp("wf"), TINY)
+    result = _snakemake(workdir)
+    assert result.returncode == 0, result.stderr[-3000:]
+    return workdir
+
+
+def test_products_have_the_contracted_variables(finished):
+    porosity = read_dataset(finished / "results/porosity/pellet.nc", ["porosity", "density"])
+    rev = read_dataset(finished / "results/rev/pellet.nc",
+                       ["porosity_mean", "porosity_std", "interface_mean", "interface_std",
+                        "w_rev_porosity", "w_rev_interface", "chord_pore", "chord_solid",
+                        "R_p", "R_s"])
+    for ds in (porosity, rev):
+        assert ds.attrs["stage"] == "imaging"
+        assert len(ds.attrs["config_sha256"]) == 64
+        for name in ds.variables:
+            assert "units" in ds[name].attrs or name == "direction"
+    # micro spacing 7 mm / 800^(1/3) = 0.754 mm, i.e. blocks of 2.51 -> 3 voxels of 0.3 mm
+    assert porosity.attrs["block_voxels"] == 3
+    assert np.nanmean(porosity["porosity"].values) == pytest.approx(0.25, abs=0.05)
+    assert (finished / "results/porosity/pellet.png").stat().st_size > 10_000
+    assert (finished / "results/rev/pellet.png").stat().st_size > 10_000
+    assert (finished / "results/logs/imaging_rev/pellet.log").read_text().count("REV") == 1
+
+
+def test_forcerun_until_reruns_only_that_rule(finished):
+    before = {name: (finished / f"results/logs/imaging_{name}/pellet.log").stat().st_mtime_ns
+              for name in ("porosity", "rev")}
+    result = _snakemake(finished, "-R", "imaging_rev", "-U", "imaging_rev")
+    assert result.returncode == 0, result.stderr[-3000:]
+    after = {name: (finished / f"results/logs/imaging_{name}/pellet.log").stat().st_mtime_ns
+             for name in ("porosity", "rev")}
+    assert after["porosity"] == before["porosity"]
+    assert after["rev"] > before["rev"]
+    stats = result.stderr.split("Job stats:")[1].split("total")[0]
+    assert "imaging_rev" in stats and "imaging_porosity" not in stats
+
+
+def _fails_with(tmp: Path, config: dict, message: str) -> None:
+    workdir = _workdir(tmp, config)
+    result = _snakemake(workdir)
+    assert result.returncode != 0
+    logs = "".join(p.read_text() for p in (workdir / "results/logs").rglob("*.log")) if (
+        workdir / "results/logs").exists() else ""
+    assert message in result.stderr + logs
+    produced = [p for p in (workdir / "results").rglob("*.nc")] if (workdir / "results").exists() else []
+    assert not any(p.parent.name in ("porosity", "rev") for p in produced)
+
+
+def test_voxel_size_zero_is_a_config_error(tmp_path):
+    config = yaml.safe_load(yaml.safe_dump(TINY))
+    config["samples"]["pellet"]["voxel_size_m"] = 0
+    _fails_with(tmp_path, config, "samples.pellet.voxel_size_m")
+
+
+def test_unknown_key_is_a_config_error(tmp_path):
+    config = yaml.safe_load(yaml.safe_dump(TINY))
+    config["imaging"]["rev"]["windows"] = 4
+    _fails_with(tmp_path, config, "imaging.rev.windows")
+
+
+def test_missing_scan_is_named(tmp_path):
+    config = yaml.safe_load(yaml.safe_dump(TINY))
+    config["samples"]["pellet"] = {"source": "tiff", "path": str(tmp_path / "absent.tif"),
+                                   "voxel_size_m": 3e-4}
+    _fails_with(tmp_path, config, "absent.tif")
+
+
+def test_truncated_scan_is_named(tmp_path):
+    scan = tmp_path / "cut.tif"
+    import cv2
+
+    pages = [np.full((16, 16), 40000, np.uint16) for _ in range(8)]
+    cv2.imwritemulti(str(scan), pages)
+    scan.write_bytes(scan.read_bytes()[:600])
+    config = yaml.safe_load(yaml.safe_dump(TINY))
+    config["samples"]["pellet"] = {"source": "tiff", "path": str(scan), "voxel_size_m": 3e-4}
+    (tmp_path / "w").mkdir()
+    _fails_with(tmp_path / "w", config, "cut.tif")

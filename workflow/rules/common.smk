@@ -1,0 +1,61 @@
+# Shared helpers of the rules: validation, sample sheet, code hash, input functions.
+import sys
+
+from shared.config import ConfigError, load_schema, validate_config
+from shared.provenance import code_sha256
+
+try:
+    validate_config(
+        config, load_schema(workflow.source_path("../schemas/config.schema.yaml"))
+    )
+except ConfigError as err:
+    sys.exit(f"claychain: invalid configuration: {err}")
+
+SAMPLES = sorted(config["samples"])
+
+
+wildcard_constraints:
+    sample="|".join(SAMPLES),
+
+
+def code_hash(*packages):
+    """sha256 of our packages' sources, a param so that package edits rerun the rule."""
+    return code_sha256(*packages)
+
+
+def get_sample_config(wildcards):
+    """The configuration entry of a sample (a param, so that its edits rerun the rule)."""
+    return config["samples"][wildcards.sample]
+
+
+def get_scan(wildcards):
+    """The greyscale scan of a sample: its configured path, or the phantom's TIFF."""
+    entry = config["samples"][wildcards.sample]
+    if entry["source"] == "phantom":
+        return f"results/phantom/{wildcards.sample}.tif"
+    if not entry["path"]:
+        sys.exit(f"claychain: config key 'samples.{wildcards.sample}.path' is empty")
+    return entry["path"]
+
+
+def get_final_outputs():
+    """Every product of the default run."""
+    return expand(
+        [
+            "results/porosity/{sample}.nc",
+            "results/porosity/{sample}.png",
+            "results/rev/{sample}.nc",
+            "results/rev/{sample}.png",
+        ],
+        sample=SAMPLES,
+    )
+
+
+# The sources each stage's rules run; their hash is a param so that edits rerun the rules.
+IMAGING_CODE = code_hash(
+    "imaging/*.py",
+    "shared/io.py",
+    "shared/provenance.py",
+    "shared/figures.py",
+    "shared/config.py",
+)

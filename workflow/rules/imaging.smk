@@ -1,0 +1,59 @@
+# Imaging stage: CT greyscale -> calibrated density -> porosity grid; REV and chord lengths.
+
+
+rule imaging_phantom:
+    output:
+        "results/phantom/{sample}.tif",
+    params:
+        code=IMAGING_CODE,
+        phantom=config["phantom"],
+    conda:
+        "../envs/claychain.yaml"
+    log:
+        "results/logs/imaging_phantom/{sample}.log",
+    benchmark:
+        "results/benchmarks/imaging_phantom/{sample}.tsv"
+    script:
+        "../scripts/imaging_phantom.py"
+
+
+rule imaging_porosity:
+    input:
+        scan=get_scan,
+    output:
+        image="results/images/{sample}.nc",
+        porosity="results/porosity/{sample}.nc",
+        figure="results/porosity/{sample}.png",
+    params:
+        code=IMAGING_CODE,
+        sample=get_sample_config,
+        imaging=config["imaging"],
+        micro_spacing=[config["micro"]["specimen_size_m"], config["micro"]["n_points"]],
+    conda:
+        "../envs/claychain.yaml"
+    log:
+        "results/logs/imaging_porosity/{sample}.log",
+    benchmark:
+        "results/benchmarks/imaging_porosity/{sample}.tsv"
+    script:
+        "../scripts/imaging_porosity.py"
+
+
+rule imaging_rev:
+    input:
+        image="results/images/{sample}.nc",
+        porosity="results/porosity/{sample}.nc",
+    output:
+        rev="results/rev/{sample}.nc",
+        figure="results/rev/{sample}.png",
+    params:
+        code=IMAGING_CODE,
+        imaging=config["imaging"],
+    conda:
+        "../envs/claychain.yaml"
+    log:
+        "results/logs/imaging_rev/{sample}.log",
+    benchmark:
+        "results/benchmarks/imaging_rev/{sample}.tsv"
+    script:
+        "../scripts/imaging_rev.py"

@@ -1,0 +1,16 @@
+"""Snakemake glue: REV and chord-length analyses."""
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
+import _logging  # noqa: E402
+
+from imaging import run  # noqa: E402
+
+sm = snakemake  # noqa: F821
+_logging.setup(sm.log[0])
+run.rev(
+    sm.config, sm.wildcards.sample, sm.input.image, sm.input.porosity, sm.output.rev,
+    sm.output.figure, rule=sm.rule,
+)
