@@ -1,0 +1,91 @@
+"""Spatial hash of the particle bed, periodic in x and y, numba kernels.
+
+The box is cut into cells of edge at least the largest particle's bounding diameter;
+each particle is listed in the cell that holds its centre (a linked list per cell:
+``head`` holds the first particle, ``link`` the next one). A query visits the cells
+that an axis-aligned box can touch, with unwrapped x and y cell indices so that each
+visited cell also fixes the periodic image (the shift added to stored centres). The
+cost of a query depends on the local density only, not on the size of the bed.
+
+A height map (highest particle top over each column of cells) tells where a new
+particle can enter the box without touching anything.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def insert(index, centers, top, ext, head, link, heights, cell_xy, cell_z):
+    """List particle ``index`` in its cell and raise the height map over its footprint."""
+    nx, ny, nz = head.shape
+    ix = int(np.floor(centers[index, 0] / cell_xy)) % nx
+    iy = int(np.floor(centers[index, 1] / cell_xy)) % ny
+    iz = min(int(np.floor(centers[index, 2] / cell_z)), nz - 1)
+    link[index] = head[ix, iy, iz]
+    head[ix, iy, iz] = index
+    x0 = int(np.floor((centers[index, 0] - ext[0]) / cell_xy))
+    x1 = int(np.floor((centers[index, 0] + ext[0]) / cell_xy))
+    y0 = int(np.floor((centers[index, 1] - ext[1]) / cell_xy))
+    y1 = int(np.floor((centers[index, 1] + ext[1]) / cell_xy))
+    for jx in range(x0, x1 + 1):
+        for jy in range(y0, y1 + 1):
+            kx = jx % nx
+            ky = jy % ny
+            heights[kx, ky] = max(heights[kx, ky], top)
+
+
+@njit(cache=True)
+def entry_altitude(center, ext, heights, cell_xy):
+    """Highest bed top [m] under the footprint of a particle centred at ``center``."""
+    nx, ny = heights.shape
+    x0 = int(np.floor((center[0] - ext[0]) / cell_xy))
+    x1 = int(np.floor((center[0] + ext[0]) / cell_xy))
+    y0 = int(np.floor((center[1] - ext[1]) / cell_xy))
+    y1 = int(np.floor((center[1] + ext[1]) / cell_xy))
+    best = 0.0
+    for jx in range(x0, x1 + 1):
+        for jy in range(y0, y1 + 1):
+            best = max(best, heights[jx % nx, jy % ny])
+    return best
+
+
+@njit(cache=True)
+def gather(lo, hi, centers, exts, head, link, box_width, cell_xy, cell_z, margin, found, shifts):
+    """Particles whose bounding box meets the box [lo, hi] (x, y unwrapped) [m].
+
+    Writes particle indices into ``found`` and the periodic shift of each (x, y) [m]
+    into ``shifts``; returns how many were found (at most ``found.size``).
+    """
+    nx, ny, nz = head.shape
+    x0 = int(np.floor((lo[0] - margin) / cell_xy))
+    x1 = int(np.floor((hi[0] + margin) / cell_xy))
+    y0 = int(np.floor((lo[1] - margin) / cell_xy))
+    y1 = int(np.floor((hi[1] + margin) / cell_xy))
+    z0 = max(int(np.floor((lo[2] - margin) / cell_z)), 0)
+    z1 = min(int(np.floor((hi[2] + margin) / cell_z)), nz - 1)
+    count = 0
+    for jx in range(x0, x1 + 1):
+        sx = np.floor(jx / nx) * box_width
+        for jy in range(y0, y1 + 1):
+            sy = np.floor(jy / ny) * box_width
+            for jz in range(z0, z1 + 1):
+                j = head[jx % nx, jy % ny, jz]
+                while j >= 0:
+                    if (
+                        centers[j, 0] + sx + exts[j, 0] >= lo[0]
+                        and centers[j, 0] + sx - exts[j, 0] <= hi[0]
+                        and centers[j, 1] + sy + exts[j, 1] >= lo[1]
+                        and centers[j, 1] + sy - exts[j, 1] <= hi[1]
+                        and centers[j, 2] + exts[j, 2] >= lo[2]
+                        and centers[j, 2] - exts[j, 2] <= hi[2]
+                        and count < found.size
+                    ):
+                        found[count] = j
+                        shifts[count, 0] = sx
+                        shifts[count, 1] = sy
+                        count += 1
+                    j = link[j]
+    return count

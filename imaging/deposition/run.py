@@ -1,0 +1,218 @@
+"""Entry point of the packing stage: build a bed from a config section, measure it, write it.
+
+``run(section, "results/packing/<name>.nc")`` samples the population, deposits it, runs
+the analyses of :mod:`.measures`, the REV and chord-length analyses of the voxel image
+(:mod:`imaging.rev`, :mod:`imaging.chords`), writes the netCDF file of DESIGN.md section 2
+through :func:`shared.io.write_dataset`, and a figure ``<name>.png`` beside it.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from imaging.deposition.config import parameters_of, population_of, resolve
+from imaging.deposition.deposition import Packing, deposit
+from imaging.deposition.figure import packing_figure
+from imaging.deposition.measures import PackingMeasures, measure_packing
+from imaging.deposition.population import sample_semi_axes
+from imaging.deposition.voxels import VoxelImage
+from shared.io import write_dataset
+
+__all__ = ["run", "packing_dataset"]
+
+LOGGER = logging.getLogger("imaging.deposition")
+
+_FERRAGE = "E. Ferrage et al., Phys. Rev. E 91, 062210 (2015), doi:10.1103/PhysRevE.91.062210"
+
+
+def _var(dims: tuple[str, ...], data: Any, units: str, long_name: str) -> xr.Variable:
+    return xr.Variable(dims, np.asarray(data), {"units": units, "long_name": long_name})
+
+
+def _particle_variables(packing: Packing, measures: PackingMeasures) -> dict[str, xr.Variable]:
+    p = ("particle",)
+    return {
+        "center": _var(p + ("xyz",), packing.centers, "m", "particle barycentre"),
+        "semi_axes": _var(p + ("abc",), packing.semi_axes, "m",
+                          "semi-axes l_a, l_b and half thickness h/2"),
+        "euler": _var(p + ("angle",), packing.euler, "rad", "ZZZ Euler angles (phi, theta, psi)"),
+        "normal": _var(p + ("xyz",), packing.normals, "1", "upward unit normal of the basal faces"),
+        "volume": _var(p, packing.volumes, "m3", "particle volume"),
+        "in_zone": _var(p, measures.in_zone.astype(np.uint8), "1",
+                        "1 if the barycentre lies in the linear zone (z_min, z_max]"),
+        "accepted_moves": _var(p, packing.accepted_moves, "1", "accepted settling moves"),
+        "settle_time": _var(p, packing.wall_time, "s", "wall time spent settling the particle"),
+    }
+
+
+def _measure_variables(measures: PackingMeasures) -> dict[str, xr.Variable]:
+    scalars = {
+        "porosity": (measures.porosity, "1", "porosity of the linear zone"),
+        "S": (measures.S, "1", "scalar order parameter of the Q tensor"),
+        "S_part": (measures.S_part, "1", "order parameter <P2(cos theta)> per particle"),
+        "S_vol": (measures.S_vol, "1", "order parameter <P2(cos theta)> weighted by volume"),
+        "eta": (measures.eta, "1", "biaxiality of the Q tensor"),
+        "beta": (np.degrees(measures.beta), "degree", "angle between director and z axis"),
+        "A_B": (measures.A_B, "m2 g-1", "specific basal surface area"),
+        "A_L": (measures.A_L, "m2 g-1", "specific lateral surface area"),
+        "A_T": (measures.A_T, "m2 g-1", "specific total surface area"),
+        "A_Bcont": (measures.A_Bcont, "m2 g-1", "specific basal surface area in contact"),
+        "overlap_fraction": (measures.overlap_fraction, "1",
+                             "share of solid voxels covered by two or more particles"),
+        "z_min": (measures.z_min, "m", "bottom of the linear zone"),
+        "z_max": (measures.z_max, "m", "top of the linear zone"),
+        "voxel_size": (measures.image.voxel_size, "m", "voxel edge of the image"),
+    }
+    out = {name: _var((), value, units, text) for name, (value, units, text) in scalars.items()}
+    out["porosity_profile"] = _var(("zbin",), measures.porosity_profile, "1",
+                                   "porosity per slice of barycentre altitude")
+    out["order_profile"] = _var(("zbin",), measures.order_profile, "1",
+                                "S_part per slice of barycentre altitude")
+    out["orientation_distribution"] = _var(("theta",), measures.orientation_distribution, "rad-1",
+                                           "volume orientation distribution F_v")
+    out["rocking_curve"] = _var(("theta",), measures.rocking_curve, "sr-1",
+                                "calculated rocking curve I_c with A = 1")
+    return out
+
+
+def _image_analysis_variables(
+    image: VoxelImage, rng: np.random.Generator
+) -> tuple[dict[str, xr.Variable], dict[str, xr.Variable]]:
+    """REV (imaging.rev) and chord-length (imaging.chords) analyses of the pore image,
+    as (data variables, coordinates); empty when those modules are missing."""
+    try:
+        from imaging.chords import chord_lengths
+        from imaging.rev import rev_analysis
+    except ImportError as err:
+        LOGGER.warning("REV and chord analyses skipped: %s", err)
+        return {}, {}
+    pore = ~image.solid
+    if min(pore.shape) < 8:
+        LOGGER.warning("REV and chord analyses skipped: image %s too thin", pore.shape)
+        return {}, {}
+    rev = rev_analysis(pore.astype(np.float32), image.voxel_size, rng, binary=pore)
+    chords = chord_lengths(pore, image.voxel_size)
+    cd = ("direction", "chord_length")
+    return {
+        "rev_porosity_std": _var(("window",), rev.porosity_std, "1",
+                                 "std of porosity over random windows"),
+        "rev_interface_std": _var(("window",), rev.interface_std, "m-1",
+                                  "std of interface density over random windows"),
+        "w_rev_porosity": _var((), rev.w_rev_porosity, "m", "REV edge for porosity"),
+        "w_rev_interface": _var((), rev.w_rev_interface, "m", "REV edge for interface density"),
+        "chord_pore": _var(cd, chords.f_pore, "m-1", "pore chord length distribution"),
+        "chord_solid": _var(cd, chords.f_solid, "m-1", "solid chord length distribution"),
+        "mean_chord_pore": _var(("direction",), chords.mean_pore, "m", "mean pore chord"),
+        "mean_chord_solid": _var(("direction",), chords.mean_solid, "m", "mean solid chord"),
+        "R_p": _var((), chords.R_p, "1", "pore chord anisotropy l_z / l_xy"),
+        "R_s": _var((), chords.R_s, "1", "solid chord anisotropy l_z / l_xy"),
+    }, {
+        "window": _var(("window",), rev.window * image.voxel_size, "m", "REV window edge"),
+        "chord_length": _var(("chord_length",), chords.length, "m", "chord length"),
+        "direction": xr.Variable(("direction",), list(chords.direction)),
+    }
+
+
+def packing_dataset(
+    packing: Packing, measures: PackingMeasures, store_image: bool = False
+) -> xr.Dataset:
+    """The packing file's dataset (DESIGN.md section 2).
+
+    Parameters
+    ----------
+    packing : Packing
+    measures : PackingMeasures
+    store_image : bool
+        Also store the solid image ``solid(vz, vy, vx)``.
+
+    Returns
+    -------
+    xarray.Dataset
+    """
+    edges = measures.edges
+    coords = {
+        "particle": _var(("particle",), np.arange(packing.centers.shape[0]), "1",
+                         "particle index in order of deposition"),
+        "xyz": xr.Variable(("xyz",), ["x", "y", "z"]),
+        "abc": xr.Variable(("abc",), ["a", "b", "c"]),
+        "angle": xr.Variable(("angle",), ["phi", "theta", "psi"]),
+        "zbin": _var(("zbin",), 0.5 * (edges[:-1] + edges[1:]), "m", "slice centre altitude"),
+        "theta": _var(("theta",), measures.theta, "rad", "angle of the normal to z"),
+    }
+    data = {**_particle_variables(packing, measures), **_measure_variables(measures)}
+    if store_image:
+        image = measures.image
+        n = image.counts.shape
+        l_v = image.voxel_size
+        coords["vz"] = _var(("vz",), image.z_origin + (np.arange(n[0]) + 0.5) * l_v, "m", "voxel z")
+        coords["vy"] = _var(("vy",), (np.arange(n[1]) + 0.5) * l_v, "m", "voxel y")
+        coords["vx"] = _var(("vx",), (np.arange(n[2]) + 0.5) * l_v, "m", "voxel x")
+        data["solid"] = _var(("vz", "vy", "vx"), image.solid.astype(np.uint8), "1",
+                             "1 where the voxel centre lies in a particle")
+    ds = xr.Dataset(data, coords=coords)
+    ds["zbin"].attrs["slice_width"] = float(edges[1] - edges[0])
+    ds.attrs.update(box_width=packing.box_width, contact_distance=packing.contact_distance,
+                    n_particles=int(packing.centers.shape[0]))
+    return ds
+
+
+def run(config: Mapping[str, Any], output_path: str | Path) -> xr.Dataset:
+    """Build, measure and write a virtual clay porous medium.
+
+    Parameters
+    ----------
+    config : mapping
+        The packing section (keys and defaults in :mod:`imaging.deposition.config`).
+    output_path : str or Path
+        Target ``.nc`` file; the figure is written beside it with suffix ``.png``.
+
+    Returns
+    -------
+    xarray.Dataset
+        The written dataset.
+
+    Raises
+    ------
+    ValueError
+        For an invalid section, naming the key; ``box_width_m`` also when the largest
+        sampled particle (2 l_a) does not fit in the box.
+    """
+    section = resolve(config)
+    population = population_of(section)
+    rng = np.random.default_rng(section["seed"])
+    semi_axes = sample_semi_axes(population, section["n_particles"], rng)
+    widest = 2.0 * float(semi_axes[:, 0].max())
+    if widest >= section["box_width_m"]:
+        raise ValueError(f"box_width_m: the largest sampled particle (2 l_a = {widest:.3g} m) "
+                         "does not fit in the box; widen it or set basal_surface_max_m2")
+    packing = deposit(semi_axes, parameters_of(section), rng)
+    diameter = population.median_diameter
+    measures = measure_packing(
+        packing,
+        profile_bin_width=section["profile_bin_width_m"] or 0.5 * diameter,
+        contact_grid=section["contact_grid_m"] or diameter / 40.0,
+        voxel_resolution=section["voxel_resolution"],
+        rocking_curve_bins=section["rocking_curve_bins"],
+        density=section["density_kg_m3"],
+        z_min=section["z_min_m"],
+        z_max=section["z_max_m"],
+        zone_tolerance=section["zone_tolerance"],
+    )
+    ds = packing_dataset(packing, measures, bool(section["store_voxel_image"]))
+    if section["image_analyses"]:
+        data, coords = _image_analysis_variables(measures.image,
+                                                 np.random.default_rng([section["seed"], 1]))
+        ds = ds.assign_coords(coords).assign(data)
+    path = Path(output_path)
+    write_dataset(ds, path, stage="packing", title=f"Sequential deposition packing {path.stem}",
+                  config=section, seed=int(section["seed"]), references=_FERRAGE)
+    packing_figure(ds, measures.image, path.with_suffix(".png"))
+    LOGGER.info("packing %s: porosity %.3f, S_part %.3f, f_o %.2e", path.stem, measures.porosity,
+                measures.S_part, measures.overlap_fraction)
+    return ds

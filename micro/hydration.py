@@ -1,0 +1,431 @@
+"""Coupled hydration of a compacted bentonite pellet (Caulk 2022, Chap. 3), quasi-statically.
+
+The specimen is a cube of DEM points whose Delaunay tetrahedra are partially saturated
+finite volumes. Boundary suction is lowered through a list of checkpoints. At each
+checkpoint the model advances in staggered steps until hydraulic balance:
+
+1. one implicit flow step (water pressure, then explicit saturation; factor reused);
+2. point suction = volume-weighted suction of the incident cells, swelling strain
+   and radii r = r0 (1 + eps_v)^(1/3);
+3. hydro-mechanical forces and DEM relaxation to mechanical balance (unbalanced force
+   below a tolerance): the mechanics is quasi-static at the flow time scale;
+4. cell geometry from the moved points with the same connectivity, porosity from the
+   conserved solid volume of each cell; a full Delaunay remesh when a cell inverts or
+   degenerates, with solid and water volumes conserved across it;
+5. the crack model: bonds that have separated, their aperture, imbibed or gas-filled
+   state, and their effect on the facet conductances.
+
+Flow time steps start at ``initial_time_step`` after each checkpoint and grow
+geometrically, since the suction front slows down as it diffuses inwards. Yade instead
+lowers the boundary suction by 10 Pa per 1e-9 s DEM step and stays far from balance
+(REFERENCE_NOTES section 10): the staggered quasi-static scheme is what lets the
+specimen reach each checkpoint's state.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+from scipy.spatial import cKDTree
+
+from micro.cracks import CrackNetwork, crack_conductivity, crack_network
+from micro.forces import hydromechanical_forces, point_suction
+from shared.dem.integrator import stable_time_step, step, unbalanced_force
+from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.state import DEMState
+from shared.dem.walls import Walls
+from shared.fv import FlowPattern, facet_conductance, flow_pattern, transient_step
+from shared.materials import DEFAULT_CLAY, ClayParameters
+from shared.mesh import WALLS, Mesh, boundary_cell_mask, delaunay_tetrahedra, mesh_from_tetrahedra
+from shared.retention import saturation as retention_saturation
+from shared.solver import CholeskySolver
+from shared.swelling import swollen_radius, volumetric_strain
+
+__all__ = ["HydrationSettings", "PelletState", "DivergenceError", "relax", "advance_to_balance"]
+
+FloatArray = npt.NDArray[np.float64]
+log = logging.getLogger("micro.hydration")
+
+
+class DivergenceError(RuntimeError):
+    """The coupled solution became non-finite or left its physical range."""
+
+
+@dataclass(frozen=True)
+class HydrationSettings:
+    """Numerical settings of the staggered scheme.
+
+    Attributes
+    ----------
+    initial_time_step
+        First flow time step after a change of boundary suction [s].
+    time_step_growth
+        Factor between consecutive flow time steps [1].
+    max_flow_steps
+        Flow steps allowed per checkpoint before giving up on balance [1].
+    hydraulic_tolerance
+        Balance when every cell's suction is within this fraction of the boundary's [1].
+    unbalanced_force_tolerance
+        Mechanical balance when the unbalanced-force ratio falls below this [1].
+    max_relaxation_steps
+        DEM steps allowed per relaxation [1].
+    check_interval
+        DEM steps between two evaluations of the unbalanced force [1].
+    ramp_steps
+        DEM steps over which a change of hydro-mechanical load is applied [1].
+    porosity_bounds
+        Porosity is clamped to this range (Yade's minPoroClamp, maxPoroClamp): the DEM
+        does not know that the solid is incompressible [1].
+    cracks
+        Whether the crack model modifies conductances.
+    """
+
+    initial_time_step: float = 20.0
+    time_step_growth: float = 1.6
+    max_flow_steps: int = 40
+    hydraulic_tolerance: float = 0.02
+    unbalanced_force_tolerance: float = 0.01
+    max_relaxation_steps: int = 3000
+    check_interval: int = 10
+    ramp_steps: int = 100
+    porosity_bounds: tuple[float, float] = (0.01, 0.95)
+    cracks: bool = True
+
+
+@dataclass
+class PelletState:
+    """Everything the coupled model advances (arrays per cell unless stated).
+
+    Attributes
+    ----------
+    dem
+        The point assembly (positions, radii, bonds, ...).
+    mesh
+        Current finite-volume mesh.
+    tetrahedra, neighbours
+        The Delaunay connectivity as :func:`shared.mesh.delaunay_tetrahedra` gave it
+        (before reorientation), reused for geometry updates with fixed connectivity.
+    pressure
+        Water pressure [Pa] (negative: suction).
+    saturation
+        Water saturation [1].
+    solid_volume
+        Solid volume of each cell, conserved [m3].
+    porosity
+        Current porosity, 1 - solid_volume / volume [1].
+    walls
+        Wall box (confined runs) or None (free swelling).
+    time
+        Simulated hydration time [s].
+    n_remesh
+        Number of full Delaunay remeshes so far.
+    """
+
+    dem: DEMState
+    mesh: Mesh
+    tetrahedra: npt.NDArray[np.int64]
+    neighbours: npt.NDArray[np.int64]
+    pressure: FloatArray
+    saturation: FloatArray
+    solid_volume: FloatArray
+    porosity: FloatArray
+    walls: Walls | None = None
+    time: float = 0.0
+    n_remesh: int = 0
+    cracks: CrackNetwork | None = field(default=None, repr=False)
+    hydraulic_forces: FloatArray | None = field(default=None, repr=False)
+
+    def water_volume(self) -> float:
+        """Water volume sum n V S [m3]."""
+        return float((self.porosity * self.mesh.volumes * self.saturation).sum())
+
+    def mean_saturation(self) -> float:
+        """Pore-volume weighted saturation [1]."""
+        pores = self.porosity * self.mesh.volumes
+        return float((pores * self.saturation).sum() / pores.sum())
+
+
+def _check_finite(state: PelletState, where: str) -> None:
+    for name in ("pressure", "saturation", "porosity"):
+        values = getattr(state, name)
+        if not np.all(np.isfinite(values)):
+            raise DivergenceError(f"non-finite {name} after {where}")
+    if not np.all(np.isfinite(state.dem.positions)):
+        raise DivergenceError(f"non-finite point positions after {where}")
+
+
+def loaded_time_step(
+    state: DEMState, forces: FloatArray, parameters: DEMParameters = DEFAULT_DEM
+) -> float:
+    """Stable time step of a contact carrying the largest point force [s].
+
+    Hertz contacts have no stiffness at zero overlap, so the time step of an assembly
+    whose bonds barely touch is unbounded until the load has compressed them; this
+    bound uses the tangent stiffness k = 3/2 F / delta of a contact carrying the
+    largest force F, delta = (F / (4/3 E* sqrt(R*)))^(2/3), R* = r / 2, for twelve
+    such contacts on the lightest point.
+    """
+    largest = float(np.sqrt((forces**2).sum(axis=1)).max(initial=0.0))
+    if largest == 0.0:
+        return float("inf")
+    radius = float(state.reference_radii.min())
+    overlap = (largest / (4.0 / 3.0 * parameters.effective_modulus * np.sqrt(0.5 * radius))) ** (2 / 3)
+    stiffness = 1.5 * largest / overlap
+    mass = float(state.masses.min())
+    return float(parameters.time_step_safety * 2.0 / np.sqrt(12.0 * stiffness / mass))
+
+
+def relax(
+    state: PelletState,
+    external_forces: FloatArray,
+    settings: HydrationSettings,
+    parameters: DEMParameters = DEFAULT_DEM,
+    previous_forces: FloatArray | None = None,
+) -> tuple[int, float]:
+    """Run damped DEM steps until the unbalanced-force ratio is below tolerance.
+
+    The external forces move from ``previous_forces`` to ``external_forces`` over the
+    first ``settings.ramp_steps`` steps, so that a new load is not applied as a shock.
+
+    Returns
+    -------
+    steps : int
+        DEM steps taken.
+    unbalanced : float
+        Final unbalanced-force ratio [1].
+    """
+    dem = state.dem
+    start = external_forces if previous_forces is None else previous_forces
+    cap = loaded_time_step(dem, np.maximum(np.abs(external_forces), np.abs(start)), parameters)
+    time_step = min(stable_time_step(dem, parameters, state.walls), cap)
+    unbalanced = float("inf")
+    for count in range(1, settings.max_relaxation_steps + 1):
+        weight = min(count / settings.ramp_steps, 1.0)
+        load = start + weight * (external_forces - start)
+        report = step(dem, time_step, parameters, load, state.walls)
+        if count % settings.check_interval == 0:
+            unbalanced = unbalanced_force(report.forces, report.normal_forces, dem.fixed)
+            if weight == 1.0 and unbalanced < settings.unbalanced_force_tolerance:
+                return count, unbalanced
+            time_step = min(stable_time_step(dem, parameters, state.walls), cap)
+    return settings.max_relaxation_steps, unbalanced
+
+
+def triangulate(
+    positions: FloatArray, flat_ratio: float = 1e-9
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """Delaunay connectivity of the points without its flat tetrahedra.
+
+    Faces of a loaded specimen flatten, and four nearly coplanar hull points give
+    slivers of no volume; they are dropped (their neighbours see a boundary there).
+
+    Returns
+    -------
+    tetrahedra, neighbours : ndarray of int64, shape (n_cells, 4)
+        As :func:`shared.mesh.delaunay_tetrahedra`, with -1 for no neighbour.
+    """
+    _, tetrahedra, neighbours = delaunay_tetrahedra(positions)
+    corners = positions[tetrahedra]
+    edges = corners[:, 1:] - corners[:, :1]
+    volumes = np.abs(np.einsum("ij,ij->i", edges[:, 0], np.cross(edges[:, 1], edges[:, 2]))) / 6
+    keep = volumes > flat_ratio * volumes.mean()
+    renumber = np.full(tetrahedra.shape[0] + 1, -1, dtype=np.int64)
+    renumber[:-1][keep] = np.arange(int(keep.sum()))
+    return tetrahedra[keep], renumber[neighbours[keep]]
+
+
+def _remap(old: Mesh, new: Mesh, values: FloatArray) -> FloatArray:
+    """Cell values of ``old`` at the centroids of ``new`` (nearest old centroid)."""
+    _, nearest = cKDTree(old.centroids).query(new.centroids)
+    return values[nearest]
+
+
+def update_geometry(
+    state: PelletState,
+    porosity_bounds: tuple[float, float],
+    material: ClayParameters = DEFAULT_CLAY,
+) -> bool:
+    """Recompute cell geometry and porosity from the moved points; remesh if needed.
+
+    With fixed connectivity the solid volume of each cell is conserved exactly (the
+    porosity is clamped to ``porosity_bounds``). A cell that inverts or degenerates
+    triggers a full Delaunay remesh, which maps porosity and saturation by nearest
+    centroid, then rescales both so that the total solid volume and the total water
+    volume are unchanged.
+
+    Returns
+    -------
+    bool
+        Whether a full remesh happened (the flow pattern must then be rebuilt).
+    """
+    positions = state.dem.positions
+    try:
+        mesh = mesh_from_tetrahedra(positions, state.tetrahedra, state.neighbours)
+        keep = bool(np.all(mesh.volumes > 0))
+    except ValueError:
+        keep = False
+    if keep:
+        state.mesh = mesh
+        state.porosity = np.clip(1.0 - state.solid_volume / mesh.volumes, *porosity_bounds)
+        return False
+    solid_total, water_total = state.solid_volume.sum(), state.water_volume()
+    tetrahedra, neighbours = triangulate(positions)
+    new = mesh_from_tetrahedra(positions, tetrahedra, neighbours)
+    porosity = _remap(state.mesh, new, state.porosity)
+    solid = (1.0 - porosity) * new.volumes
+    solid *= solid_total / solid.sum()
+    state.porosity = np.clip(1.0 - solid / new.volumes, *porosity_bounds)
+    saturation = _remap(state.mesh, new, state.saturation)
+    saturation *= water_total / float((state.porosity * new.volumes * saturation).sum())
+    state.saturation = np.clip(saturation, material.residual_saturation, material.saturated_saturation)
+    state.pressure = _remap(state.mesh, new, state.pressure)
+    state.solid_volume = solid
+    state.mesh, state.tetrahedra, state.neighbours = new, tetrahedra, neighbours
+    state.n_remesh += 1
+    return True
+
+
+@dataclass
+class FlowSystem:
+    """Boundary cells, sparsity pattern and factor-reusing solver of the current mesh."""
+
+    dirichlet: npt.NDArray[np.bool_]
+    pattern: FlowPattern
+    solver: CholeskySolver
+
+    @classmethod
+    def for_mesh(cls, mesh: Mesh) -> FlowSystem:
+        """All six walls impose the boundary suction (thesis Sec. 3.5.1)."""
+        dirichlet = boundary_cell_mask(mesh, WALLS)
+        return cls(dirichlet, flow_pattern(mesh, dirichlet), CholeskySolver())
+
+
+def conductances(
+    state: PelletState, phase: str, material: ClayParameters, cracks: bool
+) -> FloatArray:
+    """Facet conductances of a phase, with the crack model's changes when enabled."""
+    base = facet_conductance(state.mesh, state.saturation, state.porosity, phase, material)
+    if not cracks or state.cracks is None or state.cracks.bonds.size == 0:
+        return base
+    change = crack_conductivity(state.cracks, state.mesh.facet_lengths, material)
+    if phase == "water":
+        return change.water_scale * base + change.water_added
+    return change.gas_scale * base + change.gas_added
+
+
+def update_cracks(state: PelletState, material: ClayParameters) -> None:
+    """Find the open bonds on mesh edges and their imbibed or gas-filled state."""
+    state.cracks = crack_network(
+        state.dem.bonds, state.dem.positions, state.dem.radii, state.mesh.facet_vertices,
+        state.mesh.facet_cells, state.mesh.centroids, np.maximum(-state.pressure, 0.0),
+        material,
+    )
+
+
+def membrane_forces(positions: FloatArray, stress: float, layer: float) -> FloatArray:
+    """Inward forces of a uniform normal stress on the six faces of the point cloud [N].
+
+    Each face's load, ``stress`` times its area (from the points' bounding box), is
+    shared equally by the points within ``layer`` of that face, as a flexible membrane
+    would; points on an edge or corner take a share from each of their faces.
+
+    Parameters
+    ----------
+    positions
+        (n, 3) point centres [m].
+    stress
+        Compressive normal stress [Pa].
+    layer
+        Thickness of the loaded outer layer [m].
+    """
+    forces = np.zeros_like(positions)
+    lower, upper = positions.min(axis=0), positions.max(axis=0)
+    size = upper - lower
+    for axis in range(3):
+        area = float(np.prod(np.delete(size, axis)))
+        for side, (plane, sign) in enumerate(((lower[axis], 1.0), (upper[axis], -1.0))):
+            distance = positions[:, axis] - plane if side == 0 else plane - positions[:, axis]
+            loaded = distance <= layer
+            forces[loaded, axis] += sign * stress * area / loaded.sum()
+    return forces
+
+
+def swell(state: PelletState, material: ClayParameters) -> FloatArray:
+    """Set point radii from the suction of their cells; return the hydro-mechanical forces.
+
+    The exterior chi p on each hull triangle is taken equal to that of the boundary
+    cell it closes, so the facet forces carry only the jumps of S p between cells; the
+    pull of the boundary suction on the hull (Bishop stress S_b s_b, Yade's hull
+    forces with air outside) is applied instead as a uniform membrane stress on the
+    outer layer of points. On a jittered cloud the hull has few large triangles, and
+    hull forces would concentrate the whole face load on a handful of points.
+    """
+    mesh = state.mesh
+    suction = point_suction(mesh.tetrahedra, mesh.volumes, np.maximum(-state.pressure, 0.0),
+                            state.dem.n_points)
+    state.dem.radii[:] = swollen_radius(state.dem.reference_radii, volumetric_strain(suction, material))
+    bishop = state.saturation * state.pressure
+    facets = hydromechanical_forces(mesh, state.dem.positions, state.dem.radii, state.pressure,
+                                    state.saturation, exterior_pressure=bishop[mesh.boundary_cells])
+    boundary = mesh.boundary_cells
+    weights = mesh.boundary_areas
+    boundary_stress = -float((bishop[boundary] * weights).sum() / weights.sum())
+    layer = float(state.dem.reference_radii.mean())
+    return facets + membrane_forces(state.dem.positions, max(boundary_stress, 0.0), layer)
+
+
+def advance_to_balance(
+    state: PelletState,
+    system: FlowSystem,
+    boundary_suction: float,
+    settings: HydrationSettings,
+    material: ClayParameters = DEFAULT_CLAY,
+    parameters: DEMParameters = DEFAULT_DEM,
+) -> tuple[FlowSystem, dict[str, float]]:
+    """Impose a boundary suction and advance the coupled model to hydraulic balance.
+
+    Returns
+    -------
+    system : FlowSystem
+        The flow system, rebuilt if the mesh was remeshed.
+    diagnostics : dict
+        ``flow_steps``, ``dem_steps``, ``unbalanced_force``, ``suction_misfit`` (largest
+        relative departure of a cell's suction from the boundary's), ``balanced`` (1/0).
+    """
+    time_step = settings.initial_time_step
+    dem_steps, unbalanced, misfit = 0, float("nan"), float("inf")
+    flow_steps = 0
+    for flow_steps in range(1, settings.max_flow_steps + 1):
+        imposed = np.full(state.mesh.n_cells, -boundary_suction)
+        state.saturation[system.dirichlet] = retention_saturation(
+            boundary_suction, state.porosity[system.dirichlet], material
+        )
+        conductance = conductances(state, "water", material, settings.cracks)
+        result = transient_step(state.mesh, system.pattern, system.solver, state.pressure,
+                                state.saturation, state.porosity, conductance, imposed,
+                                time_step, material)
+        state.pressure, state.saturation = result.pressure, result.saturation
+        state.time += time_step
+        _check_finite(state, f"flow step at t = {state.time:.3g} s")
+        forces = swell(state, material)
+        taken, unbalanced = relax(state, forces, settings, parameters, state.hydraulic_forces)
+        state.hydraulic_forces = forces
+        dem_steps += taken
+        if update_geometry(state, settings.porosity_bounds, material):
+            system = FlowSystem.for_mesh(state.mesh)
+        _check_finite(state, "mechanical relaxation")
+        update_cracks(state, material)
+        misfit = float(np.abs(-state.pressure / boundary_suction - 1.0).max())
+        if misfit < settings.hydraulic_tolerance:
+            break
+        time_step *= settings.time_step_growth
+    return system, {
+        "flow_steps": float(flow_steps),
+        "dem_steps": float(dem_steps),
+        "unbalanced_force": unbalanced,
+        "suction_misfit": misfit,
+        "balanced": float(misfit < settings.hydraulic_tolerance),
+    }

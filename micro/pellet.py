@@ -1,0 +1,196 @@
+"""Set-up of the pellet specimen and the measurements taken at each suction checkpoint."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import xarray as xr
+
+from micro.fabric import crack_fabric
+from micro.hydration import PelletState, conductances, update_cracks
+from micro.permeability import permeability_tensor_axes
+from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.points import cube_points
+from shared.dem.state import new_state
+from shared.dem.walls import walls_around
+from shared.materials import DEFAULT_CLAY, ClayParameters
+from shared.mesh import delaunay_tetrahedra, mesh_from_tetrahedra, porosity_at_centroids
+from shared.retention import saturation as retention_saturation
+
+__all__ = ["SpecimenSpec", "centred_grid", "initial_state", "measure_checkpoint", "POROSITY_BINS"]
+
+FloatArray = npt.NDArray[np.float64]
+POROSITY_BINS = np.linspace(0.0, 1.0, 51)
+
+
+@dataclass(frozen=True)
+class SpecimenSpec:
+    """The cube specimen.
+
+    Attributes
+    ----------
+    edge_length
+        Cube edge [m] (thesis: 7 mm).
+    n_points
+        Requested number of DEM points.
+    layout
+        ``"grid"`` (jittered cubic grid) or ``"random"`` (random sequential packing).
+    jitter
+        Grid jitter as a fraction of the spacing [1].
+    confinement
+        Confining stress on the three axes [Pa]; 0 for free swelling.
+    rotations
+        Whether points rotate. The points discretise a continuum rather than stand for
+        grains: on a jittered cubic lattice, free rotations let the points roll, a
+        shear mechanism that buckles under the suction's confinement, so they are
+        locked by default.
+    seed
+        Seed of the point layout.
+    """
+
+    edge_length: float = 7e-3
+    n_points: int = 1500
+    layout: str = "grid"
+    jitter: float = 0.1
+    confinement: float = 0.0
+    rotations: bool = False
+    seed: int = 0
+
+
+def centred_grid(porosity: xr.DataArray, edge_length: float) -> xr.DataArray:
+    """The part of a porosity grid around a cube [0, edge_length]^3 at its specimen's centre.
+
+    The centre is the mean position of the grid's finite (specimen) values; the grid is
+    shifted there and cropped to the cube plus one grid spacing on each side, the
+    nodes that trilinear interpolation inside the cube needs.
+
+    Raises
+    ------
+    ValueError
+        If the cropped grid holds NaN (the cube reaches outside the specimen) or does
+        not span the cube.
+    """
+    finite = np.isfinite(porosity.values)
+    if not finite.any():
+        raise ValueError("the porosity grid holds no finite value")
+    shifted = {}
+    for axis_index, axis in enumerate(porosity.dims):
+        coordinate = porosity[axis].values
+        counts = finite.sum(axis=tuple(i for i in range(3) if i != axis_index))
+        centre = float((coordinate * counts).sum() / counts.sum())
+        shifted[axis] = coordinate - (centre - 0.5 * edge_length)
+    moved = porosity.assign_coords(shifted)
+    crop = {}
+    for axis in porosity.dims:
+        coordinate = moved[axis].values
+        if coordinate.min() > 0 or coordinate.max() < edge_length:
+            raise ValueError(
+                f"the porosity grid does not span the {edge_length * 1e3:g} mm specimen along {axis}"
+            )
+        low, high = coordinate[coordinate <= 0].max(), coordinate[coordinate >= edge_length].min()
+        crop[axis] = (coordinate >= low) & (coordinate <= high)
+    cropped = moved.isel(crop)
+    if not np.isfinite(cropped.values).all():
+        raise ValueError(
+            f"the {edge_length * 1e3:g} mm specimen reaches outside the scanned pellet "
+            "(NaN in the porosity grid around it): use a smaller micro.specimen_size_m"
+        )
+    return cropped
+
+
+def initial_state(
+    spec: SpecimenSpec,
+    porosity_grid: xr.DataArray | None,
+    homogeneous_porosity: float | None = None,
+    material: ClayParameters = DEFAULT_CLAY,
+    parameters: DEMParameters = DEFAULT_DEM,
+) -> PelletState:
+    """Points, mesh, porosity (CT grid or homogeneous) and retention state at s0.
+
+    Parameters
+    ----------
+    spec
+        Specimen geometry and layout.
+    porosity_grid
+        ``porosity(z, y, x)`` with coordinates in m, or None for a homogeneous specimen.
+    homogeneous_porosity
+        Porosity of a homogeneous specimen [1]; default: the grid's mean over the
+        specimen's cells if a grid is given, else the material's reference porosity.
+    material, parameters
+        Clay and DEM parameters.
+    """
+    rng = np.random.default_rng(spec.seed)
+    positions, radii = cube_points(spec.n_points, rng, spec.edge_length, spec.layout, spec.jitter)
+    dem = new_state(positions, radii, parameters)
+    if not spec.rotations:
+        dem.inertia[:] = np.inf
+    points, tetrahedra, neighbours = delaunay_tetrahedra(dem.positions)
+    mesh = mesh_from_tetrahedra(points, tetrahedra, neighbours)
+    if porosity_grid is not None:
+        field = porosity_at_centroids(mesh, centred_grid(porosity_grid, spec.edge_length))
+    else:
+        field = np.full(mesh.n_cells, material.reference_porosity)
+    if homogeneous_porosity is not None:
+        field = np.full(mesh.n_cells, homogeneous_porosity)
+    suction = material.initial_suction
+    walls = None
+    if spec.confinement > 0.0:
+        walls = walls_around(dem.positions, dem.radii, spec.confinement, parameters=parameters)
+    return PelletState(
+        dem=dem,
+        mesh=mesh,
+        tetrahedra=tetrahedra,
+        neighbours=neighbours,
+        pressure=np.full(mesh.n_cells, -suction),
+        saturation=retention_saturation(suction, field, material),
+        solid_volume=(1.0 - field) * mesh.volumes,
+        porosity=field.copy(),
+        walls=walls,
+    )
+
+
+def measure_checkpoint(
+    state: PelletState,
+    suction: float,
+    reference_volume: float,
+    material: ClayParameters = DEFAULT_CLAY,
+    cracks: bool = True,
+) -> dict[str, object]:
+    """Everything recorded at a checkpoint (DESIGN §2, ``results/micro``).
+
+    Returns
+    -------
+    dict
+        ``saturation``, ``eps_v``, ``porosity_mean``, ``permeability`` (2, 3) [m2]
+        (water, gas x x, y, z), crack counts, areas [m2], volumes [m3], fabric tensors
+        (3, 3) for all, imbibed and gas-filled cracks, and the porosity histogram.
+    """
+    update_cracks(state, material)
+    phases = {phase: conductances(state, phase, material, cracks) for phase in ("water", "gas")}
+    permeability = permeability_tensor_axes(state.mesh, state.saturation, state.porosity,
+                                            suction, material, conductances=phases)
+    volumes = state.mesh.volumes
+    fabric = crack_fabric(state.cracks.normals, state.cracks.areas, state.cracks.apertures,
+                          state.cracks.imbibed)
+    histogram, _ = np.histogram(state.porosity, bins=POROSITY_BINS, weights=volumes)
+    return {
+        "saturation": state.mean_saturation(),
+        "eps_v": float(volumes.sum() / reference_volume - 1.0),
+        "porosity_mean": float((state.porosity * volumes).sum() / volumes.sum()),
+        "porosity_hist": histogram / volumes.sum(),
+        "permeability": np.array([[permeability[p][a] for a in "xyz"] for p in ("water", "gas")]),
+        "crack_count": fabric.count,
+        "crack_count_imbibed": fabric.count_imbibed,
+        "crack_count_gas": fabric.count_gas,
+        "crack_area": fabric.area,
+        "crack_area_imbibed": fabric.area_imbibed,
+        "crack_area_gas": fabric.area_gas,
+        "crack_volume": fabric.volume,
+        "crack_fabric": fabric.tensor,
+        "crack_fabric_imbibed": fabric.tensor_imbibed,
+        "crack_fabric_gas": fabric.tensor_gas,
+        "time": state.time,
+        "n_remesh": state.n_remesh,
+    }

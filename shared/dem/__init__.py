@@ -1,0 +1,58 @@
+"""DEM core shared by the micro and macro models: points, contacts, Hertz-Mindlin, walls.
+
+Typical use in a coupled loop::
+
+    state = new_state(*cube_points(15000, rng))
+    walls = walls_around(state.positions, state.radii, active=False)  # free swelling
+    dt = min(stable_time_step(state, walls=walls), DEFAULT_DEM.time_step)
+    report = step(state, dt, external_forces=hydro_forces, walls=walls)
+    state.radii = swollen_radius(state.reference_radii, eps_v)  # stiffness follows
+"""
+
+from shared.dem.contacts import bond_pairs, contacts_need_update, detect_contacts, update_contacts
+from shared.dem.hertz import contact_forces
+from shared.dem.integrator import (
+    StepReport,
+    integrate,
+    kinetic_energy,
+    stable_time_step,
+    step,
+    unbalanced_force,
+)
+from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.points import cube_points
+from shared.dem.state import ContactList, DEMState, new_state
+from shared.dem.walls import (
+    WallLoads,
+    Walls,
+    servo_walls,
+    wall_forces,
+    wall_stresses,
+    walls_around,
+)
+
+__all__ = [
+    "DEFAULT_DEM",
+    "ContactList",
+    "DEMParameters",
+    "DEMState",
+    "StepReport",
+    "WallLoads",
+    "Walls",
+    "bond_pairs",
+    "contact_forces",
+    "contacts_need_update",
+    "cube_points",
+    "detect_contacts",
+    "integrate",
+    "kinetic_energy",
+    "new_state",
+    "servo_walls",
+    "stable_time_step",
+    "step",
+    "unbalanced_force",
+    "update_contacts",
+    "wall_forces",
+    "wall_stresses",
+    "walls_around",
+]

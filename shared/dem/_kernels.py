@@ -1,0 +1,240 @@
+"""numba kernels of the DEM core: cell lists, Hertz-Mindlin contacts, walls, leapfrog.
+
+Arrays in, arrays out; no Python objects and no globals (the on-disk cache freezes them).
+Every kernel is serial: each loop scatters into shared per-point arrays, and a serial
+scatter keeps the summation order, hence the results, identical from run to run.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def bin_points(cell_of_point, n_cells):
+    """Counting sort of points by cell: CSR ``cell_start`` (n_cells + 1) and ``cell_points``."""
+    cell_start = np.zeros(n_cells + 1, dtype=np.int64)
+    for i in range(cell_of_point.shape[0]):
+        cell_start[cell_of_point[i] + 1] += 1
+    for c in range(n_cells):
+        cell_start[c + 1] += cell_start[c]
+    fill = cell_start[:-1].copy()
+    cell_points = np.empty(cell_of_point.shape[0], dtype=np.int64)
+    for i in range(cell_of_point.shape[0]):
+        c = cell_of_point[i]
+        cell_points[fill[c]] = i
+        fill[c] += 1
+    return cell_start, cell_points
+
+
+@njit(cache=True)
+def find_pairs(positions, radii, cutoff_factor, skin, cell_xyz, dims, cell_start,
+               cell_points, capacity):
+    """Pairs i < j with |x_i - x_j| < cutoff_factor (r_i + r_j) + skin, sorted by (i, j).
+
+    Returns ``(pairs, count)``; ``count > capacity`` means the buffer was too small and
+    the caller must retry with at least ``count`` rows.
+    """
+    n = positions.shape[0]
+    # cell-ordered copies: the three z-adjacent cells of a stencil column are one
+    # contiguous run, read sequentially
+    sorted_positions = positions[cell_points]
+    sorted_radii = radii[cell_points]
+    pairs = np.empty((capacity, 2), dtype=np.int64)
+    row = np.empty(64, dtype=np.int64)
+    count = 0
+    for i in range(n):
+        n_row = 0
+        xi, yi, zi = positions[i, 0], positions[i, 1], positions[i, 2]
+        z_lo = max(cell_xyz[i, 2] - 1, 0)
+        z_hi = min(cell_xyz[i, 2] + 1, dims[2] - 1)
+        for cx in range(max(cell_xyz[i, 0] - 1, 0), min(cell_xyz[i, 0] + 2, dims[0])):
+            for cy in range(max(cell_xyz[i, 1] - 1, 0), min(cell_xyz[i, 1] + 2, dims[1])):
+                column = (cx * dims[1] + cy) * dims[2]
+                for s in range(cell_start[column + z_lo], cell_start[column + z_hi + 1]):
+                    cut = cutoff_factor * (radii[i] + sorted_radii[s]) + skin
+                    ddx = sorted_positions[s, 0] - xi
+                    ddy = sorted_positions[s, 1] - yi
+                    ddz = sorted_positions[s, 2] - zi
+                    # distance first: it is rarely below the cutoff, so this branch
+                    # predicts well, unlike a test on the index order
+                    if ddx * ddx + ddy * ddy + ddz * ddz < cut * cut and cell_points[s] > i:
+                        j = cell_points[s]
+                        if n_row == row.shape[0]:
+                            row = np.concatenate((row, np.empty_like(row)))
+                        # insertion keeps the few neighbours of i sorted; numba's
+                        # array sort costs more than the search on such short rows
+                        slot = n_row
+                        while slot > 0 and row[slot - 1] > j:
+                            row[slot] = row[slot - 1]
+                            slot -= 1
+                        row[slot] = j
+                        n_row += 1
+        for k in range(n_row):
+            if count < capacity:
+                pairs[count, 0] = i
+                pairs[count, 1] = row[k]
+            count += 1
+    return pairs, count
+
+
+@njit(cache=True)
+def hertz_mindlin(positions, velocities, spins, radii, pairs, shear_forces,
+                  effective_modulus, shear_coefficient, time_step, forces, torques):
+    """Add Hertz-Mindlin contact forces and torques; update ``shear_forces`` in place.
+
+    ``shear_forces[k]`` is the shear force on ``pairs[k, 0]`` [N]; stiffness follows
+    the current radii. Returns the normal force magnitude per contact [N] (0 if apart).
+    Scalar arithmetic only: small temporary arrays would be heap-allocated per contact.
+    """
+    normal_forces = np.zeros(pairs.shape[0])
+    for k in range(pairs.shape[0]):
+        i, j = pairs[k, 0], pairs[k, 1]
+        dx = positions[j, 0] - positions[i, 0]
+        dy = positions[j, 1] - positions[i, 1]
+        dz = positions[j, 2] - positions[i, 2]
+        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+        overlap = radii[i] + radii[j] - dist
+        if overlap <= 0.0 or dist == 0.0:
+            shear_forces[k, 0] = shear_forces[k, 1] = shear_forces[k, 2] = 0.0
+            continue
+        nx, ny, nz = dx / dist, dy / dist, dz / dist
+        a = np.sqrt(radii[i] * radii[j] / (radii[i] + radii[j]) * overlap)
+        fn = 4.0 / 3.0 * effective_modulus * a * overlap
+        normal_forces[k] = fn
+        # branch lengths from each centre to the contact point, mid-overlap
+        arm_i, arm_j = radii[i] - 0.5 * overlap, radii[j] - 0.5 * overlap
+        # contact-point velocity of i relative to j (Eq. 3.6): v + omega x branch
+        wx = arm_i * spins[i, 0] + arm_j * spins[j, 0]
+        wy = arm_i * spins[i, 1] + arm_j * spins[j, 1]
+        wz = arm_i * spins[i, 2] + arm_j * spins[j, 2]
+        vx = velocities[i, 0] - velocities[j, 0] + wy * nz - wz * ny
+        vy = velocities[i, 1] - velocities[j, 1] + wz * nx - wx * nz
+        vz = velocities[i, 2] - velocities[j, 2] + wx * ny - wy * nx
+        sx, sy, sz = _turned_shear(shear_forces[k, 0], shear_forces[k, 1],
+                                   shear_forces[k, 2], nx, ny, nz)
+        vn = vx * nx + vy * ny + vz * nz
+        kdt = shear_coefficient * a * time_step
+        sx -= kdt * (vx - vn * nx)
+        sy -= kdt * (vy - vn * ny)
+        sz -= kdt * (vz - vn * nz)
+        shear_forces[k, 0], shear_forces[k, 1], shear_forces[k, 2] = sx, sy, sz
+        forces[i, 0] += sx - fn * nx
+        forces[i, 1] += sy - fn * ny
+        forces[i, 2] += sz - fn * nz
+        forces[j, 0] += fn * nx - sx
+        forces[j, 1] += fn * ny - sy
+        forces[j, 2] += fn * nz - sz
+        # torques arm_i n x F_s on i and (-arm_j n) x (-F_s) on j point the same way
+        tx, ty, tz = ny * sz - nz * sy, nz * sx - nx * sz, nx * sy - ny * sx
+        torques[i, 0] += arm_i * tx
+        torques[i, 1] += arm_i * ty
+        torques[i, 2] += arm_i * tz
+        torques[j, 0] += arm_j * tx
+        torques[j, 1] += arm_j * ty
+        torques[j, 2] += arm_j * tz
+    return normal_forces
+
+
+@njit(cache=True)
+def _turned_shear(sx, sy, sz, nx, ny, nz):
+    """Stored shear force projected on the current tangent plane, magnitude kept.
+
+    A rigid rotation of the pair must not shrink the stored force.
+    """
+    old2 = sx * sx + sy * sy + sz * sz
+    sn = sx * nx + sy * ny + sz * nz
+    sx, sy, sz = sx - sn * nx, sy - sn * ny, sz - sn * nz
+    new2 = sx * sx + sy * sy + sz * sz
+    if new2 > 0.0:
+        scale = np.sqrt(old2 / new2)
+        return sx * scale, sy * scale, sz * scale
+    return sx, sy, sz
+
+
+@njit(cache=True)
+def gershgorin_rates(positions, radii, pairs, masses, inertia, effective_modulus,
+                     shear_coefficient, rates):
+    """Add, per point, block-Gershgorin row sums of M^-1/2 K M^-1/2 [1/s^2].
+
+    ``rates[:, 0]`` bounds the translational rows, ``rates[:, 1]`` the rotational
+    ones. Blocks of one contact: force-translation max(k_n, k_t), force-rotation and
+    torque-translation k_t l, torque-rotation k_t l_i l_j, with k_n = 2 E* sqrt(R* delta),
+    k_t = c_s sqrt(R* delta), l = r - delta / 2; M holds masses and moments of inertia.
+    """
+    for k in range(pairs.shape[0]):
+        i, j = pairs[k, 0], pairs[k, 1]
+        d2 = 0.0
+        for c in range(3):
+            d2 += (positions[j, c] - positions[i, c]) ** 2
+        overlap = radii[i] + radii[j] - np.sqrt(d2)
+        if overlap <= 0.0:
+            continue
+        a = np.sqrt(radii[i] * radii[j] / (radii[i] + radii[j]) * overlap)
+        k_max = max(2.0 * effective_modulus * a, shear_coefficient * a)
+        k_t = shear_coefficient * a
+        arm_i, arm_j = radii[i] - 0.5 * overlap, radii[j] - 0.5 * overlap
+        mi, mj = np.sqrt(masses[i]), np.sqrt(masses[j])
+        ii, ij = np.sqrt(inertia[i]), np.sqrt(inertia[j])
+        rotation = arm_i / ii + arm_j / ij
+        rates[i, 0] += k_max / mi * (1.0 / mi + 1.0 / mj) + k_t * rotation / mi
+        rates[j, 0] += k_max / mj * (1.0 / mi + 1.0 / mj) + k_t * rotation / mj
+        translation = 1.0 / mi + 1.0 / mj
+        rates[i, 1] += k_t * arm_i / ii * (rotation + translation)
+        rates[j, 1] += k_t * arm_j / ij * (rotation + translation)
+
+
+@njit(cache=True)
+def wall_contacts(positions, radii, lower, upper, active, effective_modulus, forces,
+                  stiffness):
+    """Add frictionless Hertz forces of six axis-aligned rigid walls.
+
+    Wall w = 2 axis + side (side 0 lower, 1 upper). Returns per wall the compressive
+    force magnitude [N] and the summed tangent stiffness of its contacts [N/m]; the
+    tangent stiffness is also added to ``stiffness`` per point.
+    """
+    wall_force = np.zeros(6)
+    wall_stiffness = np.zeros(6)
+    for i in range(positions.shape[0]):
+        for axis in range(3):
+            for side in range(2):
+                w = 2 * axis + side
+                if not active[w]:
+                    continue
+                if side == 0:
+                    overlap = radii[i] - (positions[i, axis] - lower[axis])
+                else:
+                    overlap = radii[i] - (upper[axis] - positions[i, axis])
+                if overlap <= 0.0:
+                    continue
+                a = np.sqrt(radii[i] * overlap)
+                fn = 4.0 / 3.0 * effective_modulus * a * overlap
+                forces[i, axis] += fn if side == 0 else -fn
+                wall_force[w] += fn
+                wall_stiffness[w] += 2.0 * effective_modulus * a
+                stiffness[i] += 2.0 * effective_modulus * a
+    return wall_force, wall_stiffness
+
+
+@njit(cache=True)
+def leapfrog(values, rates, drives, inertia, fixed, damping, time_step):
+    """Advance half-step ``rates`` (and ``values`` if given) by one step, in place.
+
+    rate += dt drive / inertia, then value += dt rate. Translation passes positions,
+    velocities, forces and masses; rotation passes an empty ``values`` (spheres need
+    no orientation), spins, torques and moments of inertia. Cundall damping scales
+    each drive component by 1 - damping sign(drive rate_mid), rate_mid the rate at
+    the current time (second-order form of Yade's NewtonIntegrator).
+    """
+    for i in range(rates.shape[0]):
+        if fixed[i]:
+            continue
+        for c in range(3):
+            f = drives[i, c]
+            if damping > 0.0:
+                rate_mid = rates[i, c] + 0.5 * time_step * f / inertia[i]
+                f *= 1.0 - damping * np.sign(f * rate_mid)
+            rates[i, c] += time_step * f / inertia[i]
+            if values.shape[0] > 0:
+                values[i, c] += time_step * rates[i, c]

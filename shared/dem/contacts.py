@@ -1,0 +1,152 @@
+"""Contact detection by cell lists, and the Verlet contact list of a DEM state."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from shared.dem import _kernels
+from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+
+if TYPE_CHECKING:
+    from shared.dem.state import DEMState
+
+__all__ = ["detect_contacts", "bond_pairs", "contacts_need_update", "update_contacts"]
+
+IntArray = npt.NDArray[np.int64]
+
+
+def detect_contacts(
+    positions: npt.ArrayLike,
+    radii: npt.ArrayLike,
+    cutoff_factor: float = 1.0,
+    skin: float = 0.0,
+) -> IntArray:
+    """All pairs closer than ``cutoff_factor (r_i + r_j) + skin``, by a cell list.
+
+    Parameters
+    ----------
+    positions
+        (n, 3) point centres [m].
+    radii
+        (n,) interaction radii [m].
+    cutoff_factor
+        Interaction radius factor [1]; 1 gives the overlapping pairs.
+    skin
+        Extra detection margin [m] (Verlet skin).
+
+    Returns
+    -------
+    ndarray of int64, shape (n_pairs, 2)
+        Pairs (i, j), i < j, sorted lexicographically (deterministic).
+
+    Notes
+    -----
+    Cells are cubes no smaller than the largest cutoff, so every pair lies in the same
+    or an adjacent cell: O(n) work for bounded radius ratios.
+    """
+    positions = np.ascontiguousarray(positions, dtype=np.float64)
+    radii = np.ascontiguousarray(radii, dtype=np.float64)
+    n = positions.shape[0]
+    if positions.ndim != 2 or positions.shape[1] != 3 or radii.shape != (n,):
+        raise ValueError("positions must have shape (n, 3) and radii shape (n,)")
+    if n < 2:
+        return np.empty((0, 2), dtype=np.int64)
+    if not cutoff_factor > 0.0 or skin < 0.0:
+        raise ValueError("cutoff_factor must be > 0 and skin >= 0")
+    cell_size = 2.0 * cutoff_factor * float(radii.max()) + skin
+    lower = positions.min(axis=0)
+    extent = positions.max(axis=0) - lower
+    # cap the grid at about one cell per point so sparse clouds do not allocate huge grids
+    cell_size = max(cell_size, float(np.prod(extent + cell_size) / n) ** (1.0 / 3.0))
+    dims = np.maximum(np.floor(extent / cell_size).astype(np.int64), 1)
+    cell_xyz = np.minimum((positions - lower) / (extent / dims + 1e-300), dims - 1)
+    cell_xyz = cell_xyz.astype(np.int64)
+    cell_of_point = (cell_xyz[:, 0] * dims[1] + cell_xyz[:, 1]) * dims[2] + cell_xyz[:, 2]
+    cell_start, cell_points = _kernels.bin_points(cell_of_point, int(np.prod(dims)))
+    capacity = 8 * n
+    while True:
+        pairs, count = _kernels.find_pairs(
+            positions, radii, float(cutoff_factor), float(skin), cell_xyz, dims,
+            cell_start, cell_points, capacity,
+        )
+        if count <= capacity:
+            return pairs[:count].copy()
+        capacity = count
+
+
+def bond_pairs(
+    positions: npt.ArrayLike, radii: npt.ArrayLike, tolerance: float = 1e-9
+) -> IntArray:
+    """Pairs in contact: centre distance at most (1 + tolerance)(r_i + r_j).
+
+    Parameters
+    ----------
+    positions
+        (n, 3) point centres [m].
+    radii
+        (n,) interaction radii [m].
+    tolerance
+        Relative margin [1] so that exactly touching points (a regular grid) count.
+
+    Returns
+    -------
+    ndarray of int64, shape (n_bonds, 2)
+        Sorted pairs i < j.
+    """
+    return detect_contacts(positions, radii, 1.0 + tolerance, 0.0)
+
+
+def contacts_need_update(state: DEMState) -> bool:
+    """True once some pair may have closed the Verlet skin since the last detection.
+
+    A pair's gap shrinks by at most the sum of the two displacements plus the two
+    radius increments, so the list stays exact while twice the largest of each stays
+    below the skin.
+    """
+    contacts = state.contacts
+    moved = np.sqrt(((state.positions - contacts.detection_positions) ** 2).sum(axis=1))
+    grown = state.radii - contacts.detection_radii
+    return bool(2.0 * moved.max(initial=0.0) + 2.0 * grown.max(initial=0.0) >= contacts.skin)
+
+
+def update_contacts(
+    state: DEMState, parameters: DEMParameters = DEFAULT_DEM, force: bool = False
+) -> bool:
+    """Rebuild the contact list when needed, carrying the shear history of kept pairs.
+
+    Parameters
+    ----------
+    state
+        Assembly; ``state.contacts`` is replaced in place.
+    parameters
+        Interaction radius factor [1].
+    force
+        Rebuild even if the list is still valid.
+
+    Returns
+    -------
+    bool
+        Whether the list was rebuilt.
+    """
+    if not (force or contacts_need_update(state)):
+        return False
+    contacts = state.contacts
+    pairs = detect_contacts(
+        state.positions, state.radii, parameters.interaction_radius_factor, contacts.skin
+    )
+    n = np.int64(state.n_points)
+    old_keys = contacts.pairs[:, 0] * n + contacts.pairs[:, 1]
+    new_keys = pairs[:, 0] * n + pairs[:, 1]
+    shear = np.zeros((pairs.shape[0], 3))
+    if old_keys.size:
+        where = np.minimum(np.searchsorted(old_keys, new_keys), old_keys.size - 1)
+        kept = old_keys[where] == new_keys
+        shear[kept] = contacts.shear_forces[where[kept]]
+    contacts.pairs = pairs
+    contacts.shear_forces = shear
+    contacts.detection_positions = state.positions.copy()
+    contacts.detection_radii = state.radii.copy()
+    return True

@@ -1,0 +1,84 @@
+"""Hertz-Mindlin contact forces without friction threshold (Caulk 2022, Eqs. 3.2-3.7)."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from shared.dem import _kernels
+from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.state import DEMState
+
+__all__ = ["contact_forces"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def contact_forces(
+    state: DEMState,
+    time_step: float,
+    parameters: DEMParameters = DEFAULT_DEM,
+    forces: FloatArray | None = None,
+    torques: FloatArray | None = None,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Hertz-Mindlin forces and torques of the candidate contacts; updates shear history.
+
+    Parameters
+    ----------
+    state
+        Assembly; ``state.contacts.shear_forces`` is incremented in place.
+    time_step
+        Time step of the shear displacement increment v_t dt [s].
+    parameters
+        Young's modulus [Pa] and Poisson ratio [1].
+    forces
+        (n, 3) array the forces are added to [N]; a new zero array if None.
+    torques
+        (n, 3) array the torques are added to [N m]; a new zero array if None.
+
+    Returns
+    -------
+    forces : ndarray, shape (n, 3)
+        Total contact force per point [N].
+    torques : ndarray, shape (n, 3)
+        Total contact torque per point [N m].
+    normal_forces : ndarray, shape (n_contacts,)
+        Normal force magnitude per candidate contact [N], 0 where the points are apart.
+
+    Notes
+    -----
+    Normal force (Eq. 3.2): F_n = 4/3 E* sqrt(R*) delta^(3/2), repulsive, with
+    E* = E / (2 (1 - nu^2)), R* = r_a r_b / (r_a + r_b) and overlap
+    delta = r_a + r_b - |x_b - x_a|. Shear force (Eqs. 3.3-3.7): the stored force is
+    turned into the current tangent plane, then incremented by -k_t v_t dt, v_t the
+    tangential velocity of the contact point of a relative to b including the spins
+    (Eq. 3.6, branch lengths r - delta/2), k_t = 2 sqrt(4 R*) G / (2 - nu) sqrt(delta)
+    (Mindlin's tangent stiffness; Eq. 3.3 as printed lacks the sqrt(delta) factor).
+    No friction threshold. With the spins, a rigid rotation of a pair leaves its
+    contact-point velocities equal, so it creates no shear force.
+
+    Both stiffnesses are evaluated from the current radii at every call, so swelling
+    updates them; Yade freezes them at contact creation (REFERENCE_NOTES section 8,
+    defect 11). Separated pairs lose their shear history, as a deleted Yade
+    interaction does.
+    """
+    n = state.n_points
+    forces = _zeros_or_checked(forces, n, "forces")
+    torques = _zeros_or_checked(torques, n, "torques")
+    if not (np.isfinite(time_step) and time_step > 0.0):
+        raise ValueError(f"time_step must be finite and > 0, got {time_step}")
+    contacts = state.contacts
+    normal_forces = _kernels.hertz_mindlin(
+        state.positions, state.velocities, state.spins, state.radii, contacts.pairs,
+        contacts.shear_forces, parameters.effective_modulus,
+        parameters.shear_coefficient, float(time_step), forces, torques,
+    )
+    return forces, torques, normal_forces
+
+
+def _zeros_or_checked(array: FloatArray | None, n: int, name: str) -> FloatArray:
+    if array is None:
+        return np.zeros((n, 3))
+    if array.shape != (n, 3):
+        raise ValueError(f"{name} must have shape ({n}, 3)")
+    return array

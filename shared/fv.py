@@ -1,0 +1,554 @@
+"""Partially saturated finite volumes on a tetrahedral mesh: conductances and systems.
+
+DESIGN.md section 3. Per free cell i, implicit in the water pressure p:
+
+    n_i V_i (dS/dp)_i (p_i - p_i^old) / dt = sum_j g_ij (p_j - p_i),
+
+with g_ij = k_M(phi_ij) k_r(S_ij) A_ij / (mu l_ij), phi_ij and S_ij the arithmetic means
+of the two cells' porosities and saturations. Cells marked Dirichlet hold an imposed
+pressure and are eliminated. The system is written for the increment
+delta = p - p* (p* = old pressures with the imposed values set on Dirichlet cells):
+
+    (C + L_ff) delta_f = sum_j g_ij (p*_j - p*_i),   C = diag(n V dS/dp / dt),
+
+symmetric positive definite as soon as every connected set of free cells has storage
+or touches a Dirichlet cell. Solving for the increment keeps the pressure change
+accurate when |p| (about 1e8 Pa) dwarfs it. Saturation then follows explicitly,
+S += dS/dp delta (thesis Eq. 3.19), clamped to [S_r, S_s]; with no-flux boundaries and
+no active clamp the water volume sum n V S is conserved to the solver tolerance.
+
+:class:`FlowPattern` holds the sparsity of the free-free matrix (lower triangle, CSC)
+and the positions where each facet and cell contribute, computed once per mesh and
+Dirichlet set, so that per-step assembly is one numba pass and the solver can keep its
+symbolic analysis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import scipy.sparse as sp
+from numba import njit
+from scipy.spatial import cKDTree
+
+from shared.materials import DEFAULT_CLAY, ClayParameters
+from shared.mesh import Mesh
+from shared.permeability import (
+    Phase,
+    intrinsic_permeability,
+    phase_viscosity,
+    relative_permeability,
+)
+from shared.retention import saturation as retention_saturation
+from shared.retention import saturation_derivative
+from shared.solver import CholeskySolver
+
+__all__ = [
+    "FlowPattern",
+    "StepResult",
+    "facet_conductance",
+    "flow_pattern",
+    "assemble_matrix",
+    "facet_divergence",
+    "transient_step",
+    "steady_pressure",
+    "facet_flux",
+    "water_volume",
+    "porosity_from_solid_volume",
+    "TransferredState",
+    "transfer_cell_state",
+]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+
+def _require_cell_arrays(mesh: Mesh, **arrays: FloatArray) -> None:
+    for name, array in arrays.items():
+        if np.shape(array) != (mesh.n_cells,):
+            raise ValueError(f"{name} must have shape ({mesh.n_cells},), got {np.shape(array)}")
+        if not np.all(np.isfinite(array)):
+            raise ValueError(f"{name} contains NaN or inf")
+
+
+@dataclass(frozen=True)
+class FlowPattern:
+    """Sparsity and scatter positions of the free-free system for one mesh.
+
+    Attributes
+    ----------
+    dirichlet : ndarray of bool, shape (n_cells,)
+        Cells holding an imposed pressure.
+    free_cells : ndarray of int64, shape (n_free,)
+        Global indices of the unknowns, in matrix order.
+    free_index : ndarray of int64, shape (n_cells,)
+        Matrix row of each cell, -1 for Dirichlet cells.
+    indptr, indices : ndarray of int32
+        CSC structure of the lower triangle (sorted, diagonal first in each column).
+    diagonal_position : ndarray of int64, shape (n_free,)
+        Data position of each diagonal entry.
+    facet_position : ndarray of int64, shape (n_facets,)
+        Data position of each facet's off-diagonal entry, -1 unless both cells are free.
+    """
+
+    dirichlet: npt.NDArray[np.bool_]
+    free_cells: IntArray
+    free_index: IntArray
+    indptr: npt.NDArray[np.int32]
+    indices: npt.NDArray[np.int32]
+    diagonal_position: IntArray
+    facet_position: IntArray
+
+    @property
+    def n_free(self) -> int:
+        """Number of unknowns."""
+        return int(self.free_cells.shape[0])
+
+
+def flow_pattern(mesh: Mesh, dirichlet: npt.ArrayLike) -> FlowPattern:
+    """Build the system's sparsity pattern for a mesh and a set of Dirichlet cells.
+
+    Parameters
+    ----------
+    mesh
+        The mesh.
+    dirichlet
+        Boolean mask, shape (n_cells,): cells with an imposed pressure.
+
+    Returns
+    -------
+    FlowPattern
+    """
+    dirichlet = np.asarray(dirichlet, dtype=bool)
+    if dirichlet.shape != (mesh.n_cells,):
+        raise ValueError(f"dirichlet mask must have shape ({mesh.n_cells},)")
+    free_cells = np.flatnonzero(~dirichlet).astype(np.int64)
+    n_free = free_cells.shape[0]
+    free_index = np.full(mesh.n_cells, -1, dtype=np.int64)
+    free_index[free_cells] = np.arange(n_free, dtype=np.int64)
+    ends = free_index[mesh.facet_cells]
+    both = np.all(ends >= 0, axis=1)
+    rows = np.concatenate([np.arange(n_free), ends[both].max(axis=1)])
+    cols = np.concatenate([np.arange(n_free), ends[both].min(axis=1)])
+    # Diagonal before off-diagonals within a column: key sorts by column, then row.
+    order = np.argsort(cols * (n_free + 1) + rows, kind="stable")
+    position = np.empty_like(order)
+    position[order] = np.arange(order.shape[0])
+    facet_position = np.full(mesh.n_facets, -1, dtype=np.int64)
+    facet_position[both] = position[n_free:]
+    indptr = np.zeros(n_free + 1, dtype=np.int64)
+    np.cumsum(np.bincount(cols, minlength=n_free), out=indptr[1:])
+    return FlowPattern(
+        dirichlet=dirichlet,
+        free_cells=free_cells,
+        free_index=free_index,
+        indptr=indptr.astype(np.int32),
+        indices=rows[order].astype(np.int32),
+        diagonal_position=position[:n_free].astype(np.int64),
+        facet_position=facet_position,
+    )
+
+
+def facet_conductance(
+    mesh: Mesh,
+    saturation: FloatArray,
+    porosity: FloatArray,
+    phase: Phase = "water",
+    material: ClayParameters = DEFAULT_CLAY,
+) -> FloatArray:
+    """Darcy conductance of each internal facet, g_ij = k_M k_r A_ij / (mu l_ij).
+
+    Parameters
+    ----------
+    mesh
+        The mesh.
+    saturation
+        Water saturation per cell [1], shape (n_cells,).
+    porosity
+        Porosity per cell [1], shape (n_cells,).
+    phase
+        ``"water"`` (k_r from Se, water viscosity) or ``"gas"`` (1 - Se, gas viscosity).
+    material
+        Clay parameters.
+
+    Returns
+    -------
+    ndarray, shape (n_facets,)
+        Conductance [m3/(Pa s)] (flux per pressure difference).
+    """
+    _require_cell_arrays(mesh, saturation=saturation, porosity=porosity)
+    i, j = mesh.facet_cells[:, 0], mesh.facet_cells[:, 1]
+    mean_saturation = 0.5 * (saturation[i] + saturation[j])
+    mean_porosity = 0.5 * (porosity[i] + porosity[j])
+    permeability = intrinsic_permeability(mean_porosity, material) * relative_permeability(
+        mean_saturation, phase, material
+    )
+    return permeability * mesh.facet_areas / (phase_viscosity(phase, material) * mesh.facet_lengths)
+
+
+@njit(cache=True)
+def _assemble_lower(
+    facet_cells: IntArray,
+    conductance: FloatArray,
+    free_index: IntArray,
+    diagonal_position: IntArray,
+    facet_position: IntArray,
+    storage_free: FloatArray,
+    n_data: int,
+) -> FloatArray:
+    data = np.zeros(n_data)
+    for k in range(storage_free.shape[0]):
+        data[diagonal_position[k]] = storage_free[k]
+    for f in range(facet_cells.shape[0]):
+        g = conductance[f]
+        a = free_index[facet_cells[f, 0]]
+        b = free_index[facet_cells[f, 1]]
+        if a >= 0:
+            data[diagonal_position[a]] += g
+        if b >= 0:
+            data[diagonal_position[b]] += g
+        if facet_position[f] >= 0:
+            data[facet_position[f]] -= g
+    return data
+
+
+def assemble_matrix(
+    mesh: Mesh, pattern: FlowPattern, conductance: FloatArray, storage: FloatArray
+) -> sp.csc_matrix:
+    """Lower triangle of C + L_ff in CSC, on the pattern's fixed sparsity.
+
+    Parameters
+    ----------
+    mesh
+        The mesh.
+    pattern
+        Pattern from :func:`flow_pattern`.
+    conductance
+        Facet conductances [m3/(Pa s)], shape (n_facets,).
+    storage
+        Storage coefficients n V dS/dp / dt per cell [m3/(Pa s)], shape (n_cells,)
+        (zeros for a steady problem).
+
+    Returns
+    -------
+    scipy.sparse.csc_matrix, shape (n_free, n_free)
+        Lower triangle (with diagonal) of the symmetric positive semi-definite matrix.
+    """
+    data = _assemble_lower(
+        mesh.facet_cells,
+        np.ascontiguousarray(conductance, dtype=np.float64),
+        pattern.free_index,
+        pattern.diagonal_position,
+        pattern.facet_position,
+        np.ascontiguousarray(storage[pattern.free_cells], dtype=np.float64),
+        pattern.indices.shape[0],
+    )
+    n = pattern.n_free
+    return sp.csc_matrix((data, pattern.indices, pattern.indptr), shape=(n, n))
+
+
+@njit(cache=True)
+def _divergence(facet_cells: IntArray, conductance: FloatArray, pressure: FloatArray) -> FloatArray:
+    result = np.zeros(pressure.shape[0])
+    for f in range(facet_cells.shape[0]):
+        i = facet_cells[f, 0]
+        j = facet_cells[f, 1]
+        flux = conductance[f] * (pressure[j] - pressure[i])
+        result[i] += flux
+        result[j] -= flux
+    return result
+
+
+def facet_divergence(mesh: Mesh, conductance: FloatArray, pressure: FloatArray) -> FloatArray:
+    """Net inflow of each cell, sum_j g_ij (p_j - p_i) [m3/s], shape (n_cells,)."""
+    return _divergence(
+        mesh.facet_cells,
+        np.ascontiguousarray(conductance, dtype=np.float64),
+        np.ascontiguousarray(pressure, dtype=np.float64),
+    )
+
+
+def facet_flux(mesh: Mesh, conductance: FloatArray, pressure: FloatArray) -> FloatArray:
+    """Flux from cell i to cell j of each facet, g_ij (p_i - p_j) [m3/s], shape (n_facets,)."""
+    i, j = mesh.facet_cells[:, 0], mesh.facet_cells[:, 1]
+    return conductance * (pressure[i] - pressure[j])
+
+
+def _solve_increment(
+    mesh: Mesh,
+    pattern: FlowPattern,
+    solver: CholeskySolver,
+    conductance: FloatArray,
+    storage: FloatArray,
+    pressure: FloatArray,
+    imposed_pressure: FloatArray,
+    force_refactor: bool,
+) -> FloatArray:
+    if np.shape(imposed_pressure) != (mesh.n_cells,):
+        raise ValueError(f"imposed_pressure must have shape ({mesh.n_cells},)")
+    start = np.array(pressure, dtype=np.float64)
+    start[pattern.dirichlet] = imposed_pressure[pattern.dirichlet]
+    if not np.all(np.isfinite(start)):
+        raise ValueError("pressure or imposed pressure on Dirichlet cells is not finite")
+    rhs = facet_divergence(mesh, conductance, start)[pattern.free_cells]
+    matrix = assemble_matrix(mesh, pattern, conductance, storage)
+    increment = solver.solve(matrix, rhs, force_refactor=force_refactor)
+    start[pattern.free_cells] += increment
+    return start
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """Outcome of one transient flow step.
+
+    Attributes
+    ----------
+    pressure : ndarray, shape (n_cells,)
+        New water pressure [Pa] (imposed values on Dirichlet cells).
+    saturation : ndarray, shape (n_cells,)
+        New water saturation [1].
+    boundary_inflow : float
+        Water volume rate from Dirichlet cells into free cells at the new pressure
+        [m3/s]; dt times it is the volume the boundary supplied.
+    clamped_volume : float
+        Water volume added (> 0) or removed by clamping S to [S_r, S_s] in free cells
+        [m3]; zero when the step conserved mass exactly.
+    """
+
+    pressure: FloatArray
+    saturation: FloatArray
+    boundary_inflow: float
+    clamped_volume: float
+
+
+def transient_step(
+    mesh: Mesh,
+    pattern: FlowPattern,
+    solver: CholeskySolver,
+    pressure: FloatArray,
+    saturation: FloatArray,
+    porosity: FloatArray,
+    conductance: FloatArray,
+    imposed_pressure: FloatArray,
+    time_step: float,
+    material: ClayParameters = DEFAULT_CLAY,
+    *,
+    force_refactor: bool = False,
+) -> StepResult:
+    """Advance pressure implicitly and saturation explicitly by one time step.
+
+    dS/dp is evaluated once, at the start-of-step pressure (as Yade does), and the
+    same slope serves the storage term and the saturation update, so the water volume
+    change of the free cells equals dt times the boundary inflow (plus any clamp).
+    Free-cell saturation is advanced incrementally (Eq. 3.19), not reset to the
+    retention curve; Dirichlet cells take S(imposed suction).
+
+    Parameters
+    ----------
+    mesh, pattern, solver
+        Mesh, its :class:`FlowPattern` and the factor-reusing solver.
+    pressure
+        Water pressure per cell at the start of the step [Pa].
+    saturation
+        Water saturation per cell at the start of the step [1].
+    porosity
+        Porosity per cell (frozen during the step) [1].
+    conductance
+        Facet conductances [m3/(Pa s)] (from :func:`facet_conductance`, possibly
+        modified by the crack model).
+    imposed_pressure
+        Pressure per cell [Pa]; read on Dirichlet cells only.
+    time_step
+        dt [s].
+    material
+        Clay parameters.
+    force_refactor
+        Refactor the matrix even if the coefficients did not drift (e.g. after remesh).
+
+    Returns
+    -------
+    StepResult
+    """
+    if not time_step > 0.0:
+        raise ValueError(f"time_step must be > 0, got {time_step}")
+    _require_cell_arrays(mesh, pressure=pressure, saturation=saturation, porosity=porosity)
+    if np.shape(conductance) != (mesh.n_facets,):
+        raise ValueError(f"conductance must have shape ({mesh.n_facets},)")
+    derivative = saturation_derivative(-pressure, porosity, material)
+    storage = porosity * mesh.volumes * derivative / time_step
+    new_pressure = _solve_increment(
+        mesh, pattern, solver, conductance, storage, pressure, imposed_pressure, force_refactor
+    )
+    free = pattern.free_cells
+    raw = saturation[free] + derivative[free] * (new_pressure[free] - pressure[free])
+    clipped = np.clip(raw, material.residual_saturation, material.saturated_saturation)
+    new_saturation = np.array(saturation, dtype=np.float64)
+    new_saturation[free] = clipped
+    dirichlet = pattern.dirichlet
+    new_saturation[dirichlet] = retention_saturation(
+        -imposed_pressure[dirichlet], porosity[dirichlet], material
+    )
+    pore = porosity[free] * mesh.volumes[free]
+    inflow = facet_divergence(mesh, conductance, new_pressure)[dirichlet]
+    return StepResult(
+        pressure=new_pressure,
+        saturation=new_saturation,
+        boundary_inflow=float(-inflow.sum()),
+        clamped_volume=float(np.sum(pore * (clipped - raw))),
+    )
+
+
+def steady_pressure(
+    mesh: Mesh,
+    pattern: FlowPattern,
+    solver: CholeskySolver,
+    conductance: FloatArray,
+    imposed_pressure: FloatArray,
+    initial_pressure: FloatArray | None = None,
+) -> FloatArray:
+    """Steady pressure field sum_j g_ij (p_j - p_i) = 0 in free cells.
+
+    Parameters
+    ----------
+    mesh, pattern, solver
+        Mesh, pattern (with at least one Dirichlet cell per connected component of
+        positive conductance) and solver.
+    conductance
+        Facet conductances [m3/(Pa s)].
+    imposed_pressure
+        Pressure per cell [Pa]; read on Dirichlet cells only.
+    initial_pressure
+        Starting pressure [Pa] (only improves round-off); defaults to zero.
+
+    Returns
+    -------
+    ndarray, shape (n_cells,)
+        Pressure [Pa].
+    """
+    start = np.zeros(mesh.n_cells) if initial_pressure is None else initial_pressure
+    return _solve_increment(
+        mesh, pattern, solver, conductance, np.zeros(mesh.n_cells), start, imposed_pressure, False
+    )
+
+
+def water_volume(
+    mesh: Mesh,
+    porosity: FloatArray,
+    saturation: FloatArray,
+    cells: npt.ArrayLike | None = None,
+) -> float:
+    """Water volume sum n_i V_i S_i [m3] (times the water density gives the mass).
+
+    Parameters
+    ----------
+    mesh
+        The mesh.
+    porosity, saturation
+        Per-cell porosity and saturation [1].
+    cells
+        Optional index or mask of the cells to sum (default: all).
+    """
+    content = porosity * mesh.volumes * saturation
+    return float(np.sum(content if cells is None else content[cells]))
+
+
+def porosity_from_solid_volume(
+    solid_volume: FloatArray,
+    volumes: FloatArray,
+    minimum: float = 0.0,
+    maximum: float = 1.0,
+) -> FloatArray:
+    """Porosity phi = 1 - V_s / V (thesis Eqs. 3.24-3.25), clipped to [minimum, maximum].
+
+    Parameters
+    ----------
+    solid_volume
+        Solid volume per cell V_s = (1 - phi_0) V_0, fixed between remeshes [m3].
+    volumes
+        Current cell volumes V [m3].
+    minimum, maximum
+        Clip bounds [1] (Yade's minPoroClamp / maxPoroClamp: 0.1 and 0.8 in the
+        thesis script).
+
+    Returns
+    -------
+    ndarray
+        Porosity [1].
+    """
+    return np.clip(1.0 - solid_volume / volumes, minimum, maximum)
+
+
+@dataclass(frozen=True)
+class TransferredState:
+    """Cell state carried from an old mesh to a new one (see :func:`transfer_cell_state`).
+
+    Attributes
+    ----------
+    pressure, saturation, porosity, solid_volume : ndarray, shape (n_new_cells,)
+        Water pressure [Pa], saturation [1], porosity [1], solid volume
+        (1 - phi) V [m3] on the new mesh.
+    water_defect : float
+        Water volume of the old mesh minus that of the transferred state before the
+        correction [m3].
+    """
+
+    pressure: FloatArray
+    saturation: FloatArray
+    porosity: FloatArray
+    solid_volume: FloatArray
+    water_defect: float
+
+
+def transfer_cell_state(
+    old_mesh: Mesh,
+    new_mesh: Mesh,
+    pressure: FloatArray,
+    saturation: FloatArray,
+    porosity: FloatArray,
+    material: ClayParameters = DEFAULT_CLAY,
+    *,
+    conserve_water: bool = True,
+) -> TransferredState:
+    """Carry the cell state across a remesh (REFERENCE_NOTES sections 8.3 and 8.4).
+
+    Each new cell takes the state of the old cell with the nearest centroid. The solid
+    volume is recomputed from that porosity and the new volume, so porosity does not
+    jump. The water volume sum n V S generally changes; with ``conserve_water`` the
+    defect is spread as a uniform saturation shift over the cells, clipped to
+    [S_r, S_s] (a clip leaves part of the defect, visible by comparing volumes).
+
+    Parameters
+    ----------
+    old_mesh, new_mesh
+        Meshes before and after the remesh.
+    pressure, saturation, porosity
+        Old state per old cell: water pressure [Pa], saturation [1], porosity [1].
+    material
+        Clay parameters (S_r, S_s).
+    conserve_water
+        Restore the old total water volume by a uniform saturation shift.
+
+    Returns
+    -------
+    TransferredState
+    """
+    nearest = cKDTree(old_mesh.centroids).query(new_mesh.centroids)[1]
+    new_porosity = porosity[nearest]
+    new_saturation = saturation[nearest]
+    pore = new_porosity * new_mesh.volumes
+    defect = water_volume(old_mesh, porosity, saturation) - float(np.sum(pore * new_saturation))
+    if conserve_water:
+        new_saturation = np.clip(
+            new_saturation + defect / pore.sum(),
+            material.residual_saturation,
+            material.saturated_saturation,
+        )
+    return TransferredState(
+        pressure=pressure[nearest],
+        saturation=new_saturation,
+        porosity=new_porosity,
+        solid_volume=(1.0 - new_porosity) * new_mesh.volumes,
+        water_defect=defect,
+    )

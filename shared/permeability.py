@@ -1,0 +1,129 @@
+"""Permeability laws: relative, intrinsic (porosity-dependent) and cubic-law cracks.
+
+DESIGN.md section 3 (thesis Eqs. 3.17, 3.18, 3.37). The effective saturation
+Se = (S - S_r)/(S_s - S_r) is clamped to [0, 1] (not floored at S_r: REFERENCE_NOTES
+section 8.8); the gas phase uses 1 - Se.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from shared.materials import DEFAULT_CLAY, ClayParameters
+
+__all__ = [
+    "Phase",
+    "effective_saturation",
+    "relative_permeability",
+    "intrinsic_permeability",
+    "crack_conductivity",
+    "phase_viscosity",
+]
+
+FloatArray = npt.NDArray[np.float64]
+Phase = Literal["water", "gas"]
+
+
+def effective_saturation(
+    saturation: npt.ArrayLike, material: ClayParameters = DEFAULT_CLAY
+) -> FloatArray:
+    """Effective water saturation Se = (S - S_r)/(S_s - S_r), clamped to [0, 1].
+
+    Parameters
+    ----------
+    saturation
+        Water saturation [1].
+    material
+        Clay parameters (S_r, S_s).
+
+    Returns
+    -------
+    ndarray
+        Se [1], shape of ``saturation``.
+    """
+    saturation = np.asarray(saturation, dtype=np.float64)
+    span = material.saturated_saturation - material.residual_saturation
+    return np.clip((saturation - material.residual_saturation) / span, 0.0, 1.0)
+
+
+def relative_permeability(
+    saturation: npt.ArrayLike,
+    phase: Phase = "water",
+    material: ClayParameters = DEFAULT_CLAY,
+) -> FloatArray:
+    """Relative permeability k_r = Se^n (water) or (1 - Se)^n (gas), in [0, 1].
+
+    Parameters
+    ----------
+    saturation
+        Water saturation [1] (for both phases).
+    phase
+        ``"water"`` or ``"gas"``.
+    material
+        Clay parameters (S_r, S_s, n).
+
+    Returns
+    -------
+    ndarray
+        k_r [1], shape of ``saturation``.
+    """
+    effective = effective_saturation(saturation, material)
+    if phase == "gas":
+        effective = 1.0 - effective
+    elif phase != "water":
+        raise ValueError(f"phase must be 'water' or 'gas', got {phase!r}")
+    return effective**material.relative_permeability_exponent
+
+
+def intrinsic_permeability(
+    porosity: npt.ArrayLike, material: ClayParameters = DEFAULT_CLAY
+) -> FloatArray:
+    """Intrinsic permeability k_M = k_0 exp(b_k (phi - phi_0)) (thesis Eq. 3.18).
+
+    Parameters
+    ----------
+    porosity
+        Porosity [1].
+    material
+        Clay parameters (k_0 [m2], b_k, phi_0).
+
+    Returns
+    -------
+    ndarray
+        k_M [m2], shape of ``porosity``.
+    """
+    porosity = np.asarray(porosity, dtype=np.float64)
+    return material.intrinsic_permeability_reference * np.exp(
+        material.permeability_porosity_factor * (porosity - material.reference_porosity)
+    )
+
+
+def crack_conductivity(aperture: npt.ArrayLike, viscosity: float) -> FloatArray:
+    """Cubic-law (parallel plate) conductivity w^3 / (12 mu) (thesis Eq. 3.37).
+
+    Parameters
+    ----------
+    aperture
+        Crack aperture w >= 0 [m]; negative apertures (closed) give 0.
+    viscosity
+        Dynamic viscosity of the flowing phase [Pa s].
+
+    Returns
+    -------
+    ndarray
+        Transmissivity per unit crack width [m3/(Pa s)], shape of ``aperture``.
+    """
+    aperture = np.maximum(np.asarray(aperture, dtype=np.float64), 0.0)
+    return aperture**3 / (12.0 * viscosity)
+
+
+def phase_viscosity(phase: Phase, material: ClayParameters = DEFAULT_CLAY) -> float:
+    """Dynamic viscosity of ``phase`` [Pa s]."""
+    if phase == "water":
+        return material.water_viscosity
+    if phase == "gas":
+        return material.gas_viscosity
+    raise ValueError(f"phase must be 'water' or 'gas', got {phase!r}")

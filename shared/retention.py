@@ -1,0 +1,180 @@
+"""Van Genuchten water retention with porosity-dependent parameters.
+
+DESIGN.md section 3 (thesis Eqs. 3.15, 3.26, 3.27):
+
+    S(s) = [1 + (s / zeta)^(1 / (1 - lambda))]^(-lambda),
+    zeta(phi) = zeta_0 exp(a (phi_0 - phi)),  lambda(phi) = lambda_0 exp(b (phi_0 - phi)).
+
+Suction s = -p > 0 (p water pressure, gas pressure 0). A non-positive suction gives a
+saturated state. :func:`saturation` clamps to [S_r, S_s] (Yade's SrM/SsM); the
+derivative :func:`saturation_derivative` is that of the clamped curve (zero where the
+clamp is active), so that the explicit update S += dS/dp dp of the flow step and the
+storage term of the implicit system stay consistent. :func:`suction` inverts the
+unclamped curve.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from shared.materials import DEFAULT_CLAY, ClayParameters
+
+__all__ = [
+    "retention_parameters",
+    "saturation",
+    "suction",
+    "saturation_derivative",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def retention_parameters(
+    porosity: npt.ArrayLike, material: ClayParameters = DEFAULT_CLAY
+) -> tuple[FloatArray, FloatArray]:
+    """Van Genuchten parameters zeta(phi) and lambda(phi) (thesis Eqs. 3.26-3.27).
+
+    Parameters
+    ----------
+    porosity
+        Porosity phi [1], any shape, values in (0, 1).
+    material
+        Clay parameters (zeta_0 [Pa], lambda_0, a, b, phi_0).
+
+    Returns
+    -------
+    zeta : ndarray
+        Retention pressure [Pa], shape of ``porosity``.
+    exponent : ndarray
+        Shape exponent lambda [1], shape of ``porosity``.
+
+    Raises
+    ------
+    ValueError
+        If a porosity lies outside (0, 1) or lambda leaves (0, 1).
+    """
+    porosity = np.asarray(porosity, dtype=np.float64)
+    if not np.all((porosity > 0.0) & (porosity < 1.0)):
+        raise ValueError("porosity must lie in (0, 1) (NaN not allowed)")
+    shift = material.reference_porosity - porosity
+    zeta = material.retention_pressure_reference * np.exp(
+        material.retention_pressure_porosity_factor * shift
+    )
+    exponent = material.retention_exponent_reference * np.exp(
+        material.retention_exponent_porosity_factor * shift
+    )
+    if np.any(exponent >= 1.0):
+        raise ValueError("lambda(porosity) reached 1: retention curve undefined")
+    return zeta, exponent
+
+
+def _unclamped_saturation(
+    suction: FloatArray, zeta: FloatArray, exponent: FloatArray
+) -> FloatArray:
+    ratio = np.maximum(suction, 0.0) / zeta
+    return (1.0 + ratio ** (1.0 / (1.0 - exponent))) ** (-exponent)
+
+
+def saturation(
+    suction: npt.ArrayLike,
+    porosity: npt.ArrayLike,
+    material: ClayParameters = DEFAULT_CLAY,
+) -> FloatArray:
+    """Water saturation of the retention curve, clamped to [S_r, S_s].
+
+    Parameters
+    ----------
+    suction
+        Suction s = -p [Pa]; values <= 0 give full saturation (then S_s).
+    porosity
+        Porosity [1], broadcastable with ``suction``.
+    material
+        Clay parameters.
+
+    Returns
+    -------
+    ndarray
+        Saturation S_w [1] in [S_r, S_s], broadcast shape.
+    """
+    suction = np.asarray(suction, dtype=np.float64)
+    zeta, exponent = retention_parameters(porosity, material)
+    value = _unclamped_saturation(suction, zeta, exponent)
+    return np.clip(value, material.residual_saturation, material.saturated_saturation)
+
+
+def suction(
+    saturation: npt.ArrayLike,
+    porosity: npt.ArrayLike,
+    material: ClayParameters = DEFAULT_CLAY,
+) -> FloatArray:
+    """Suction of the (unclamped) retention curve for a given saturation.
+
+    Parameters
+    ----------
+    saturation
+        Water saturation [1] in (0, 1]; 1 gives zero suction.
+    porosity
+        Porosity [1], broadcastable with ``saturation``.
+    material
+        Clay parameters.
+
+    Returns
+    -------
+    ndarray
+        Suction s >= 0 [Pa], broadcast shape.
+
+    Raises
+    ------
+    ValueError
+        If a saturation lies outside (0, 1]: zero saturation means infinite suction.
+    """
+    saturation = np.asarray(saturation, dtype=np.float64)
+    if not np.all((saturation > 0.0) & (saturation <= 1.0)):
+        raise ValueError("saturation must lie in (0, 1] to be inverted (NaN not allowed)")
+    zeta, exponent = retention_parameters(porosity, material)
+    excess = np.maximum(saturation ** (-1.0 / exponent) - 1.0, 0.0)
+    return zeta * excess ** (1.0 - exponent)
+
+
+def saturation_derivative(
+    suction: npt.ArrayLike,
+    porosity: npt.ArrayLike,
+    material: ClayParameters = DEFAULT_CLAY,
+) -> FloatArray:
+    """Closed-form derivative dS_w/dp of the clamped curve w.r.t. water pressure.
+
+    dS/dp = -dS/ds = lambda / (zeta (1 - lambda)) (s/zeta)^(lambda/(1-lambda))
+    [1 + (s/zeta)^(1/(1-lambda))]^(-(1+lambda)), zero for s <= 0 and wherever the clamp
+    to [S_r, S_s] is active.
+
+    Parameters
+    ----------
+    suction
+        Suction s = -p [Pa].
+    porosity
+        Porosity [1], broadcastable with ``suction``.
+    material
+        Clay parameters.
+
+    Returns
+    -------
+    ndarray
+        dS_w/dp >= 0 [1/Pa], broadcast shape.
+    """
+    suction = np.asarray(suction, dtype=np.float64)
+    zeta, exponent = retention_parameters(porosity, material)
+    ratio = np.maximum(suction, 0.0) / zeta
+    value = (
+        exponent
+        / (zeta * (1.0 - exponent))
+        * ratio ** (exponent / (1.0 - exponent))
+        * (1.0 + ratio ** (1.0 / (1.0 - exponent))) ** (-(1.0 + exponent))
+    )
+    curve = _unclamped_saturation(suction, zeta, exponent)
+    inside = (
+        (suction > 0.0)
+        & (curve > material.residual_saturation)
+        & (curve < material.saturated_saturation)
+    )
+    return np.where(inside, value, 0.0)

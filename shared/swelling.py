@@ -1,0 +1,70 @@
+"""Suction-driven volumetric swelling of DEM points (DESIGN.md section 3, Eq. 3.21).
+
+eps_v(s) = (beta/alpha) [exp(-alpha s) - exp(-alpha s_0)], positive (swelling) when the
+suction falls below s_0, with alpha and beta per Pa. A point's radius follows its volume,
+r = r_0 (1 + eps_v)^(1/3) (the reading DESIGN.md uses for the inconsistent Eq. 3.23).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from shared.materials import DEFAULT_CLAY, ClayParameters
+
+__all__ = ["volumetric_strain", "swollen_radius"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def volumetric_strain(
+    suction: npt.ArrayLike, material: ClayParameters = DEFAULT_CLAY
+) -> FloatArray:
+    """Volumetric swelling strain eps_v relative to the state at ``initial_suction``.
+
+    Parameters
+    ----------
+    suction
+        Suction s [Pa].
+    material
+        Clay parameters: swelling_alpha [1/Pa], swelling_beta [1/Pa],
+        initial_suction s_0 [Pa].
+
+    Returns
+    -------
+    ndarray
+        eps_v [1], shape of ``suction``; > 0 for s < s_0.
+    """
+    suction = np.asarray(suction, dtype=np.float64)
+    alpha = material.swelling_alpha
+    return (material.swelling_beta / alpha) * (
+        np.exp(-alpha * suction) - np.exp(-alpha * material.initial_suction)
+    )
+
+
+def swollen_radius(
+    reference_radius: npt.ArrayLike, volumetric_strain: npt.ArrayLike
+) -> FloatArray:
+    """Radius of a point whose volume grew by ``volumetric_strain``: r_0 (1 + eps_v)^(1/3).
+
+    Parameters
+    ----------
+    reference_radius
+        Radius r_0 at the reference state [m].
+    volumetric_strain
+        eps_v [1], broadcastable with ``reference_radius``; must exceed -1.
+
+    Returns
+    -------
+    ndarray
+        Radius [m], broadcast shape.
+
+    Raises
+    ------
+    ValueError
+        If 1 + eps_v <= 0 (a point cannot lose all its volume).
+    """
+    strain = np.asarray(volumetric_strain, dtype=np.float64)
+    if np.any(~(strain > -1.0)):
+        raise ValueError("volumetric strain must exceed -1 (NaN not allowed)")
+    return np.asarray(reference_radius, dtype=np.float64) * np.cbrt(1.0 + strain)

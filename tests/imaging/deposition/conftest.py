@@ -1,0 +1,49 @@
+"""Fixtures of the deposition tests: a small deposited bed, shared by the test modules.
+
+Tests marked ``slow`` are skipped unless pytest runs with ``--run-slow`` (an option the
+root conftest may define) or the environment variable CLAYCHAIN_RUN_SLOW=1.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from imaging.deposition import DepositionParameters, Packing, Population, deposit, sample_semi_axes
+
+DIAMETER = 1.0e-6
+HERE = Path(__file__).parent
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    run_slow = bool(config.getoption("--run-slow", default=False)) or os.environ.get(
+        "CLAYCHAIN_RUN_SLOW") == "1"
+    if run_slow:
+        return
+    skip = pytest.mark.skip(reason="slow: use --run-slow or CLAYCHAIN_RUN_SLOW=1")
+    for item in items:
+        if "slow" in item.keywords and HERE in Path(str(item.fspath)).parents:
+            item.add_marker(skip)
+
+
+def small_bed(seed: int, n: int = 40, box_diameters: float = 3.0, theta_max: float = np.pi / 2,
+              axis_ratio: float = 1.0, attempts: int = 800) -> Packing:
+    """A bed of R = 0.1 disks of equivalent diameter 1 um, high freedom (Table II series 2)."""
+    rng = np.random.default_rng(seed)
+    population = Population(basal_surface_median=np.pi / 4 * DIAMETER**2, aspect_ratio_median=0.1,
+                            axis_ratio_median=axis_ratio)
+    semi_axes = sample_semi_axes(population, n, rng)
+    params = DepositionParameters(
+        box_width=box_diameters * DIAMETER, contact_distance=5e-4 * DIAMETER, theta_max=theta_max,
+        theta_random=True, slide_amplitude=5 * DIAMETER, swivel_amplitude=np.radians(80),
+        rotation_amplitude=np.radians(80), attempts_per_cycle=attempts)
+    return deposit(semi_axes, params, rng)
+
+
+@pytest.fixture(scope="session")
+def elliptic_bed() -> Packing:
+    """40 elliptic disks (l_a / l_b = 1.5) in a 3 d box."""
+    return small_bed(seed=7, axis_ratio=1.5)

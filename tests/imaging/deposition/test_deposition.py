@@ -1,0 +1,119 @@
+"""Deposited beds: no interpenetration (independent dense sampling), floor contact,
+determinism, and the overlap fraction of the voxel image (Table IV: f_o < 1e-4)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from imaging.deposition import (
+    DepositionParameters,
+    Packing,
+    deposit,
+    legendre_order,
+    linear_zone,
+    porosity_profile,
+    zone_porosity,
+)
+from imaging.deposition.analysis import profile_edges
+from imaging.deposition.voxels import overlap_fraction, voxelize
+
+from .conftest import small_bed
+
+
+def _inside(
+    points: np.ndarray, center: np.ndarray, rot: np.ndarray, axes: np.ndarray
+) -> np.ndarray:
+    local = (points - center) @ rot
+    return (np.abs(local[:, 2]) <= axes[2]) & (
+        (local[:, 0] / axes[0]) ** 2 + (local[:, 1] / axes[1]) ** 2 <= 1.0)
+
+
+def _interior_points(axes: np.ndarray, n: int = 60, layers: int = 7) -> np.ndarray:
+    """Dense lattice filling an elliptic disk, boundary included."""
+    g = np.linspace(-1, 1, n)
+    x, y, z = np.meshgrid(g * axes[0], g * axes[1], np.linspace(-axes[2], axes[2], layers))
+    keep = (x / axes[0]) ** 2 + (y / axes[1]) ** 2 <= 1.0
+    return np.stack([x[keep], y[keep], z[keep]], 1)
+
+
+def _overlapping_points(bed: Packing) -> tuple[int, int]:
+    """(sampled points of any particle that lie in another one, pairs examined)."""
+    w = bed.box_width
+    radius = np.hypot(bed.semi_axes[:, 0], bed.semi_axes[:, 2])
+    wrapped = bed.centers.copy()
+    wrapped[:, 2] = wrapped[:, 2] % (10 * w)
+    tree = cKDTree(wrapped, boxsize=[w, w, 10 * w])
+    bad = 0
+    pairs = tree.query_pairs(2 * radius.max())
+    for i, j in pairs:
+        shift = bed.centers[j] - bed.centers[i]
+        shift[:2] -= w * np.round(shift[:2] / w)
+        points = _interior_points(bed.semi_axes[i]) @ bed.rotations[i].T + bed.centers[i]
+        other = bed.centers[i] + shift
+        bad += int(_inside(points, other, bed.rotations[j], bed.semi_axes[j]).sum())
+        points = _interior_points(bed.semi_axes[j]) @ bed.rotations[j].T + bed.centers[i] + shift
+        bad += int(_inside(points, bed.centers[i], bed.rotations[i], bed.semi_axes[i]).sum())
+    return bad, len(pairs)
+
+
+def test_no_interpenetration_by_dense_sampling(elliptic_bed: Packing) -> None:
+    bad, pairs = _overlapping_points(elliptic_bed)
+    assert pairs > 40
+    assert bad == 0
+
+
+def test_bed_stays_in_the_box_and_lands_on_the_floor(elliptic_bed: Packing) -> None:
+    bed = elliptic_bed
+    w = bed.box_width
+    assert np.all((bed.centers[:, :2] >= 0) & (bed.centers[:, :2] < w))
+    rot, axes = bed.rotations, bed.semi_axes
+    lowest = bed.centers[:, 2] - (np.sqrt((axes[:, 0] * rot[:, 2, 0]) ** 2
+                                          + (axes[:, 1] * rot[:, 2, 1]) ** 2)
+                                  + axes[:, 2] * np.abs(rot[:, 2, 2]))
+    assert lowest.min() == pytest.approx(bed.contact_distance / 2, rel=1e-6)
+    assert np.all(lowest > 0)
+
+
+def test_voxel_overlap_fraction_is_below_paper_level(elliptic_bed: Packing) -> None:
+    bed = elliptic_bed
+    image = voxelize(bed.centers, bed.rotations, bed.semi_axes, bed.box_width, 192,
+                     (0.0, float(bed.centers[:, 2].max())))
+    assert overlap_fraction(image.counts) < 1e-4
+
+
+def test_bed_is_deterministic_for_a_seed() -> None:
+    first = small_bed(seed=3, n=12, attempts=100)
+    again = small_bed(seed=3, n=12, attempts=100)
+    other = small_bed(seed=4, n=12, attempts=100)
+    assert np.array_equal(first.centers, again.centers)
+    assert np.array_equal(first.rotations, again.rotations)
+    assert not np.allclose(first.centers, other.centers)
+
+
+def test_flat_entry_and_free_moves_give_an_ordered_bed() -> None:
+    """Table II series 3 (theta_ini = 0, high freedom) yields strongly oriented beds (Fig. 6)."""
+    bed = small_bed(seed=5, n=30, theta_max=0.0, attempts=300)
+    assert legendre_order(bed.normals) > 0.9
+
+
+@pytest.mark.slow
+def test_freedom_and_entry_angle_order_the_porosity() -> None:
+    """Fig. 4-5 of the paper: low freedom (series 1) gives looser, less ordered beds than
+    high freedom with flat entry (series 3)."""
+    def porosity_and_order(theta_max: float, slide: float, swivel: float) -> tuple[float, float]:
+        rng = np.random.default_rng(21)
+        semi = np.tile([0.5e-6, 0.5e-6, 0.05e-6], (300, 1))
+        params = DepositionParameters(4e-6, 5e-10, theta_max, True, slide, swivel, swivel)
+        bed = deposit(semi, params, rng)
+        z = bed.centers[:, 2]
+        edges = profile_edges(float(z.max()), 0.5e-6)
+        low, high = linear_zone(edges, porosity_profile(z, bed.volumes, 4e-6, edges))
+        zone = (z > low) & (z <= high)
+        return zone_porosity(z, bed.volumes, 4e-6, low, high), legendre_order(bed.normals[zone])
+
+    loose, disordered = porosity_and_order(np.pi / 2, 1e-6 / 7, np.radians(10))
+    dense, ordered = porosity_and_order(0.0, 5e-6, np.radians(80))
+    assert loose > dense + 0.05
+    assert ordered > disordered + 0.1

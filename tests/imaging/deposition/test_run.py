@@ -1,0 +1,77 @@
+"""Stage entry point: the written file, config validation, and the paper presets."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+import yaml
+
+from imaging.deposition.config import population_of, resolve
+from imaging.deposition.population import sample_semi_axes
+from imaging.deposition.run import run
+from shared.io import read_dataset
+
+PRESETS = sorted((Path(__file__).parents[3] / "config" / "paper").glob("packing_*.yaml"))
+TINY = {"n_particles": 25, "box_width_m": 3e-6, "attempts_per_cycle": 150, "voxel_resolution": 64,
+        "seed": 4, "log_interval_s": 0.5}
+CONTRACT = ["center", "semi_axes", "euler", "normal", "porosity_profile", "order_profile",
+            "porosity", "S_part", "S_vol", "eta", "beta", "A_B", "A_L", "A_T", "A_Bcont",
+            "overlap_fraction", "rocking_curve"]
+
+
+def test_run_writes_the_contract(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level(logging.INFO, logger="imaging.deposition"):
+        ds = run(TINY, tmp_path / "tiny.nc")
+    assert any("ETA" in record.message for record in caplog.records)
+    back = read_dataset(tmp_path / "tiny.nc", required=CONTRACT)
+    assert (tmp_path / "tiny.png").stat().st_size > 10_000
+    for name, var in back.variables.items():
+        if var.dtype.kind in "iuf":
+            assert {"units", "long_name"} <= set(var.attrs), name
+    xr.testing.assert_allclose(back[CONTRACT], ds[CONTRACT])
+    assert back.attrs["stage"] == "packing" and back.attrs["seed"] == 4
+    assert back.sizes["particle"] == 25
+    assert np.allclose(np.linalg.norm(back["normal"].values, axis=1), 1.0)
+    assert float(back["overlap_fraction"]) < 1e-4
+    assert 0.2 < float(back["porosity"]) < 0.9
+
+
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("box_width_m", 0.5e-6),
+        ("basal_surface_sigma", -0.2),
+        ("axis_ratio_median", 0.7),
+        ("n_particles", 0),
+        ("theta_initial_deg", 95.0),
+        ("theta_initial_mode", "sideways"),
+        ("amplitude_reduction", 0.0),
+        ("n_particle", 10),
+        ("seed", -1),
+        ("contact_distance_m", 1e-7),
+    ],
+)
+def test_invalid_config_names_the_key(key: str, value: object) -> None:
+    with pytest.raises(ValueError, match=key):
+        resolve({key: value})
+
+
+def test_box_narrower_than_the_largest_sampled_particle(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="box_width_m"):
+        run({**TINY, "basal_surface_sigma": 2.0, "n_particles": 200}, tmp_path / "x.nc")
+
+
+@pytest.mark.parametrize("preset", PRESETS, ids=lambda p: p.stem)
+def test_paper_presets_are_valid_and_fit_the_box(preset: Path) -> None:
+    section = resolve(yaml.safe_load(preset.read_text())["packing"])
+    semi_axes = sample_semi_axes(population_of(section), section["n_particles"],
+                                 np.random.default_rng(section["seed"]))
+    assert 2 * semi_axes[:, 0].max() < section["box_width_m"]
+
+
+def test_presets_cover_tables_two_and_three() -> None:
+    assert len(PRESETS) == 6

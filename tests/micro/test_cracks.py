@@ -1,0 +1,136 @@
+"""Crack model and crack fabric against closed-form geometry and the cubic law.
+
+The test crack: bond a-b along x, six points on a ring of radius R in the plane x = 0
+(the crack plane of two equal radii). The Delaunay mesh is six tetrahedra
+(a, b, c_k, c_k+1) around the edge a-b, so every facet (a, b, c_k) is crossed by the
+crack over the width b = R, between cells whose circumcentres are rho = (R^2 - d^2) /
+(sqrt(3) R) from the axis and 60 degrees apart (dual length l = rho), and whose
+centroids are R cos(30 deg) / 2 from the axis (six patches of half-area
+(R cos 30 / 2)^2 sin(60) / 2).
+"""
+
+import numpy as np
+import pytest
+
+from micro.cracks import bond_apertures, crack_conductivity, crack_network
+from micro.fabric import crack_fabric, fabric_tensor
+from shared.materials import DEFAULT_CLAY
+from shared.mesh import build_mesh
+
+HALF_GAP, RING = 1e-4, 2e-4
+RADIUS = 0.99e-4  # aperture w = 2 (HALF_GAP - RADIUS) = 2 um
+APERTURE = 2e-6
+DUAL_LENGTH = (RING**2 - HALF_GAP**2) / (np.sqrt(3.0) * RING)
+
+
+@pytest.fixture(scope="module")
+def ring():
+    angles = np.arange(6) * np.pi / 3
+    points = np.vstack(
+        [[-HALF_GAP, 0, 0], [HALF_GAP, 0, 0], np.c_[np.zeros(6), RING * np.cos(angles),
+                                                      RING * np.sin(angles)]]
+    )
+    return points, build_mesh(points)
+
+
+def _network(ring, suction, radius=RADIUS):
+    points, mesh = ring
+    return crack_network(
+        [[0, 1], [2, 3]], points, np.full(8, radius), mesh.facet_vertices, mesh.facet_cells,
+        mesh.centroids, np.full(mesh.n_cells, suction),
+    )
+
+
+def test_aperture_is_gap_between_interaction_radii(ring):
+    points, _ = ring
+    w = bond_apertures([[0, 1], [2, 3]], points, np.full(8, RADIUS))
+    assert w == pytest.approx([APERTURE, RING - 2 * RADIUS], rel=1e-9)
+
+
+def test_imbibed_crack_adds_cubic_law_water_conductivity(ring):
+    _, mesh = ring
+    assert mesh.n_cells == 6 and mesh.n_facets == 6
+    np.testing.assert_allclose(mesh.facet_lengths, DUAL_LENGTH, rtol=1e-12)
+    network = _network(ring, suction=1e3)  # below gamma / w = 36.4 kPa
+    np.testing.assert_array_equal(network.pairs, [[0, 1]])  # (2, 3) is no mesh edge
+    assert network.imbibed[0]
+    assert network.entry_suctions[0] == pytest.approx(0.0728 / APERTURE, rel=1e-9)
+    change = crack_conductivity(network, mesh.facet_lengths)
+    cubic = APERTURE**3 / (12.0 * 1e-3) * RING / DUAL_LENGTH
+    np.testing.assert_allclose(change.water_added, cubic, rtol=1e-9)
+    np.testing.assert_array_equal(change.water_scale, 1.0)
+    np.testing.assert_array_equal(change.gas_scale, 1e-3)
+    np.testing.assert_array_equal(change.gas_added, 0.0)
+
+
+def test_gas_filled_crack_blocks_water_and_carries_gas(ring):
+    _, mesh = ring
+    network = _network(ring, suction=1e5)  # above gamma / w
+    assert not network.imbibed[0]
+    change = crack_conductivity(network, mesh.facet_lengths)
+    np.testing.assert_array_equal(change.water_scale, DEFAULT_CLAY.crack_roughness_factor)
+    np.testing.assert_array_equal(change.water_added, 0.0)
+    np.testing.assert_allclose(
+        change.gas_added, APERTURE**3 / (12.0 * 1.8e-5) * RING / DUAL_LENGTH, rtol=1e-9
+    )
+
+
+def test_crack_area_and_volume(ring):
+    network = _network(ring, suction=1e3)
+    centroid_radius = RING * np.cos(np.pi / 6) / 2
+    area = 6 * 0.5 * centroid_radius**2 * np.sin(np.pi / 3)
+    assert network.areas[0] == pytest.approx(area, rel=1e-9)
+    assert network.volumes[0] == pytest.approx(area * APERTURE, rel=1e-9)
+    np.testing.assert_allclose(network.patch_widths, RING, rtol=1e-9)
+
+
+def test_closed_bond_is_no_crack(ring):
+    network = _network(ring, suction=1e3, radius=1.0001e-4)
+    assert network.pairs.shape == (0, 2)
+    change = crack_conductivity(network, ring[1].facet_lengths)
+    np.testing.assert_array_equal(change.water_scale, 1.0)
+    assert change.water_added.dtype == np.float64 and not change.water_added.any()
+
+
+def test_fabric_of_cracks_along_x():
+    normals = np.array([[1.0, 0, 0], [2.0, 0, 0], [1.0, 0, 0]])
+    areas = np.array([1e-8, 2e-8, 3e-8])
+    expected = np.diag([6e-8 / 3, 0.0, 0.0])
+    np.testing.assert_allclose(fabric_tensor(normals, areas), expected, rtol=1e-15, atol=0)
+
+
+def test_opposite_normals_add_up():
+    tensor = fabric_tensor([[0, 0, 1.0], [0, 0, -1.0]], [4e-8, 4e-8])
+    np.testing.assert_allclose(tensor, np.diag([0.0, 0.0, 4e-8]), rtol=1e-15, atol=0)
+
+
+def test_fabric_separates_imbibed_and_gas_cracks():
+    diagonal = np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0)
+    fabric = crack_fabric(
+        [[0, 1.0, 0], diagonal, [1.0, 0, 0]], [2e-8, 4e-8, 6e-8], [1e-6, 2e-6, 3e-6],
+        [True, True, False],
+    )
+    np.testing.assert_allclose(
+        fabric.tensor_imbibed, [[1e-8, 1e-8, 0], [1e-8, 2e-8, 0], [0, 0, 0]], rtol=1e-14
+    )
+    np.testing.assert_allclose(fabric.tensor_gas, np.diag([6e-8, 0, 0]), rtol=1e-15)
+    assert (fabric.count, fabric.count_imbibed, fabric.count_gas) == (3, 2, 1)
+    assert fabric.area == pytest.approx(1.2e-7, rel=1e-14)
+    assert fabric.volume_imbibed == pytest.approx(2e-14 + 8e-14, rel=1e-14)
+    assert fabric.volume_gas == pytest.approx(1.8e-13, rel=1e-14)
+    np.testing.assert_array_equal(crack_fabric(np.zeros((0, 3)), [], [], []).tensor, 0.0)
+
+
+def test_trace_width_and_patch_area_on_a_skewed_triangle():
+    """Crack plane x = 1 cuts triangle (0,0,0), (2,0,0), (0.5,1,0) from (1,0,0) to
+    (1, 2/3, 0) on edge b-c; cell centres (1, 0.5, +-1) make a patch of half-area
+    |(0, 0.5, 1) x (0, 0.5, -1)| / 2 = 0.5."""
+    scale = 1e-4
+    points = np.array([[0.0, 0, 0], [2.0, 0, 0], [0.5, 1.0, 0]]) * scale
+    network = crack_network(
+        [[0, 1]], points, np.full(3, 0.9 * scale), [[0, 1, 2]], [[0, 1]],
+        np.array([[1.0, 0.5, 1.0], [1.0, 0.5, -1.0]]) * scale, [1e3, 1e3],
+    )
+    assert network.patch_widths[0] == pytest.approx(2.0 / 3.0 * scale, rel=1e-12)
+    assert network.patch_areas[0] == pytest.approx(0.5 * scale**2, rel=1e-12)
+    assert network.apertures[0] == pytest.approx(0.2 * scale, rel=1e-12)

@@ -1,0 +1,52 @@
+"""Cell-list contact detection against a brute-force O(N^2) search; Verlet list upkeep."""
+
+import numpy as np
+
+from shared.dem import detect_contacts, new_state, update_contacts
+
+
+def _brute_force(positions, radii, factor, skin):
+    i, j = np.triu_indices(positions.shape[0], k=1)
+    distance = np.linalg.norm(positions[j] - positions[i], axis=1)
+    close = distance < factor * (radii[i] + radii[j]) + skin
+    return np.stack([i[close], j[close]], axis=1)
+
+
+def test_cell_list_equals_brute_force_on_polydisperse_random_points():
+    rng = np.random.default_rng(11)
+    positions = rng.uniform(0.0, 1e-3, (700, 3))
+    radii = rng.uniform(2e-5, 8e-5, 700)
+    for factor, skin in ((1.0, 0.0), (1.3, 1e-5)):
+        found = detect_contacts(positions, radii, factor, skin)
+        expected = _brute_force(positions, radii, factor, skin)
+        assert expected.shape[0] > 500
+        np.testing.assert_array_equal(found, expected)
+
+
+def test_flat_and_tiny_clouds():
+    line = np.c_[np.arange(10) * 1.9, np.zeros(10), np.zeros(10)]
+    np.testing.assert_array_equal(
+        detect_contacts(line, np.ones(10)), np.c_[np.arange(9), np.arange(1, 10)]
+    )
+    assert detect_contacts(np.zeros((1, 3)), np.ones(1)).shape == (0, 2)
+
+
+def test_rebuild_keeps_shear_history_of_surviving_pairs():
+    positions = np.array([[0.0, 0, 0], [1.9, 0, 0], [3.8, 0, 0]]) * 1e-3
+    state = new_state(positions, np.full(3, 1e-3), skin_fraction=0.05)
+    np.testing.assert_array_equal(state.contacts.pairs, [[0, 1], [1, 2]])
+    state.contacts.shear_forces[:] = [[0.0, 1.0, 0.0], [0.0, 2.0, 0.0]]
+    state.positions[2, 0] += 1e-3  # far beyond the skin: pair (1, 2) must leave
+    assert update_contacts(state)
+    np.testing.assert_array_equal(state.contacts.pairs, [[0, 1]])
+    np.testing.assert_array_equal(state.contacts.shear_forces, [[0.0, 1.0, 0.0]])
+    assert not update_contacts(state)
+
+
+def test_bonds_are_touching_pairs_within_tolerance():
+    positions = np.array([[0.0, 0, 0], [2.0005, 0, 0], [0, 1.999, 0]]) * 1e-3
+    radii = np.full(3, 1e-3)
+    np.testing.assert_array_equal(new_state(positions, radii).bonds, [[0, 2]])
+    np.testing.assert_array_equal(
+        new_state(positions, radii, bond_tolerance=1e-3).bonds, [[0, 1], [0, 2]]
+    )
