@@ -11,6 +11,7 @@ configfile: "config/config.yaml"
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/imaging.smk"
+include: "workflow/rules/micro.smk"
 
 
 rule all:

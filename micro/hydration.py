@@ -29,7 +29,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from scipy.spatial import cKDTree
 
 from micro.cracks import CrackNetwork, crack_conductivity, crack_network
 from micro.forces import hydromechanical_forces, point_suction
@@ -37,7 +36,14 @@ from shared.dem.integrator import stable_time_step, step, unbalanced_force
 from shared.dem.parameters import DEFAULT_DEM, DEMParameters
 from shared.dem.state import DEMState
 from shared.dem.walls import Walls
-from shared.fv import FlowPattern, facet_conductance, flow_pattern, transient_step
+from shared.fv import (
+    FlowPattern,
+    facet_conductance,
+    flow_pattern,
+    porosity_from_solid_volume,
+    transfer_cell_state,
+    transient_step,
+)
 from shared.materials import DEFAULT_CLAY, ClayParameters
 from shared.mesh import WALLS, Mesh, boundary_cell_mask, delaunay_tetrahedra, mesh_from_tetrahedra
 from shared.retention import saturation as retention_saturation
@@ -76,6 +82,12 @@ class HydrationSettings:
         DEM steps between two evaluations of the unbalanced force [1].
     ramp_steps
         DEM steps over which a change of hydro-mechanical load is applied [1].
+    damping
+        Cundall damping of the relaxation [1]: only the balanced state matters, so it
+        is higher than the 0.4 of the thesis's dynamic runs.
+    max_step_fraction
+        Largest displacement of a point per DEM step during relaxation, as a fraction of
+        the smallest reference radius [1].
     porosity_bounds
         Porosity is clamped to this range (Yade's minPoroClamp, maxPoroClamp): the DEM
         does not know that the solid is incompressible [1].
@@ -90,7 +102,9 @@ class HydrationSettings:
     unbalanced_force_tolerance: float = 0.01
     max_relaxation_steps: int = 3000
     check_interval: int = 10
-    ramp_steps: int = 100
+    ramp_steps: int = 200
+    damping: float = 0.7
+    max_step_fraction: float = 0.005
     porosity_bounds: tuple[float, float] = (0.01, 0.95)
     cracks: bool = True
 
@@ -105,9 +119,6 @@ class PelletState:
         The point assembly (positions, radii, bonds, ...).
     mesh
         Current finite-volume mesh.
-    tetrahedra, neighbours
-        The Delaunay connectivity as :func:`shared.mesh.delaunay_tetrahedra` gave it
-        (before reorientation), reused for geometry updates with fixed connectivity.
     pressure
         Water pressure [Pa] (negative: suction).
     saturation
@@ -116,6 +127,8 @@ class PelletState:
         Solid volume of each cell, conserved [m3].
     porosity
         Current porosity, 1 - solid_volume / volume [1].
+    reference_extent
+        Extent of the point cloud at set-up [m] (divergence check).
     walls
         Wall box (confined runs) or None (free swelling).
     time
@@ -126,12 +139,11 @@ class PelletState:
 
     dem: DEMState
     mesh: Mesh
-    tetrahedra: npt.NDArray[np.int64]
-    neighbours: npt.NDArray[np.int64]
     pressure: FloatArray
     saturation: FloatArray
     solid_volume: FloatArray
     porosity: FloatArray
+    reference_extent: FloatArray = field(default_factory=lambda: np.full(3, np.inf))
     walls: Walls | None = None
     time: float = 0.0
     n_remesh: int = 0
@@ -178,17 +190,33 @@ def loaded_time_step(
     return float(parameters.time_step_safety * 2.0 / np.sqrt(12.0 * stiffness / mass))
 
 
+def _limit_speed(dem: DEMState, max_speed: float) -> None:
+    """Scale down velocities above ``max_speed`` [m/s] (kinetic limiter of quasi-static runs).
+
+    A relaxation only seeks the balanced state; a point that a burst of elastic energy
+    has launched would otherwise travel far before damping catches it, and a nearly
+    unconfined swollen assembly can then fall apart.
+    """
+    speed = np.sqrt((dem.velocities**2).sum(axis=1))
+    fast = speed > max_speed
+    if fast.any():
+        dem.velocities[fast] *= (max_speed / speed[fast])[:, None]
+
+
 def relax(
     state: PelletState,
     external_forces: FloatArray,
     settings: HydrationSettings,
     parameters: DEMParameters = DEFAULT_DEM,
     previous_forces: FloatArray | None = None,
+    target_radii: FloatArray | None = None,
 ) -> tuple[int, float]:
     """Run damped DEM steps until the unbalanced-force ratio is below tolerance.
 
-    The external forces move from ``previous_forces`` to ``external_forces`` over the
-    first ``settings.ramp_steps`` steps, so that a new load is not applied as a shock.
+    The external forces move from ``previous_forces`` to ``external_forces``, and the
+    radii from their current values to ``target_radii``, over the first
+    ``settings.ramp_steps`` steps: a swelling increment applied at once stores elastic
+    energy that the explicit dynamics releases as a burst that can scatter the points.
 
     Returns
     -------
@@ -199,13 +227,18 @@ def relax(
     """
     dem = state.dem
     start = external_forces if previous_forces is None else previous_forces
+    first_radii = dem.radii.copy()
+    final_radii = first_radii if target_radii is None else target_radii
     cap = loaded_time_step(dem, np.maximum(np.abs(external_forces), np.abs(start)), parameters)
     time_step = min(stable_time_step(dem, parameters, state.walls), cap)
     unbalanced = float("inf")
     for count in range(1, settings.max_relaxation_steps + 1):
         weight = min(count / settings.ramp_steps, 1.0)
         load = start + weight * (external_forces - start)
-        report = step(dem, time_step, parameters, load, state.walls)
+        if weight < 1.0 or count == settings.ramp_steps:
+            dem.radii[:] = first_radii + weight * (final_radii - first_radii)
+        report = step(dem, time_step, parameters, load, state.walls, settings.damping)
+        _limit_speed(dem, settings.max_step_fraction * float(dem.reference_radii.min()) / time_step)
         if count % settings.check_interval == 0:
             unbalanced = unbalanced_force(report.forces, report.normal_forces, dem.fixed)
             if weight == 1.0 and unbalanced < settings.unbalanced_force_tolerance:
@@ -237,12 +270,6 @@ def triangulate(
     return tetrahedra[keep], renumber[neighbours[keep]]
 
 
-def _remap(old: Mesh, new: Mesh, values: FloatArray) -> FloatArray:
-    """Cell values of ``old`` at the centroids of ``new`` (nearest old centroid)."""
-    _, nearest = cKDTree(old.centroids).query(new.centroids)
-    return values[nearest]
-
-
 def update_geometry(
     state: PelletState,
     porosity_bounds: tuple[float, float],
@@ -251,10 +278,11 @@ def update_geometry(
     """Recompute cell geometry and porosity from the moved points; remesh if needed.
 
     With fixed connectivity the solid volume of each cell is conserved exactly (the
-    porosity is clamped to ``porosity_bounds``). A cell that inverts or degenerates
-    triggers a full Delaunay remesh, which maps porosity and saturation by nearest
-    centroid, then rescales both so that the total solid volume and the total water
-    volume are unchanged.
+    porosity is clamped to ``porosity_bounds``). A cell that inverts triggers a full
+    Delaunay remesh; :func:`shared.fv.transfer_cell_state` carries porosity and
+    saturation over by nearest centroid and conserves the water volume, and the solid
+    volumes are then scaled so that their total is conserved too: otherwise every
+    remesh would reset the porosity that swelling has built up.
 
     Returns
     -------
@@ -263,27 +291,22 @@ def update_geometry(
     """
     positions = state.dem.positions
     try:
-        mesh = mesh_from_tetrahedra(positions, state.tetrahedra, state.neighbours)
-        keep = bool(np.all(mesh.volumes > 0))
-    except ValueError:
-        keep = False
-    if keep:
-        state.mesh = mesh
-        state.porosity = np.clip(1.0 - state.solid_volume / mesh.volumes, *porosity_bounds)
+        state.mesh = mesh_from_tetrahedra(
+            positions, state.mesh.tetrahedra, state.mesh.neighbours, reorient=False
+        )
+        state.porosity = porosity_from_solid_volume(
+            state.solid_volume, state.mesh.volumes, *porosity_bounds
+        )
         return False
-    solid_total, water_total = state.solid_volume.sum(), state.water_volume()
-    tetrahedra, neighbours = triangulate(positions)
-    new = mesh_from_tetrahedra(positions, tetrahedra, neighbours)
-    porosity = _remap(state.mesh, new, state.porosity)
-    solid = (1.0 - porosity) * new.volumes
-    solid *= solid_total / solid.sum()
-    state.porosity = np.clip(1.0 - solid / new.volumes, *porosity_bounds)
-    saturation = _remap(state.mesh, new, state.saturation)
-    saturation *= water_total / float((state.porosity * new.volumes * saturation).sum())
-    state.saturation = np.clip(saturation, material.residual_saturation, material.saturated_saturation)
-    state.pressure = _remap(state.mesh, new, state.pressure)
-    state.solid_volume = solid
-    state.mesh, state.tetrahedra, state.neighbours = new, tetrahedra, neighbours
+    except ValueError:
+        pass
+    new = mesh_from_tetrahedra(positions, *triangulate(positions))
+    moved = transfer_cell_state(state.mesh, new, state.pressure, state.saturation,
+                                state.porosity, material)
+    state.mesh = new
+    state.pressure, state.saturation = moved.pressure, moved.saturation
+    state.solid_volume = moved.solid_volume * (state.solid_volume.sum() / moved.solid_volume.sum())
+    state.porosity = porosity_from_solid_volume(state.solid_volume, new.volumes, *porosity_bounds)
     state.n_remesh += 1
     return True
 
@@ -353,8 +376,8 @@ def membrane_forces(positions: FloatArray, stress: float, layer: float) -> Float
     return forces
 
 
-def swell(state: PelletState, material: ClayParameters) -> FloatArray:
-    """Set point radii from the suction of their cells; return the hydro-mechanical forces.
+def swell(state: PelletState, material: ClayParameters) -> tuple[FloatArray, FloatArray]:
+    """Swollen point radii from the suction of their cells, and the hydro-mechanical forces.
 
     The exterior chi p on each hull triangle is taken equal to that of the boundary
     cell it closes, so the facet forces carry only the jumps of S p between cells; the
@@ -366,15 +389,63 @@ def swell(state: PelletState, material: ClayParameters) -> FloatArray:
     mesh = state.mesh
     suction = point_suction(mesh.tetrahedra, mesh.volumes, np.maximum(-state.pressure, 0.0),
                             state.dem.n_points)
-    state.dem.radii[:] = swollen_radius(state.dem.reference_radii, volumetric_strain(suction, material))
+    radii = swollen_radius(state.dem.reference_radii, volumetric_strain(suction, material))
     bishop = state.saturation * state.pressure
-    facets = hydromechanical_forces(mesh, state.dem.positions, state.dem.radii, state.pressure,
+    facets = hydromechanical_forces(mesh, state.dem.positions, radii, state.pressure,
                                     state.saturation, exterior_pressure=bishop[mesh.boundary_cells])
     boundary = mesh.boundary_cells
     weights = mesh.boundary_areas
     boundary_stress = -float((bishop[boundary] * weights).sum() / weights.sum())
     layer = float(state.dem.reference_radii.mean())
-    return facets + membrane_forces(state.dem.positions, max(boundary_stress, 0.0), layer)
+    forces = facets + membrane_forces(state.dem.positions, max(boundary_stress, 0.0), layer)
+    return radii, forces
+
+
+def _flow_step(
+    state: PelletState,
+    system: FlowSystem,
+    boundary_suction: float,
+    time_step: float,
+    settings: HydrationSettings,
+    material: ClayParameters,
+) -> float:
+    """One accepted implicit flow step, halving the time step while it overshoots.
+
+    dS/dp is frozen at the start of a step, and it grows by orders of magnitude as
+    suction falls: a long step then drives cells past the boundary suction, which the
+    maximum principle forbids. Such a step is rejected and retried with half the time
+    step.
+
+    Returns
+    -------
+    float
+        The time step taken [s].
+    """
+    imposed = np.full(state.mesh.n_cells, -boundary_suction)
+    state.saturation[system.dirichlet] = retention_saturation(
+        boundary_suction, state.porosity[system.dirichlet], material
+    )
+    conductance = conductances(state, "water", material, settings.cracks)
+    old_suction = -state.pressure
+    slack = settings.hydraulic_tolerance * boundary_suction
+    low = min(boundary_suction, float(old_suction.min())) - slack
+    high = max(boundary_suction, float(old_suction.max())) + slack
+    while time_step >= settings.initial_time_step * 1e-6:
+        result = transient_step(state.mesh, system.pattern, system.solver, state.pressure,
+                                state.saturation, state.porosity, conductance, imposed,
+                                time_step, material)
+        new_suction = -result.pressure
+        if not np.all(np.isfinite(new_suction)):
+            raise DivergenceError(f"non-finite pressure at t = {state.time:.3g} s")
+        if new_suction.min() >= low and new_suction.max() <= high:
+            state.pressure, state.saturation = result.pressure, result.saturation
+            state.time += time_step
+            return time_step
+        time_step *= 0.5
+    raise DivergenceError(
+        f"the flow step overshoots the boundary suction even at dt = {time_step:.3g} s "
+        f"(t = {state.time:.3g} s)"
+    )
 
 
 def advance_to_balance(
@@ -394,29 +465,31 @@ def advance_to_balance(
     diagnostics : dict
         ``flow_steps``, ``dem_steps``, ``unbalanced_force``, ``suction_misfit`` (largest
         relative departure of a cell's suction from the boundary's), ``balanced`` (1/0).
+
+    Raises
+    ------
+    DivergenceError
+        If the pressure or the points become non-finite, or the specimen flies apart
+        (its extent more than doubles).
     """
     time_step = settings.initial_time_step
     dem_steps, unbalanced, misfit = 0, float("nan"), float("inf")
     flow_steps = 0
     for flow_steps in range(1, settings.max_flow_steps + 1):
-        imposed = np.full(state.mesh.n_cells, -boundary_suction)
-        state.saturation[system.dirichlet] = retention_saturation(
-            boundary_suction, state.porosity[system.dirichlet], material
-        )
-        conductance = conductances(state, "water", material, settings.cracks)
-        result = transient_step(state.mesh, system.pattern, system.solver, state.pressure,
-                                state.saturation, state.porosity, conductance, imposed,
-                                time_step, material)
-        state.pressure, state.saturation = result.pressure, result.saturation
-        state.time += time_step
-        _check_finite(state, f"flow step at t = {state.time:.3g} s")
-        forces = swell(state, material)
-        taken, unbalanced = relax(state, forces, settings, parameters, state.hydraulic_forces)
+        time_step = _flow_step(state, system, boundary_suction, time_step, settings, material)
+        radii, forces = swell(state, material)
+        taken, unbalanced = relax(state, forces, settings, parameters, state.hydraulic_forces,
+                                  radii)
         state.hydraulic_forces = forces
         dem_steps += taken
+        _check_finite(state, "mechanical relaxation")
+        extent = np.ptp(state.dem.positions, axis=0)
+        if np.any(extent > 2.0 * state.reference_extent):
+            raise DivergenceError(
+                f"the specimen flies apart (extent {extent.max():.3g} m) at t = {state.time:.3g} s"
+            )
         if update_geometry(state, settings.porosity_bounds, material):
             system = FlowSystem.for_mesh(state.mesh)
-        _check_finite(state, "mechanical relaxation")
         update_cracks(state, material)
         misfit = float(np.abs(-state.pressure / boundary_suction - 1.0).max())
         if misfit < settings.hydraulic_tolerance:

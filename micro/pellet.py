@@ -9,14 +9,14 @@ import numpy.typing as npt
 import xarray as xr
 
 from micro.fabric import crack_fabric
-from micro.hydration import PelletState, conductances, update_cracks
+from micro.hydration import PelletState, conductances, triangulate, update_cracks
 from micro.permeability import permeability_tensor_axes
 from shared.dem.parameters import DEFAULT_DEM, DEMParameters
 from shared.dem.points import cube_points
 from shared.dem.state import new_state
 from shared.dem.walls import walls_around
 from shared.materials import DEFAULT_CLAY, ClayParameters
-from shared.mesh import delaunay_tetrahedra, mesh_from_tetrahedra, porosity_at_centroids
+from shared.mesh import mesh_from_tetrahedra, porosity_at_centroids
 from shared.retention import saturation as retention_saturation
 
 __all__ = ["SpecimenSpec", "centred_grid", "initial_state", "measure_checkpoint", "POROSITY_BINS"]
@@ -126,8 +126,7 @@ def initial_state(
     dem = new_state(positions, radii, parameters)
     if not spec.rotations:
         dem.inertia[:] = np.inf
-    points, tetrahedra, neighbours = delaunay_tetrahedra(dem.positions)
-    mesh = mesh_from_tetrahedra(points, tetrahedra, neighbours)
+    mesh = mesh_from_tetrahedra(dem.positions, *triangulate(dem.positions))
     if porosity_grid is not None:
         field = porosity_at_centroids(mesh, centred_grid(porosity_grid, spec.edge_length))
     else:
@@ -141,12 +140,11 @@ def initial_state(
     return PelletState(
         dem=dem,
         mesh=mesh,
-        tetrahedra=tetrahedra,
-        neighbours=neighbours,
         pressure=np.full(mesh.n_cells, -suction),
         saturation=retention_saturation(suction, field, material),
         solid_volume=(1.0 - field) * mesh.volumes,
         porosity=field.copy(),
+        reference_extent=np.ptp(dem.positions, axis=0),
         walls=walls,
     )
 

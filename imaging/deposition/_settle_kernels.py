@@ -1,6 +1,6 @@
 """Settling of one particle on a fixed bed (Ferrage et al. 2015, Sec. II.A), numba kernels.
 
-``Bed`` arrays are passed explicitly (no globals, so the on-disk cache stays valid):
+Bed arrays are passed explicitly (module constants only, so the on-disk cache stays valid):
 centres, rotations, semi-axes and bounding half-extents of the particles already placed,
 and the spatial hash of :mod:`._grid_kernels`. Scratch buffers hold candidate
 indices (``found``), their periodic shifts, their drops and witness points, and the
@@ -118,12 +118,13 @@ def rotation_about(axis, angle, out):
 
 
 @njit(cache=True)
-def pivot_point(center, contacts, n_contacts, choice, out):
+def pivot_point(center, contacts, n_contacts, choice, separation, out):
     """Point about which a settled particle moves (Sec. II.A).
 
     One contact: the contact itself. Two or more: the foot of the altitude from the
     barycentre to the line through two contacts (the pair is picked by ``choice`` in
-    [0, 1) when there are more than two).
+    [0, 1) when there are more than two); two contacts closer than ``separation`` [m]
+    count as one.
     """
     i = min(int(choice * n_contacts), n_contacts - 1)
     out[:] = contacts[i]
@@ -132,7 +133,7 @@ def pivot_point(center, contacts, n_contacts, choice, out):
     j = (i + 1) % n_contacts
     line = contacts[j] - contacts[i]
     length2 = np.dot(line, line)
-    if length2 <= 1e-24 * (1.0 + np.dot(contacts[i], contacts[i])):
+    if length2 <= separation * separation:
         return
     t = np.dot(center - contacts[i], line) / length2
     out[:] = contacts[i] + t * line
@@ -209,7 +210,7 @@ def settle(center, rot, axes, uniforms, amplitudes, reduction, n_cycles, n_kinds
         if attempt > 0 and attempt % per_cycle == 0:
             amp *= reduction
         kind = min(int(uniforms[attempt, 0] * n_kinds), n_kinds - 1)
-        pivot_point(center, contacts, n_contacts, uniforms[attempt, 3], pivot)
+        pivot_point(center, contacts, n_contacts, uniforms[attempt, 3], geometry[4], pivot)
         trial_move(kind, uniforms[attempt, 1] * amp[kind], uniforms[attempt, 2], center, rot,
                    pivot, new_center, new_rot, work)
         new_center[0] %= geometry[0]

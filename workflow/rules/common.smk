@@ -12,10 +12,17 @@ except ConfigError as err:
     sys.exit(f"claychain: invalid configuration: {err}")
 
 SAMPLES = sorted(config["samples"])
+CASES = sorted(config["micro"]["cases"])
+if config["micro"]["sample"] not in config["samples"]:
+    sys.exit(
+        f"claychain: invalid configuration: config key 'micro.sample': "
+        f"{config['micro']['sample']!r} is not a sample"
+    )
 
 
 wildcard_constraints:
     sample="|".join(SAMPLES),
+    case="|".join(CASES),
 
 
 def code_hash(*packages):
@@ -38,9 +45,14 @@ def get_scan(wildcards):
     return entry["path"]
 
 
+def get_micro_porosity(wildcards):
+    """The porosity grid that informs the micro cases."""
+    return f"results/porosity/{config['micro']['sample']}.nc"
+
+
 def get_final_outputs():
     """Every product of the default run."""
-    return expand(
+    imaging = expand(
         [
             "results/porosity/{sample}.nc",
             "results/porosity/{sample}.png",
@@ -49,6 +61,8 @@ def get_final_outputs():
         ],
         sample=SAMPLES,
     )
+    micro = expand(["results/micro/{case}.nc", "results/micro/{case}.png"], case=CASES)
+    return imaging + micro + ["results/micro/comparison.png"]
 
 
 # The sources each stage's rules run; their hash is a param so that edits rerun the rules.
@@ -59,3 +73,4 @@ IMAGING_CODE = code_hash(
     "shared/figures.py",
     "shared/config.py",
 )
+MICRO_CODE = code_hash("micro", "shared")

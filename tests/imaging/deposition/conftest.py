@@ -1,13 +1,6 @@
-"""Fixtures of the deposition tests: a small deposited bed, shared by the test modules.
-
-Tests marked ``slow`` are skipped unless pytest runs with ``--run-slow`` (an option the
-root conftest may define) or the environment variable CLAYCHAIN_RUN_SLOW=1.
-"""
+"""Fixtures of the deposition tests: a small deposited bed, shared by the test modules."""
 
 from __future__ import annotations
-
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,18 +8,6 @@ import pytest
 from imaging.deposition import DepositionParameters, Packing, Population, deposit, sample_semi_axes
 
 DIAMETER = 1.0e-6
-HERE = Path(__file__).parent
-
-
-def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    run_slow = bool(config.getoption("--run-slow", default=False)) or os.environ.get(
-        "CLAYCHAIN_RUN_SLOW") == "1"
-    if run_slow:
-        return
-    skip = pytest.mark.skip(reason="slow: use --run-slow or CLAYCHAIN_RUN_SLOW=1")
-    for item in items:
-        if "slow" in item.keywords and HERE in Path(str(item.fspath)).parents:
-            item.add_marker(skip)
 
 
 def small_bed(seed: int, n: int = 40, box_diameters: float = 3.0, theta_max: float = np.pi / 2,

@@ -1,0 +1,350 @@
+"""Yade 2023.02a side of the Yade comparison benchmark (issue 4): the micro model's cube.
+
+Run headless as ``yade -x -n -j1 partialsat_cube.py SETTINGS.json``. ``SETTINGS.json``
+(written by :mod:`benchmarks.yade_compare`, the single source of every number used
+here) names the points file (``x y z r`` per line, metres) and the output JSON, and
+holds the Table 3.1 parameters and the run lengths.
+
+What it does, after Caulk (2022) Appendix .2 with the corrections of
+REFERENCE_NOTES section 10:
+
+1. Spheres at the given points inside six static walls moved 1 mm away (free swelling),
+   Hertz-Mindlin contacts, PartialSatClayEngine with Table 3.1 parameters, homogeneous
+   porosity, ``blockIsoCells = False`` (otherwise every imposed-pressure boundary is
+   silently removed), one solver thread, cracks off (homogeneous specimen).
+2. Equilibration at the initial suction with porosity and saturation frozen and
+   swelling off, in chunks, until the unbalanced force falls below the threshold or
+   the iteration budget is spent.
+3. Water permeability along x at the equilibrated state and at full saturation: the
+   two x walls get pressures dP apart (dP = 10 % of s), the other walls no flux,
+   everything frozen; k = Q mu L / (A dP) with Q from ``getBoundaryFlux`` (the
+   per-cell velocity average of the thesis script is biased in this build), L and A
+   from the spheres' box and from the centres' box, and Q mu / (A |grad p|) with the
+   pressure gradient sampled inside the specimen.
+4. Timings with swelling and saturation live again: mean wall time of coupled
+   iterations (DEM + flow solve with the factor reused) with a per-engine split, and
+   the steps after a forced remesh (triangulation, interpolation, conductances,
+   refactorisation), minus the plain iteration cost.
+
+The script runs inside Yade's interpreter, whose namespace provides ``O``, the engine
+and functor classes and ``utils``.
+"""
+
+import json
+import sys
+import time
+
+import numpy as np
+
+WALL_OFFSET = 1e-3  # walls 1 mm away from the packing, as the thesis's free swelling run
+
+
+def read_settings():
+    """Load the settings JSON named on the command line."""
+    if len(sys.argv) != 2:
+        raise SystemExit("usage: yade -x -n -j1 partialsat_cube.py SETTINGS.json")
+    with open(sys.argv[1]) as handle:
+        return json.load(handle)
+
+
+def build_scene(settings):
+    """Walls (bodies 0-5, where the flow engine expects them), spheres and engines."""
+    dem = settings["dem"]
+    O.reset()
+    O.materials.append(PartialSatMat(
+        density=dem["density"], young=dem["young_modulus"], poisson=dem["poisson_ratio"],
+        frictionAngle=np.radians(dem["friction_angle_deg"]), label="spheres",
+    ))
+    # Appendix .2's wall material: very stiff, frictionless.
+    O.materials.append(PartialSatMat(
+        density=0, young=8.8e13, poisson=0.8, frictionAngle=0.0, label="walls",
+    ))
+    data = np.loadtxt(settings["points_path"], ndmin=2)
+    low = (data[:, :3] - data[:, 3:4]).min(axis=0)
+    high = (data[:, :3] + data[:, 3:4]).max(axis=0)
+    O.bodies.append(aabbWalls([Vector3(*low), Vector3(*high)], thickness=0, material="walls"))
+    for x, y, z, r in data:
+        O.bodies.append(sphere((x, y, z), r, material="spheres"))
+    # aabbWalls order is x-, x+, y-, y+, z-, z+; move each one outwards.
+    for wall in range(6):
+        axis, side = divmod(wall, 2)
+        position = Vector3(O.bodies[wall].state.pos)
+        position[axis] += WALL_OFFSET if side else -WALL_OFFSET
+        O.bodies[wall].state.pos = position
+    O.engines = [
+        ForceResetter(),
+        InsertionSortCollider([Bo1_Sphere_Aabb(aabbEnlargeFactor=1.0), Bo1_Box_Aabb()]),
+        InteractionLoop(
+            [Ig2_Sphere_Sphere_ScGeom6D(interactionDetectionFactor=1.0), Ig2_Box_Sphere_ScGeom6D()],
+            [Ip2_PartialSatMat_PartialSatMat_MindlinPhys()],
+            [Law2_ScGeom_MindlinPhys_Mindlin(includeAdhesion=False)],
+        ),
+        PartialSatClayEngine(label="flow"),
+        NewtonIntegrator(gravity=(0, 0, 0), damping=dem["damping"]),
+    ]
+    O.dt = dem["time_step"]
+    O.dynDt = False
+    return data.shape[0]
+
+
+def configure_flow(settings):
+    """Table 3.1 parameters, pressure boundaries at the initial suction, solver knobs."""
+    clay = settings["clay"]
+    suction = clay["initial_suction"]
+    flow.blockIsoCells = False
+    flow.useSolver = 4
+    flow.numSolveThreads = 1
+    flow.numFactorizeThreads = 1
+    flow.multithread = False  # aborts or zeroes saturation after a background remesh
+    flow.meshUpdateInterval = -1  # remesh only when asked: the timings choose when
+    flow.defTolerance = -1
+    flow.viscosity = clay["water_viscosity"]
+    flow.airViscosity = clay["gas_viscosity"]
+    # A negative factor selects the partially saturated law, in which it stands for
+    # k_0 / mu (the viscosity is not applied again).
+    flow.permeabilityFactor = -clay["intrinsic_permeability_reference"] / clay["water_viscosity"]
+    flow.clampKValues = False
+    flow.bIntrinsicPerm = clay["permeability_porosity_factor"]
+    flow.nUnsatPerm = clay["relative_permeability_exponent"]
+    flow.SrM = clay["residual_saturation"]
+    flow.SsM = clay["saturated_saturation"]
+    flow.Po = clay["retention_pressure_reference"]
+    flow.lmbda = clay["retention_exponent_reference"]
+    flow.a = clay["retention_pressure_porosity_factor"]
+    flow.b = clay["retention_exponent_porosity_factor"]
+    flow.constantPorosity = True
+    flow.meanInitialPorosity = clay["reference_porosity"]
+    flow.minPoroClamp = 0.1
+    flow.maxPoroClamp = 0.8
+    flow.betam = clay["swelling_beta"]
+    flow.alpham = clay["swelling_alpha"]
+    flow.minParticleSwellFactor = 0.5
+    flow.freeSwelling = True
+    flow.particleSwelling = True
+    flow.waterSurfaceTension = clay["surface_tension"]
+    flow.permAreaFactor = clay["crack_roughness_factor"]
+    flow.crackModelActive = False
+    flow.minCellVol = 1e-20
+    flow.pZero = -suction
+    flow.bndCondIsPressure = [1] * 6
+    flow.bndCondValue = [-suction] * 6
+    flow.boundaryUseMaxMin = [1] * 6
+
+
+def equilibrate(settings):
+    """Mechanical balance at the initial suction, porosity and saturation frozen."""
+    run = settings["run"]
+    flow.freezePorosity = True
+    flow.freezeSaturation = True
+    flow.swelling = False
+    unbalanced = float("nan")
+    start = time.perf_counter()
+    while O.iter < run["max_equilibration_iterations"]:
+        O.run(run["equilibration_chunk"], True)
+        unbalanced = unbalancedForce()
+        if unbalanced <= run["unbalanced_force_threshold"]:
+            break
+    return {
+        "iterations": O.iter,
+        "unbalanced_force": unbalanced,
+        "wall_time_s": time.perf_counter() - start,
+        "n_cells": flow.nCells(),
+        "n_contacts": O.interactions.countReal(),
+    }
+
+
+def specimen_box(radii):
+    """Lower and upper corners of the sphere centres' box, with the radii or without."""
+    corners = [np.inf * np.ones(3), -np.inf * np.ones(3)]
+    for body in O.bodies:
+        if isinstance(body.shape, Sphere):
+            centre = np.array(body.state.pos)
+            margin = body.shape.radius if radii else 0.0
+            corners[0] = np.minimum(corners[0], centre - margin)
+            corners[1] = np.maximum(corners[1], centre + margin)
+    return corners
+
+
+def cell_statistics():
+    """Mean, min and max of cell porosity and saturation (checks the homogeneous state)."""
+    porosity, saturation = [], []
+    for cell in range(flow.nCells()):
+        centre = flow.getCellCenter(cell)
+        porosity.append(flow.getCellPorosity(centre))
+        saturation.append(flow.getCellSaturation(centre))
+    return {
+        name: {"mean": float(np.mean(v)), "min": float(np.min(v)), "max": float(np.max(v))}
+        for name, v in (("porosity", porosity), ("saturation", saturation))
+    }
+
+
+def set_dynamic(dynamic):
+    """Freeze or release every sphere."""
+    for body in O.bodies:
+        if isinstance(body.shape, Sphere):
+            body.dynamic = dynamic
+            body.state.vel = Vector3.Zero
+
+
+def interior_gradient(low, high, fraction=0.4, samples=5):
+    """Mean pressure gradient along x between two planes of the inner specimen [Pa/m].
+
+    Pressures are sampled on a grid of the inner half of each plane, at
+    x = centre -+ fraction L / 2, so that the boundary cells do not enter.
+    """
+    centre = 0.5 * (low + high)
+    size = high - low
+    offsets = (np.arange(samples) / (samples - 1) - 0.5) * 0.5
+    planes = []
+    for side in (-0.5, 0.5):
+        x = centre[0] + side * fraction * size[0]
+        planes.append(np.mean([
+            flow.getPorePressure((x, centre[1] + u * size[1], centre[2] + w * size[2]))
+            for u in offsets for w in offsets
+        ]))
+    return (planes[1] - planes[0]) / (fraction * size[0])
+
+
+def permeability_x(settings, saturated):
+    """Water permeability along x from the wall fluxes of a frozen state.
+
+    At equilibrium the walls get -s -+ dP/2. With ``saturated`` every cell's
+    saturation is set to 1 before the remesh that recomputes the conductances, and the
+    wall pressures are shifted to dP/2 and 3 dP/2: Yade gives the imposed-pressure
+    cells the retention-curve saturation of their pressure, which is 1 only for
+    non-negative pressures (the solve is linear, so the shift does not change k).
+    """
+    suction = settings["clay"]["initial_suction"]
+    drop = settings["run"]["drop_fraction"] * suction
+    mean = drop if saturated else -suction
+    flow.freezePorosity = True
+    flow.freezeSaturation = True
+    if saturated:
+        for cell in range(flow.nCells()):
+            flow.setCellSaturation(cell, 1.0)
+    flow.bndCondIsPressure = [1, 1, 0, 0, 0, 0]
+    values = [mean] * 6
+    values[flow.xmin] = mean - 0.5 * drop
+    values[flow.xmax] = mean + 0.5 * drop
+    flow.bndCondValue = values
+    flow.updateTriangulation = True
+    # The new mesh is used from the second call on; the third is a settled solve.
+    for _ in range(3):
+        flow.emulateAction()
+    inflow = flow.getBoundaryFlux(flow.wallIds[flow.xmin])
+    outflow = flow.getBoundaryFlux(flow.wallIds[flow.xmax])
+    viscous_rate = flow.viscosity * 0.5 * (abs(inflow) + abs(outflow))
+    result = {"flux_xmin_m3_s": inflow, "flux_xmax_m3_s": outflow, "pressure_drop_pa": drop}
+    # Two readings of the specimen's extent: the spheres' box (thesis script,
+    # utils.aabbExtrema) and the centres' box. Flow runs through the latter: per its
+    # cross-section the interior gradient gives back k_0 Se^n, per the spheres' box it
+    # does not, as the cells between outer centres and walls carry little flux.
+    for name, radii in (("sphere_box", True), ("centre_box", False)):
+        low, high = specimen_box(radii)
+        size = high - low
+        area = size[1] * size[2]
+        result[name] = {
+            "length_m": size[0],
+            "area_m2": area,
+            "k_x_m2": viscous_rate * size[0] / (area * drop),
+        }
+    # The same flux over the interior gradient, per centres' box cross-section: the
+    # resistance of the imposed-pressure cells left out.
+    low, high = specimen_box(False)
+    area = result["centre_box"]["area_m2"]
+    result["k_x_interior_m2"] = viscous_rate / (area * abs(interior_gradient(low, high)))
+    result["cells"] = cell_statistics()
+    return result
+
+
+def restore_coupling(settings):
+    """Back to the coupled hydration set-up: all walls at the suction, state live."""
+    suction = settings["clay"]["initial_suction"]
+    flow.bndCondIsPressure = [1] * 6
+    flow.bndCondValue = [-suction] * 6
+    flow.freezePorosity = False
+    flow.freezeSaturation = False
+    flow.resetVolumeSolids = True
+    flow.swelling = True
+    flow.updateTriangulation = True
+    set_dynamic(True)
+
+
+def engine_times_ns():
+    """Accumulated execution time of each engine [ns] (needs O.timingEnabled)."""
+    return {type(e).__name__: e.execTime for e in O.engines}
+
+
+def time_steps(count):
+    """Wall time of each of ``count`` single iterations [s]."""
+    times = []
+    for _ in range(count):
+        start = time.perf_counter()
+        O.run(1, True)
+        times.append(time.perf_counter() - start)
+    return times
+
+
+def time_coupled(settings):
+    """Mean wall time of a coupled iteration with a reused factor, and its split."""
+    run = settings["run"]
+    O.run(run["warmup_iterations"], True)  # the remesh of restore_coupling + refactor
+    O.timingEnabled = True
+    for engine in O.engines:
+        engine.execTime = 0
+    count = run["coupled_iterations"]
+    start = time.perf_counter()
+    O.run(count, True)
+    elapsed = time.perf_counter() - start
+    O.timingEnabled = False
+    return {
+        "iterations": count,
+        "n_contacts": O.interactions.countReal(),
+        "per_iteration_s": elapsed / count,
+        "engines_per_iteration_s": {
+            name: 1e-9 * t / count for name, t in engine_times_ns().items()
+        },
+    }
+
+
+def time_remesh(settings, iteration_s):
+    """Cost of a forced remesh: the steps after the request, minus plain iterations."""
+    count = settings["run"]["remesh_steps"]
+    flow.updateTriangulation = True
+    steps = time_steps(count)
+    return {
+        "steps_after_request_s": steps,
+        "remesh_s": sum(steps) - count * iteration_s,
+    }
+
+
+def main():
+    """Build, equilibrate, measure permeability, time, and write the JSON."""
+    settings = read_settings()
+    n_points = build_scene(settings)
+    configure_flow(settings)
+    result = {"yade_version": version, "n_points": n_points}
+    result["equilibration"] = equilibrate(settings)
+    set_dynamic(False)
+    result["permeability"] = {
+        "equilibrium": permeability_x(settings, saturated=False),
+        "saturated": permeability_x(settings, saturated=True),
+    }
+    positions = [
+        list(b.state.pos) for b in O.bodies if isinstance(b.shape, Sphere)
+    ]
+    np.savetxt(settings["positions_out"], np.array(positions))
+    # The saturated state must not leak into the timed run: restart from equilibrium.
+    for cell in range(flow.nCells()):
+        flow.setCellSaturation(cell, result["permeability"]["equilibrium"]["cells"]
+                               ["saturation"]["mean"])
+    restore_coupling(settings)
+    coupled = time_coupled(settings)
+    result["coupled"] = coupled
+    result["remesh"] = time_remesh(settings, coupled["per_iteration_s"])
+    result["n_cells"] = flow.nCells()
+    with open(settings["output_path"], "w") as handle:
+        json.dump(result, handle, indent=1)
+
+
+main()

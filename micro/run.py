@@ -1,0 +1,211 @@
+"""Entry point of the micro stage: hydrate one pellet case through its suction checkpoints.
+
+A case is a specimen (CT-informed or homogeneous porosity), a crack model switch and a
+confinement. After each checkpoint the whole state goes to a checkpoint file beside the
+output, so that a killed run resumes at its last checkpoint; the file is removed when
+the case finishes. The result is ``results/micro/<case>.nc`` (DESIGN §2) and a figure.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from micro import figures
+from micro.checkpoint import load_checkpoint, save_checkpoint
+from micro.hydration import DivergenceError, FlowSystem, HydrationSettings, advance_to_balance
+from micro.pellet import POROSITY_BINS, SpecimenSpec, initial_state, measure_checkpoint
+from shared.config import ConfigError
+from shared.dem.parameters import DEFAULT_DEM
+from shared.io import read_dataset, write_dataset
+from shared.materials import DEFAULT_CLAY
+from shared.progress import Progress
+from shared.provenance import config_sha256
+
+__all__ = ["run", "case_settings"]
+
+log = logging.getLogger("micro")
+
+_SCALARS = {
+    "saturation": ("1", "pore-volume weighted water saturation"),
+    "eps_v": ("1", "volumetric strain of the specimen from its state at 132 MPa"),
+    "porosity_mean": ("1", "volume-weighted mean porosity"),
+    "crack_count": ("1", "number of open bonds on mesh edges (cracks)"),
+    "crack_count_imbibed": ("1", "number of water-filled cracks"),
+    "crack_count_gas": ("1", "number of gas-filled cracks"),
+    "crack_area": ("m2", "total crack area"),
+    "crack_area_imbibed": ("m2", "area of water-filled cracks"),
+    "crack_area_gas": ("m2", "area of gas-filled cracks"),
+    "crack_volume": ("m3", "total crack volume"),
+    "time": ("s", "simulated hydration time"),
+    "n_remesh": ("1", "number of full remeshes so far"),
+    "flow_steps": ("1", "flow steps taken to reach the checkpoint"),
+    "dem_steps": ("1", "DEM relaxation steps taken to reach the checkpoint"),
+    "unbalanced_force": ("1", "unbalanced-force ratio at the end of the checkpoint"),
+    "suction_misfit": ("1", "largest relative departure of a cell's suction from the boundary's"),
+    "balanced": ("1", "1 if hydraulic balance was reached, else 0"),
+}
+
+
+def case_settings(config: Mapping[str, Any], case: str) -> tuple[SpecimenSpec, HydrationSettings, bool]:
+    """Specimen, numerical settings and porosity source (True: CT grid) of a case.
+
+    Raises
+    ------
+    ConfigError
+        If the case is unknown or the checkpoints do not decrease in suction.
+    """
+    micro = config["micro"]
+    if case not in micro["cases"]:
+        raise ConfigError(f"config key 'micro.cases.{case}': no such case")
+    checkpoints = np.asarray(micro["checkpoints_suction_pa"], dtype=float)
+    if np.any(np.diff(checkpoints) >= 0):
+        raise ConfigError(
+            "config key 'micro.checkpoints_suction_pa': suctions must strictly decrease, "
+            f"got {checkpoints.tolist()}"
+        )
+    entry = micro["cases"][case]
+    numerics = micro["numerics"]
+    spec = SpecimenSpec(
+        edge_length=micro["specimen_size_m"], n_points=micro["n_points"], layout=micro["layout"],
+        jitter=micro["jitter"], confinement=entry["confinement_pa"], seed=micro["seed"],
+    )
+    settings = HydrationSettings(
+        initial_time_step=numerics["initial_time_step_s"],
+        time_step_growth=numerics["time_step_growth"],
+        max_flow_steps=numerics["max_flow_steps"],
+        hydraulic_tolerance=numerics["hydraulic_tolerance"],
+        unbalanced_force_tolerance=numerics["unbalanced_force_tolerance"],
+        max_relaxation_steps=numerics["max_relaxation_steps"],
+        cracks=entry["cracks"],
+    )
+    return spec, settings, entry["porosity"] == "ct"
+
+
+def _dataset(records: list[dict[str, Any]], checkpoints: np.ndarray) -> xr.Dataset:
+    suction = checkpoints[: len(records)]
+    data: dict[str, Any] = {}
+    for name, (units, long_name) in _SCALARS.items():
+        data[name] = ("checkpoint", np.array([r[name] for r in records], dtype=float),
+                      {"units": units, "long_name": long_name})
+    data["suction"] = ("checkpoint", suction, {"units": "Pa", "long_name": "boundary suction"})
+    data["permeability"] = (
+        ("checkpoint", "phase", "axis"), np.stack([r["permeability"] for r in records]),
+        {"units": "m2", "long_name": "intrinsic x relative permeability, measured by a steady "
+                                     "solve with a linear boundary pressure"},
+    )
+    for suffix, label in (("", "all"), ("_imbibed", "water-filled"), ("_gas", "gas-filled")):
+        data[f"crack_fabric{suffix}"] = (
+            ("checkpoint", "i", "j"), np.stack([r[f"crack_fabric{suffix}"] for r in records]),
+            {"units": "m2", "long_name": f"crack fabric tensor (1/N) sum a_c n n of {label} cracks"},
+        )
+    data["porosity_hist"] = (
+        ("checkpoint", "bin"), np.stack([r["porosity_hist"] for r in records]),
+        {"units": "1", "long_name": "volume fraction of cells per porosity bin"},
+    )
+    centres = 0.5 * (POROSITY_BINS[1:] + POROSITY_BINS[:-1])
+    coords = {
+        "checkpoint": ("checkpoint", np.arange(len(records)), {"units": "1", "long_name": "checkpoint index"}),
+        "phase": ("phase", np.array(["water", "gas"]), {"long_name": "fluid phase"}),
+        "axis": ("axis", np.array(["x", "y", "z"]), {"long_name": "direction (z: compaction axis)"}),
+        "i": ("i", np.arange(3), {"units": "1", "long_name": "tensor row (x, y, z)"}),
+        "j": ("j", np.arange(3), {"units": "1", "long_name": "tensor column (x, y, z)"}),
+        "bin": ("bin", centres, {"units": "1", "long_name": "porosity bin centre"}),
+    }
+    return xr.Dataset(data, coords=coords)
+
+
+def run(
+    config: Mapping[str, Any],
+    case: str,
+    porosity_input: str | Path,
+    output: str | Path,
+    figure_output: str | Path,
+    rule: str | None = None,
+) -> xr.Dataset:
+    """Hydrate one case through the configured suction checkpoints and write its results.
+
+    Parameters
+    ----------
+    config
+        Validated configuration (``micro`` section).
+    case
+        Case name (a key of ``micro.cases``).
+    porosity_input
+        ``results/porosity/<sample>.nc`` of the CT sample.
+    output, figure_output
+        ``results/micro/<case>.nc`` and its PNG.
+    rule
+        Snakemake rule name, for provenance.
+
+    Raises
+    ------
+    DivergenceError
+        If the coupled solution diverges; the last good checkpoint stays on disk.
+    """
+    spec, settings, heterogeneous = case_settings(config, case)
+    section = {"micro": dict(config["micro"]), "case": case}
+    checkpoints = np.asarray(config["micro"]["checkpoints_suction_pa"], dtype=float)
+    output = Path(output)
+    state_file = output.with_suffix(".checkpoint.npz")
+    digest = config_sha256(section)
+    grid = read_dataset(porosity_input, ["porosity"])["porosity"]
+    parameters = dataclasses.replace(
+        DEFAULT_DEM, wall_max_velocity=config["micro"]["numerics"]["wall_max_velocity_m_s"]
+    )
+    resumed = load_checkpoint(state_file, digest, parameters)
+    if resumed is None:
+        state = initial_state(spec, grid if heterogeneous else None,
+                              None if heterogeneous else _specimen_mean(spec, grid),
+                              DEFAULT_CLAY, parameters)
+        records: list[dict[str, Any]] = []
+        reference_volume = float(state.mesh.volumes.sum())
+    else:
+        state, records, reference_volume = resumed
+        log.info("%s: resuming after checkpoint %d of %d", case, len(records), checkpoints.size)
+    system = FlowSystem.for_mesh(state.mesh)
+    progress = Progress(checkpoints.size, f"micro {case}", log, interval=0.0)
+    started = time.monotonic()
+    for index in range(len(records), checkpoints.size):
+        suction = float(checkpoints[index])
+        try:
+            system, diagnostics = advance_to_balance(state, system, suction, settings,
+                                                     DEFAULT_CLAY, parameters)
+        except DivergenceError as err:
+            raise DivergenceError(
+                f"case {case}, checkpoint {index} ({suction:.4g} Pa): {err}; "
+                f"the last good checkpoint is kept in {state_file}"
+            ) from err
+        record = measure_checkpoint(state, suction, reference_volume, DEFAULT_CLAY, settings.cracks)
+        record.update(diagnostics)
+        records.append(record)
+        save_checkpoint(state_file, digest, state, records, reference_volume)
+        log.info("%s: s = %.3g Pa, S = %.3f, eps_v = %.4f, cracks %d, k_w,x = %.3g m2, "
+                 "k_g,x = %.3g m2, balanced %d", case, suction, record["saturation"],
+                 record["eps_v"], record["crack_count"], record["permeability"][0, 0],
+                 record["permeability"][1, 0], diagnostics["balanced"])
+        progress.update(index + 1)
+    ds = _dataset(records, checkpoints)
+    ds.attrs.update(n_points=state.dem.n_points, n_cells=state.mesh.n_cells,
+                    confinement=spec.confinement, crack_model=int(settings.cracks),
+                    porosity_source="ct" if heterogeneous else "homogeneous",
+                    wall_time_s=time.monotonic() - started)
+    write_dataset(ds, output, stage="micro", title=f"micro pellet hydration, case {case}",
+                  config=section, seed=spec.seed, inputs=[porosity_input], rule=rule,
+                  references="Caulk (2022), PhD thesis, Univ. Grenoble Alpes, Chap. 3")
+    figures.case_figure(ds, case, figure_output)
+    state_file.unlink(missing_ok=True)
+    return ds
+
+
+def _specimen_mean(spec: SpecimenSpec, grid: xr.DataArray) -> float:
+    """Mean CT porosity over the specimen's cells, so that cases differ only in heterogeneity."""
+    probe = initial_state(dataclasses.replace(spec, n_points=min(spec.n_points, 512)), grid)
+    return float((probe.porosity * probe.mesh.volumes).sum() / probe.mesh.volumes.sum())

@@ -1,0 +1,37 @@
+# Micro stage: hydration of a compacted pellet (thesis Chap. 3), one job per case.
+
+
+rule micro_case:
+    input:
+        porosity=get_micro_porosity,
+    output:
+        result="results/micro/{case}.nc",
+        figure="results/micro/{case}.png",
+    params:
+        code=MICRO_CODE,
+        micro=config["micro"],
+    conda:
+        "../envs/claychain.yaml"
+    log:
+        "results/logs/micro_case/{case}.log",
+    benchmark:
+        "results/benchmarks/micro_case/{case}.tsv"
+    script:
+        "../scripts/micro_case.py"
+
+
+rule micro_compare:
+    input:
+        expand("results/micro/{case}.nc", case=CASES),
+    output:
+        figure="results/micro/comparison.png",
+    params:
+        code=MICRO_CODE,
+    conda:
+        "../envs/claychain.yaml"
+    log:
+        "results/logs/micro_compare/all.log",
+    benchmark:
+        "results/benchmarks/micro_compare/all.tsv"
+    script:
+        "../scripts/micro_compare.py"

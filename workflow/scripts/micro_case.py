@@ -1,0 +1,13 @@
+"""Snakemake glue: hydrate one micro case."""
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
+import _logging  # noqa: E402
+
+from micro import run  # noqa: E402
+
+sm = snakemake  # noqa: F821
+_logging.setup(sm.log[0])
+run.run(sm.config, sm.wildcards.case, sm.input.porosity, sm.output.result, sm.output.figure, rule=sm.rule)
