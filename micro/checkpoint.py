@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from micro.hydration import PelletState
-from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from micro.hydration import PelletState, update_cracks
 from shared.dem.state import ContactList, DEMState
 from shared.dem.walls import Walls
+from shared.materials import DEFAULT_CLAY, ClayParameters
 from shared.mesh import mesh_from_tetrahedra
 
 __all__ = ["save_checkpoint", "load_checkpoint"]
@@ -58,11 +58,12 @@ def save_checkpoint(
 
 
 def load_checkpoint(
-    path: Path, digest: str, parameters: DEMParameters = DEFAULT_DEM
+    path: Path, digest: str, material: ClayParameters = DEFAULT_CLAY
 ) -> tuple[PelletState, list[dict[str, Any]], float] | None:
     """The saved state, records and reference volume, or None if absent or stale.
 
-    A file written under another configuration (different hash) is ignored.
+    A file written under another configuration (different hash) is ignored. The crack
+    network, a function of the saved state, is rebuilt.
     """
     if not path.is_file():
         return None
@@ -85,6 +86,7 @@ def load_checkpoint(
             hydraulic_forces=data["hydraulic_forces"] if "hydraulic_forces" in data else None,
             **{k: data[f"cell_{k}"] for k in _CELL_ARRAYS},
         )
+    update_cracks(state, material)
     records = [{k: (np.asarray(v) if isinstance(v, list) else v) for k, v in r.items()}
                for r in meta["records"]]
     return state, records, float(meta["reference_volume"])

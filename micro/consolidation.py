@@ -2,32 +2,37 @@
 
 The scheme of Catalano, Chareyre & Barthelemy (2014) for an incompressible pore fluid
 and an incompressible solid: the fluid a tetrahedron expels is its volume decrease, so
-in every free cell i
+in every free (undrained) cell i
 
     sum_j g_ij (p_i - p_j) = -dV_i/dt,
 
-a steady Darcy problem with the volume rates as sources, implicit in p; the pressures
-then push on the points (:func:`micro.forces.hydromechanical_forces` with S = 1).
-Drained cells (Dirichlet) hold the drainage pressure p_D; a saturated medium has no
-retention storage, so this volume balance is what delays the settlement (Terzaghi
-consolidation, REFERENCE_NOTES section 9).
+and the pressures push on the points (:func:`micro.forces.hydromechanical_forces`,
+S = 1). Drained cells (Dirichlet) hold the drainage pressure p_D. A saturated medium
+has no retention storage, so this volume balance is what delays the settlement
+(Terzaghi consolidation, REFERENCE_NOTES section 9).
 
-Time discretisation (staggered): the DEM runs ``steps_per_solve`` steps with the
-pressure forces held, then dV/dt comes from the volume change of every cell over those
-steps (moved points, fixed connectivity) and the pressure is solved. The volume rates
-are exact differences, so the fluid that leaves the free cells equals their volume
-loss to the solver tolerance over any number of steps (the differences telescope).
+Implicit coupling. With B = dV/dx (n_cells x 3 n_points) the fluid force on the points is
+B^T (p - p_D) (each triangle's force p A n shared equally by its three vertices: the
+pressure work p dV exactly) and the pressure is a Darcy drag on the point velocities,
+-B^T L^-1 B v. That drag is stiff: slivers of a Delaunay mesh give it rates thousands
+of times those of the continuum (mu / k per unit volume), so an explicit coupling
+would need DEM steps far below the contact limit. Each DEM step is therefore a
+pressure projection: the contact and external forces give predicted velocities v*,
+then the free-cell excess pressures solve
 
-Stability: the pressure answers the velocities of the previous interval and acts as a
-Darcy drag. For a compression mode of any wavelength the drag is -(mu / k) v per unit
-volume, i.e. c = mu V_p / k on a point with volume share V_p; applied explicitly over an
-interval dt it scales the velocity by 1 - c dt / m per interval: stable for
-c dt / m < 2, without overshoot below 1 (:func:`drag_time_step`).
+    (L_ff + dt B_f M^-1 B_f^T) (p - p_D) = -(V(x + dt v*) - V(x) + owed) / dt,
 
-Small strains: the conductances g_ij = k A_ij / (mu l_ij) are those of the mesh the
-coupling was built on, so the matrix and its CHOLMOD factor stay constant. To follow
-large deformations, assign new ``conductance`` values (e.g. from a refreshed mesh): the
-solver then reuses its factor while the coefficients drift less than its tolerance.
+so that the velocities v* + dt M^-1 B^T (p - p_D) change the cell volumes by what the
+fluid carries out. The matrix (B at the mesh's reference geometry, M the point masses)
+is symmetric positive definite and constant for a fixed time step, so CHOLMOD
+factorises it once. ``owed`` is each cell's accumulated actual minus balanced volume change
+(second-order geometry, Cundall damping); feeding it back makes the fluid leaving the
+free cells equal their volume loss up to the last step's mismatch, whatever the number
+of steps.
+
+Small strains: the conductances g_ij = k A_ij / (mu l_ij) and B are those of the mesh
+the coupling was built on; rebuild the coupling (:func:`saturated_flow`) after large
+deformations.
 
 References
 ----------
@@ -43,77 +48,81 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+import scipy.sparse as sp
 
-from micro.forces import SectorWeights, hydromechanical_forces, sector_weights
-from shared.dem.integrator import StepReport, step
+from micro.forces import SectorWeights, hydromechanical_forces
+from shared.dem.contacts import update_contacts
+from shared.dem.hertz import contact_forces
+from shared.dem.integrator import StepReport, integrate
 from shared.dem.parameters import DEFAULT_DEM, DEMParameters
 from shared.dem.state import DEMState
-from shared.dem.walls import Walls
-from shared.fv import FlowPattern, facet_divergence, flow_pattern, steady_pressure
+from shared.dem.walls import Walls, servo_walls, wall_forces
+from shared.fv import FlowPattern, assemble_matrix, flow_pattern
 from shared.mesh import Mesh, boundary_cell_mask, build_mesh, cell_volumes
 from shared.solver import CholeskySolver
 
-__all__ = [
-    "SaturatedFlow",
-    "saturated_flow",
-    "fluid_forces",
-    "update_pressure",
-    "drag_time_step",
-    "coupled_steps",
-]
+__all__ = ["SaturatedFlow", "saturated_flow", "volume_gradient", "coupled_steps"]
 
 FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass
 class SaturatedFlow:
-    """Pore fluid of a saturated DEM assembly, advanced by :func:`update_pressure`.
+    """Pore fluid of a saturated DEM assembly, advanced by :func:`coupled_steps`.
 
     Attributes
     ----------
     mesh
-        Delaunay mesh of the points when the coupling was built: connectivity, facet
-        conductance geometry and the orientation of the force triangles.
+        Delaunay mesh of the points when the coupling was built (connectivity, facet
+        conductances, orientation of the force triangles).
     pattern
-        Sparsity of the free-cell system; Dirichlet cells are the drained ones.
+        Free and drained (Dirichlet) cells.
     solver
-        CHOLMOD solver; keeps its factor while the conductances do not drift.
+        CHOLMOD solver of the projection system (factorised once).
     conductance
         (n_facets,) facet conductances k A / (mu l) [m3/(Pa s)].
-    mobility
-        k / mu of the medium [m2/(Pa s)] (drag estimate of :func:`drag_time_step`).
+    laplacian
+        Lower triangle of L_ff (free cells, CSC) [m3/(Pa s)]: outflow of each free
+        cell per excess pressure.
+    system
+        Lower triangle of L_ff + dt B_f M^-1 B_f^T (CSC) [m3/(Pa s)].
+    gradient
+        B = dV/dx at the reference geometry, shape (n_cells, 3 n_points) [m2].
+    time_step
+        DEM time step the system was built for [s].
     drained_pressure
         Pressure of the drained cells and of the medium outside the hull [Pa].
     pressure
-        (n_cells,) pore pressure [Pa].
+        (n_cells,) pore pressure of the last step [Pa].
     volumes
-        (n_cells,) cell volumes at the last pressure solve [m3].
-    weights
-        Vertex shares of the triangles' forces (kept: the triangles barely change).
+        (n_cells,) small-strain cell volumes V_0 + B (x - x_0) [m3].
+    owed
+        (n_cells,) accumulated actual minus balanced volume change [m3]: the
+        linearisation mismatch of the last step.
     drained_volume
-        Fluid volume that has flowed from the free cells into the drained cells since
-        the coupling was built [m3].
+        Fluid volume that has flowed from the free cells into the drained cells [m3].
     time
-        Time covered by the pressure solves [s].
+        Time covered by coupled steps [s].
     """
 
     mesh: Mesh
     pattern: FlowPattern
     solver: CholeskySolver
     conductance: FloatArray
-    mobility: float
+    laplacian: sp.csc_matrix
+    system: sp.csc_matrix
+    gradient: sp.csr_matrix
+    time_step: float
     drained_pressure: float
     pressure: FloatArray
     volumes: FloatArray
-    weights: SectorWeights
+    owed: FloatArray
     drained_volume: float = 0.0
     time: float = 0.0
 
     def free_volume(self) -> float:
-        """Volume of the free (undrained) cells at the last solve [m3].
-
-        The solid is incompressible, so its change is the change of their pore volume.
-        """
+        """Volume of the free cells [m3]; the solid is incompressible, so its change is
+        the change of their pore volume."""
         return float(self.volumes[self.pattern.free_cells].sum())
 
     def mean_excess_pressure(self) -> float:
@@ -123,24 +132,54 @@ class SaturatedFlow:
         return float((excess * self.volumes[free]).sum() / self.volumes[free].sum())
 
 
+def volume_gradient(points: npt.ArrayLike, tetrahedra: npt.ArrayLike) -> sp.csr_matrix:
+    """Derivatives of the cell volumes with respect to the point coordinates.
+
+    Parameters
+    ----------
+    points
+        (n_points, 3) vertex coordinates [m].
+    tetrahedra
+        (n_cells, 4) positively oriented cells.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (n_cells, 3 n_points)
+        B[i, 3 k + d] = dV_i / dx_k,d [m2]: a third of the area vector of the face
+        opposite vertex k, pointing towards k.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    tetrahedra = np.asarray(tetrahedra, dtype=np.int64)
+    n_cells = tetrahedra.shape[0]
+    values = np.empty((n_cells, 4, 3))
+    for local in range(4):
+        a, b, c = (tetrahedra[:, (local + offset) % 4] for offset in (1, 2, 3))
+        area = 0.5 * np.cross(points[b] - points[a], points[c] - points[a])
+        towards = np.einsum("ij,ij->i", area, points[tetrahedra[:, local]] - points[a])
+        values[:, local] = np.sign(towards)[:, None] * area / 3.0
+    columns = 3 * tetrahedra[:, :, None] + np.arange(3)
+    rows = np.repeat(np.arange(n_cells), 12)
+    return sp.csr_matrix(
+        (values.ravel(), (rows, columns.ravel())), shape=(n_cells, 3 * points.shape[0])
+    )
+
+
 def saturated_flow(
-    positions: npt.ArrayLike,
-    radii: npt.ArrayLike,
+    state: DEMState,
     drained_walls: Sequence[str],
     permeability: float,
     viscosity: float,
+    time_step: float,
     *,
     drained_pressure: float = 0.0,
     solver: CholeskySolver | None = None,
 ) -> SaturatedFlow:
-    """Mesh the points and set up the saturated coupling, fluid at the drained pressure.
+    """Mesh the points and set up the coupling, fluid at the drained pressure.
 
     Parameters
     ----------
-    positions
-        (n_points, 3) point centres [m].
-    radii
-        (n_points,) interaction radii [m] (vertex shares of the fluid forces).
+    state
+        Assembly (positions and masses; fixed points get no velocity).
     drained_walls
         Walls (names of :data:`shared.mesh.WALLS`) whose boundary layer of cells
         (:func:`shared.mesh.boundary_cell_mask`) is drained; the other faces are
@@ -149,6 +188,8 @@ def saturated_flow(
         Intrinsic permeability k of the medium [m2].
     viscosity
         Dynamic viscosity mu of the fluid [Pa s].
+    time_step
+        DEM time step of the coupled steps [s].
     drained_pressure
         Pressure of the drained cells and outside the hull [Pa].
     solver
@@ -159,116 +200,52 @@ def saturated_flow(
     SaturatedFlow
         With the pressure equal to ``drained_pressure`` everywhere.
     """
-    if not (permeability > 0.0 and viscosity > 0.0):
-        raise ValueError("permeability and viscosity must be > 0")
-    positions = np.ascontiguousarray(positions, dtype=np.float64)
-    mesh = build_mesh(positions)
+    if not (permeability > 0.0 and viscosity > 0.0 and time_step > 0.0):
+        raise ValueError("permeability, viscosity and time_step must be > 0")
+    mesh = build_mesh(state.positions)
     drained = boundary_cell_mask(mesh, list(drained_walls))
     if not np.any(drained) or np.all(drained):
         raise ValueError("the drained walls must hold some but not all cells")
+    pattern = flow_pattern(mesh, drained)
+    conductance = permeability * mesh.facet_areas / (viscosity * mesh.facet_lengths)
+    laplacian = assemble_matrix(mesh, pattern, conductance, np.zeros(mesh.n_cells))
+    gradient = volume_gradient(mesh.points, mesh.tetrahedra)
+    free_gradient = gradient[pattern.free_cells]
+    mobility = np.where(state.fixed, 0.0, 1.0 / state.masses)
+    drag = time_step * free_gradient @ sp.diags(np.repeat(mobility, 3)) @ free_gradient.T
+    # L_ff's pattern is part of the drag's (facet neighbours share three vertices)
+    system = sp.tril(laplacian + sp.tril(drag, format="csc"), format="csc")
+    system.sort_indices()
     return SaturatedFlow(
         mesh=mesh,
-        pattern=flow_pattern(mesh, drained),
+        pattern=pattern,
         solver=CholeskySolver() if solver is None else solver,
-        conductance=permeability * mesh.facet_areas / (viscosity * mesh.facet_lengths),
-        mobility=permeability / viscosity,
+        conductance=conductance,
+        laplacian=laplacian,
+        system=system,
+        gradient=gradient,
+        time_step=float(time_step),
         drained_pressure=float(drained_pressure),
         pressure=np.full(mesh.n_cells, float(drained_pressure)),
         volumes=mesh.volumes.copy(),
-        weights=sector_weights(mesh, positions, radii),
+        owed=np.zeros(mesh.n_cells),
     )
 
 
-def fluid_forces(flow: SaturatedFlow, state: DEMState) -> FloatArray:
-    """Force of the excess pore pressure on each point [N], shape (n_points, 3).
-
-    The drained pressure also acts outside the hull, so only p - p_D loads the
-    skeleton, as in a cell with a back-pressure.
-    """
-    return hydromechanical_forces(
-        flow.mesh, state.positions, state.radii, flow.pressure, np.ones(flow.mesh.n_cells),
-        exterior_pressure=flow.drained_pressure, weights=flow.weights,
-    )
-
-
-def update_pressure(flow: SaturatedFlow, positions: npt.ArrayLike, elapsed: float) -> float:
-    """Solve the pressure for the volume change since the last solve (in place).
-
-    Parameters
-    ----------
-    flow
-        The coupling; ``pressure``, ``volumes``, ``drained_volume`` and ``time`` are
-        updated.
-    positions
-        (n_points, 3) current point centres [m].
-    elapsed
-        Time since the last solve [s], > 0.
-
-    Returns
-    -------
-    float
-        Volume rate from the free into the drained cells [m3/s].
-
-    Raises
-    ------
-    ValueError
-        If a cell has inverted (remesh, or smaller steps).
-    """
-    if not elapsed > 0.0:
-        raise ValueError(f"elapsed must be > 0, got {elapsed}")
-    volumes = cell_volumes(positions, flow.mesh.tetrahedra)
-    if np.any(volumes <= -1.0):
-        raise ValueError(f"{int(np.sum(volumes <= 0.0))} cells inverted: remesh")
-    imposed = np.full(flow.mesh.n_cells, flow.drained_pressure)
-    flow.pressure = steady_pressure(
-        flow.mesh, flow.pattern, flow.solver, flow.conductance, imposed,
-        initial_pressure=flow.pressure, source=-(volumes - flow.volumes) / elapsed,
-    )
-    inflow = facet_divergence(flow.mesh, flow.conductance, flow.pressure)
-    rate = float(inflow[flow.pattern.dirichlet].sum())
-    flow.volumes = volumes
-    flow.drained_volume += rate * elapsed
-    flow.time += elapsed
-    return rate
-
-
-def drag_time_step(flow: SaturatedFlow, state: DEMState, safety: float = 0.5) -> float:
-    """Largest interval between pressure solves for which the drag does not overshoot [s].
-
-    Parameters
-    ----------
-    flow
-        The coupling (mesh volumes, mobility k / mu).
-    state
-        Assembly (point masses).
-    safety
-        Fraction of the overshoot limit m / c [1]; 2 is the stability limit.
-
-    Returns
-    -------
-    float
-        safety min_p m_p k / (mu V_p) [s], V_p a quarter of the volume of the cells
-        around point p.
-    """
-    n_points = state.n_points
-    share = np.bincount(
-        flow.mesh.tetrahedra.ravel(), np.repeat(0.25 * flow.volumes, 4), minlength=n_points
-    )
-    meshed = share > 0.0
-    return float(safety * np.min(state.masses[meshed] * flow.mobility / share[meshed]))
+def _symmetric_product(lower: sp.csc_matrix, vector: FloatArray) -> FloatArray:
+    """Product of the symmetric matrix given by its lower triangle with a vector."""
+    return lower @ vector + lower.T @ vector - lower.diagonal() * vector
 
 
 def coupled_steps(
     state: DEMState,
     flow: SaturatedFlow,
-    time_step: float,
     n_steps: int,
     parameters: DEMParameters = DEFAULT_DEM,
     walls: Walls | None = None,
     external_forces: FloatArray | None = None,
-    steps_per_solve: int = 1,
 ) -> StepReport:
-    """Advance the DEM by ``n_steps`` steps, solving the pressure every few steps.
+    """Advance the DEM by ``n_steps`` steps of ``flow.time_step``, each with its pressure.
 
     Parameters
     ----------
@@ -276,33 +253,50 @@ def coupled_steps(
         Assembly, advanced in place.
     flow
         The coupling, advanced in place.
-    time_step
-        DEM time step [s]; keep it below :func:`shared.dem.stable_time_step` and
-        ``steps_per_solve`` times it below :func:`drag_time_step`.
     n_steps
         Number of DEM steps, >= 1.
     parameters
-        DEM parameters (damping included).
+        DEM parameters (Cundall damping included); keep ``flow.time_step`` below
+        :func:`shared.dem.stable_time_step`.
     walls
-        Wall box, or None.
+        Wall box (moved if servo-controlled), or None.
     external_forces
         (n_points, 3) other forces, e.g. a load [N], or None.
-    steps_per_solve
-        DEM steps with the same pressure forces between two pressure solves, >= 1.
 
     Returns
     -------
     StepReport
-        Of the last DEM step.
+        Of the last step; its forces include the fluid forces.
     """
-    if n_steps < 1 or steps_per_solve < 1:
-        raise ValueError("n_steps and steps_per_solve must be >= 1")
-    for start in range(0, n_steps, steps_per_solve):
-        forces = fluid_forces(flow, state)
+    if n_steps < 1:
+        raise ValueError(f"n_steps must be >= 1, got {n_steps}")
+    dt = flow.time_step
+    free = flow.pattern.free_cells
+    free_gradient = flow.gradient[free]
+    for _ in range(n_steps):
+        # contact, wall and external forces as in shared.dem.step; the fluid force
+        # joins them before the leapfrog, since it answers this step's velocities
+        rebuilt = update_contacts(state, parameters)
+        forces = np.zeros((state.n_points, 3))
         if external_forces is not None:
             forces += external_forces
-        count = min(steps_per_solve, n_steps - start)
-        for _ in range(count):
-            report = step(state, time_step, parameters, forces, walls)
-        update_pressure(flow, state.positions, count * time_step)
-    return report
+        forces, torques, normal_forces = contact_forces(state, dt, parameters, forces)
+        loads = None if walls is None else wall_forces(state, walls, forces, parameters)
+        predicted = state.velocities + dt * forces / state.masses[:, None]
+        predicted[state.fixed] = 0.0
+        excess = flow.solver.solve(
+            flow.system, -(free_gradient @ predicted.ravel() + flow.owed[free] / dt)
+        )
+        flow.pressure[free] = flow.drained_pressure + excess
+        forces += (free_gradient.T @ excess).reshape(-1, 3)
+        before = state.positions.copy()
+        integrate(state, forces, torques, dt, parameters.damping)
+        if walls is not None and loads is not None:
+            servo_walls(walls, loads, dt, parameters)
+        change = flow.gradient @ (state.positions - before).ravel()
+        outflow = dt * _symmetric_product(flow.laplacian, excess)
+        flow.owed[free] += change[free] + outflow
+        flow.volumes += change
+        flow.drained_volume += float(outflow.sum())
+        flow.time += dt
+    return StepReport(forces, torques, normal_forces, loads, rebuilt)

@@ -300,13 +300,18 @@ def update_geometry(
         return False
     except ValueError:
         pass
+    water = state.water_volume()
     new = mesh_from_tetrahedra(positions, *triangulate(positions))
     moved = transfer_cell_state(state.mesh, new, state.pressure, state.saturation,
-                                state.porosity, material)
+                                state.porosity, material, conserve_water=False)
     state.mesh = new
-    state.pressure, state.saturation = moved.pressure, moved.saturation
+    state.pressure = moved.pressure
     state.solid_volume = moved.solid_volume * (state.solid_volume.sum() / moved.solid_volume.sum())
     state.porosity = porosity_from_solid_volume(state.solid_volume, new.volumes, *porosity_bounds)
+    pores = state.porosity * new.volumes
+    defect = water - float((pores * moved.saturation).sum())
+    state.saturation = np.clip(moved.saturation + defect / pores.sum(),
+                               material.residual_saturation, material.saturated_saturation)
     state.n_remesh += 1
     return True
 

@@ -160,7 +160,7 @@ def run(
     parameters = dataclasses.replace(
         DEFAULT_DEM, wall_max_velocity=config["micro"]["numerics"]["wall_max_velocity_m_s"]
     )
-    resumed = load_checkpoint(state_file, digest, parameters)
+    resumed = load_checkpoint(state_file, digest, DEFAULT_CLAY)
     if resumed is None:
         state = initial_state(spec, grid if heterogeneous else None,
                               None if heterogeneous else _specimen_mean(spec, grid),

@@ -257,9 +257,16 @@ def permeability_x(settings, saturated):
     return result
 
 
-def restore_coupling(settings):
-    """Back to the coupled hydration set-up: all walls at the suction, state live."""
+def restore_coupling(settings, saturation):
+    """Back to the coupled hydration set-up: all walls at the suction, state live.
+
+    Every cell gets the equilibrium pressure -s and ``saturation`` back, so that the
+    saturated permeability state does not leak into the timed run.
+    """
     suction = settings["clay"]["initial_suction"]
+    for cell in range(flow.nCells()):
+        flow.setCellSaturation(cell, saturation)
+        flow.setCellPressure(cell, -suction)
     flow.bndCondIsPressure = [1] * 6
     flow.bndCondValue = [-suction] * 6
     flow.freezePorosity = False
@@ -330,15 +337,11 @@ def main():
         "equilibrium": permeability_x(settings, saturated=False),
         "saturated": permeability_x(settings, saturated=True),
     }
-    positions = [
-        list(b.state.pos) for b in O.bodies if isinstance(b.shape, Sphere)
-    ]
+    positions = [list(b.state.pos) for b in O.bodies if isinstance(b.shape, Sphere)]
     np.savetxt(settings["positions_out"], np.array(positions))
-    # The saturated state must not leak into the timed run: restart from equilibrium.
-    for cell in range(flow.nCells()):
-        flow.setCellSaturation(cell, result["permeability"]["equilibrium"]["cells"]
-                               ["saturation"]["mean"])
-    restore_coupling(settings)
+    restore_coupling(
+        settings, result["permeability"]["equilibrium"]["cells"]["saturation"]["mean"]
+    )
     coupled = time_coupled(settings)
     result["coupled"] = coupled
     result["remesh"] = time_remesh(settings, coupled["per_iteration_s"])

@@ -19,7 +19,12 @@ TINY = {
     "samples": {"pellet": {"source": "phantom", "voxel_size_m": 3.0e-4}},
     "phantom": {"shape": [40, 40, 40], "seed": 1},
     "imaging": {"rev": {"n_sizes": 5, "n_positions": 16, "tolerance": 0.05}},
-    "micro": {"specimen_size_m": 7.0e-3, "n_points": 800},
+    "micro": {
+        "specimen_size_m": 4.0e-3,
+        "n_points": 216,
+        "checkpoints_suction_pa": [132.0e6, 60.0e6],
+        "cases": {"het": {"porosity": "ct"}, "hom": {"porosity": "homogeneous"}},
+    },
 }
 
 
@@ -57,8 +62,8 @@ def test_products_have_the_contracted_variables(finished):
         assert len(ds.attrs["config_sha256"]) == 64
         for name in ds.variables:
             assert "units" in ds[name].attrs or name == "direction"
-    # micro spacing 7 mm / 800^(1/3) = 0.754 mm, i.e. blocks of 2.51 -> 3 voxels of 0.3 mm
-    assert porosity.attrs["block_voxels"] == 3
+    # micro spacing 4 mm / 216^(1/3) = 0.667 mm, i.e. blocks of 2.22 -> 2 voxels of 0.3 mm
+    assert porosity.attrs["block_voxels"] == 2
     assert np.nanmean(porosity["porosity"].values) == pytest.approx(0.25, abs=0.05)
     assert (finished / "results/porosity/pellet.png").stat().st_size > 10_000
     assert (finished / "results/rev/pellet.png").stat().st_size > 10_000
@@ -119,3 +124,18 @@ def test_truncated_scan_is_named(tmp_path):
     config["samples"]["pellet"] = {"source": "tiff", "path": str(scan), "voxel_size_m": 3e-4}
     (tmp_path / "w").mkdir()
     _fails_with(tmp_path / "w", config, "cut.tif")
+
+
+def test_micro_products(finished):
+    het = read_dataset(finished / "results/micro/het.nc",
+                       ["suction", "saturation", "eps_v", "porosity_mean", "permeability",
+                        "crack_area", "crack_volume", "crack_count", "crack_fabric",
+                        "porosity_hist"])
+    assert het["permeability"].dims == ("checkpoint", "phase", "axis")
+    np.testing.assert_array_equal(het["suction"].values, [132.0e6, 60.0e6])
+    assert het.attrs["porosity_source"] == "ct"
+    hom = read_dataset(finished / "results/micro/hom.nc", ["permeability"])
+    assert hom.attrs["porosity_source"] == "homogeneous"
+    # k0 = 1e-20 m2 times k_r = Se^2 with Se about 0.5 and exp(2 (phi - 0.25)) near 1
+    assert 1e-22 < float(het["permeability"].sel(phase="water").isel(checkpoint=0).mean()) < 1e-20
+    assert (finished / "results/micro/comparison.png").stat().st_size > 10_000
