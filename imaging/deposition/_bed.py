@@ -54,18 +54,24 @@ class BedIndex:
            contact_distance: float) -> "BedIndex":
         """Index of a finished bed."""
         bed = cls(semi_axes, box_width, contact_distance)
-        for i in range(centers.shape[0]):
-            bed.add(i, centers[i], rotations[i])
+        bed.centers[:] = centers
+        bed.rotations[:] = rotations
+        bed.extents[:] = _contact_kernels.bounding_half_extents(rotations, semi_axes)
+        bed._grow(int(centers[:, 2].max() // bed.cell_z) if len(centers) else 0)
+        _grid_kernels.insert_all(bed.centers, bed.extents, bed.head, bed.link, bed.heights,
+                                 bed.cell_xy, bed.cell_z)
         return bed
+
+    def _grow(self, layer: int) -> None:
+        if layer >= self.head.shape[2]:
+            extra = np.full(self.head.shape[:2] + (layer + 4 - self.head.shape[2],), -1, np.int64)
+            self.head = np.concatenate([self.head, extra], axis=2)
 
     def add(
         self, index: int, center: npt.NDArray[np.float64], rot: npt.NDArray[np.float64]
     ) -> None:
         """Place particle ``index`` at ``center`` [m] with rotation ``rot``."""
-        layer = int(center[2] // self.cell_z)
-        if layer >= self.head.shape[2]:
-            extra = np.full(self.head.shape[:2] + (layer + 4 - self.head.shape[2],), -1, np.int64)
-            self.head = np.concatenate([self.head, extra], axis=2)
+        self._grow(int(center[2] // self.cell_z))
         self.centers[index] = center
         self.rotations[index] = rot
         _contact_kernels.half_extents(rot, self.axes[index], self.extents[index])

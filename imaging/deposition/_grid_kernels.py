@@ -38,6 +38,14 @@ def insert(index, centers, top, ext, head, link, heights, cell_xy, cell_z):
 
 
 @njit(cache=True)
+def insert_all(centers, ext, head, link, heights, cell_xy, cell_z):
+    """List every particle of a finished bed (see :func:`insert`)."""
+    for index in range(centers.shape[0]):
+        insert(index, centers, centers[index, 2] + ext[index, 2], ext[index], head, link, heights,
+               cell_xy, cell_z)
+
+
+@njit(cache=True)
 def entry_altitude(center, ext, heights, cell_xy):
     """Highest bed top [m] under the footprint of a particle centred at ``center``."""
     nx, ny = heights.shape

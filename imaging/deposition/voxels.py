@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from imaging.deposition import _analysis_kernels
-from imaging.deposition._contact_kernels import half_extents
+from imaging.deposition._contact_kernels import bounding_half_extents
 
 __all__ = ["VoxelImage", "voxel_counts", "voxelize", "overlap_fraction"]
 
@@ -75,9 +75,7 @@ def voxel_counts(
     centers = np.ascontiguousarray(centers, dtype=np.float64)
     rotations = np.ascontiguousarray(rotations, dtype=np.float64)
     semi_axes = np.ascontiguousarray(semi_axes, dtype=np.float64)
-    exts = np.empty_like(centers)
-    for i in range(centers.shape[0]):
-        half_extents(rotations[i], semi_axes[i], exts[i])
+    exts = bounding_half_extents(rotations, semi_axes)
     counts = np.zeros(shape, dtype=np.uint8)
     _analysis_kernels.voxel_coverage(centers, rotations, semi_axes, exts, float(z_origin),
                                      float(voxel_size), counts)

@@ -70,3 +70,21 @@ def test_overlapping_start_and_passing_particles() -> None:
     beside = contact.drop_to_contact(np.array([2.5, 0, 1.0]), rot, axes, np.zeros(3), rot, axes,
                                      10.0, 1e-6)[0]
     assert beside == contact.INFINITE_DROP
+
+
+def test_support_and_bounding_boxes_against_sampled_surfaces() -> None:
+    rng = np.random.default_rng(8)
+    rot = rotation_matrices(rng.uniform([0, 0, 0], [2 * np.pi, np.pi / 2, 2 * np.pi], (5, 3)))
+    axes = np.array([[1.0, 0.6, 0.1]] * 5)
+    center = np.array([0.3, -0.2, 0.5])
+    boxes = contact.bounding_half_extents(rot, axes)
+    for k in range(5):
+        points = _surface_points(center, rot[k], axes[k], 60)
+        for d in rng.standard_normal((4, 3)):
+            far = np.array(contact.support(center, rot[k], axes[k], *d))
+            assert far @ d >= (points @ d).max() - 1e-12
+            assert far @ d == pytest.approx((points @ d).max(), abs=2e-3)
+        assert boxes[k] == pytest.approx(np.abs(points - center).max(axis=0), abs=2e-3)
+        single = np.empty(3)
+        contact.half_extents(rot[k], axes[k], single)
+        assert single == pytest.approx(boxes[k], rel=1e-12)
