@@ -6,33 +6,44 @@ in every free (undrained) cell i
 
     sum_j g_ij (p_i - p_j) = -dV_i/dt,
 
-and the pressures push on the points (:func:`micro.forces.hydromechanical_forces`,
-S = 1). Drained cells (Dirichlet) hold the drainage pressure p_D. A saturated medium
-has no retention storage, so this volume balance is what delays the settlement
-(Terzaghi consolidation, REFERENCE_NOTES section 9).
+and the pressures push on the points. Drained cells (Dirichlet) hold the drainage
+pressure p_D. A saturated medium has no retention storage, so this volume balance is
+what delays the settlement (Terzaghi consolidation, REFERENCE_NOTES section 9).
 
-Implicit coupling. With B = dV/dx (n_cells x 3 n_points) the fluid force on the points is
-B^T (p - p_D) (each triangle's force p A n shared equally by its three vertices: the
-pressure work p dV exactly) and the pressure is a Darcy drag on the point velocities,
--B^T L^-1 B v. That drag is stiff: slivers of a Delaunay mesh give it rates thousands
-of times those of the continuum (mu / k per unit volume), so an explicit coupling
-would need DEM steps far below the contact limit. Each DEM step is therefore a
-pressure projection: the contact and external forces give predicted velocities v*,
-then the free-cell excess pressures solve
+Forces. With B = dV/dx (n_cells x 3 n_points) the fluid force on the points is
+B^T (p - p_D): each triangle's force (p_i - p_j) A n shared equally by its three
+vertices, i.e. :func:`micro.forces.hydromechanical_forces` with S = 1 and equal vertex
+shares instead of the sector shares of Eqs. 3.29-3.31. Only with these shares is the
+force the pressure work p dV, which the implicit coupling below needs to be stable.
 
-    (L_ff + dt B_f M^-1 B_f^T) (p - p_D) = -(V(x + dt v*) - V(x) + owed) / dt,
+Implicit coupling. The pressure is a Darcy drag on the point velocities, -B^T L^-1 B v.
+It is stiff: the slivers of a Delaunay mesh give it rates thousands of times those of
+the continuum (mu / k per unit volume), so an explicit coupling (pressure from the last
+step's volume change, Yade's) needs DEM steps far below the contact limit. Each DEM step
+is therefore a pressure projection: the contact, wall and external forces give
+predicted velocities v*, then the free-cell excess pressures solve
 
-so that the velocities v* + dt M^-1 B^T (p - p_D) change the cell volumes by what the
-fluid carries out. The matrix (B at the mesh's reference geometry, M the point masses)
-is symmetric positive definite and constant for a fixed time step, so CHOLMOD
-factorises it once. ``owed`` is each cell's accumulated actual minus balanced volume change
-(second-order geometry, Cundall damping); feeding it back makes the fluid leaving the
-free cells equal their volume loss up to the last step's mismatch, whatever the number
-of steps.
+    (L_ff + dt B_f M^-1 B_f^T) (p - p_D) = -(B_f v* + owed / dt),
 
-Small strains: the conductances g_ij = k A_ij / (mu l_ij) and B are those of the mesh
-the coupling was built on; rebuild the coupling (:func:`saturated_flow`) after large
+so that the velocities v* + dt M^-1 B^T (p - p_D) change the free cells' volumes by
+what the fluid carries out. The matrix is symmetric positive definite and constant for
+a fixed time step, so CHOLMOD factorises it once. ``owed`` is each cell's accumulated
+actual minus balanced volume change (the Cundall damping applied after the projection
+makes them differ); feeding it back makes the fluid leaving the free cells equal their
+volume loss up to the last step's mismatch.
+
+Small strains: g_ij = k A_ij / (mu l_ij) and B are those of the mesh the coupling was
+built on, and the cell volumes are V_0 + B (x - x_0); linear poroelasticity, like the
+Terzaghi and Biot solutions. With fixed connectivity and the true volumes, the slivers
+of a jittered lattice invert under strains of 1e-3 and their volume is not smooth enough
+for the projection; rebuild the coupling (:func:`saturated_flow`) after large
 deformations.
+
+Rigid walls: the fluid fills the gap between the hull of the points and the walls, so
+(``enclosed``) the hull triangles pass no force to the points and a hull point moving
+towards a wall changes no fluid volume. Otherwise the pore pressure pushes the hull
+points into the compliant Hertz wall contacts, which then swallow a large part of the
+expelled volume at once (measured: half of it in a 40-point-high column).
 
 References
 ----------
@@ -50,7 +61,6 @@ import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
-from micro.forces import SectorWeights, hydromechanical_forces
 from shared.dem.contacts import update_contacts
 from shared.dem.hertz import contact_forces
 from shared.dem.integrator import StepReport, integrate
@@ -58,7 +68,7 @@ from shared.dem.parameters import DEFAULT_DEM, DEMParameters
 from shared.dem.state import DEMState
 from shared.dem.walls import Walls, servo_walls, wall_forces
 from shared.fv import FlowPattern, assemble_matrix, flow_pattern
-from shared.mesh import Mesh, boundary_cell_mask, build_mesh, cell_volumes
+from shared.mesh import Mesh, boundary_cell_mask, build_mesh
 from shared.solver import CholeskySolver
 
 __all__ = ["SaturatedFlow", "saturated_flow", "volume_gradient", "coupled_steps"]
@@ -73,8 +83,8 @@ class SaturatedFlow:
     Attributes
     ----------
     mesh
-        Delaunay mesh of the points when the coupling was built (connectivity, facet
-        conductances, orientation of the force triangles).
+        Delaunay mesh of the points when the coupling was built (the reference
+        geometry).
     pattern
         Free and drained (Dirichlet) cells.
     solver
@@ -90,15 +100,17 @@ class SaturatedFlow:
         B = dV/dx at the reference geometry, shape (n_cells, 3 n_points) [m2].
     time_step
         DEM time step the system was built for [s].
+    enclosed
+        Whether fixed rigid walls close the fluid domain (see :func:`saturated_flow`).
     drained_pressure
-        Pressure of the drained cells and of the medium outside the hull [Pa].
+        Pressure of the drained cells (and outside the hull unless enclosed) [Pa].
     pressure
         (n_cells,) pore pressure of the last step [Pa].
     volumes
         (n_cells,) small-strain cell volumes V_0 + B (x - x_0) [m3].
     owed
-        (n_cells,) accumulated actual minus balanced volume change [m3]: the
-        linearisation mismatch of the last step.
+        (n_cells,) accumulated actual minus balanced volume change [m3] (the last
+        step's Cundall damping mismatch).
     drained_volume
         Fluid volume that has flowed from the free cells into the drained cells [m3].
     time
@@ -113,6 +125,7 @@ class SaturatedFlow:
     system: sp.csc_matrix
     gradient: sp.csr_matrix
     time_step: float
+    enclosed: bool
     drained_pressure: float
     pressure: FloatArray
     volumes: FloatArray
@@ -164,6 +177,22 @@ def volume_gradient(points: npt.ArrayLike, tetrahedra: npt.ArrayLike) -> sp.csr_
     )
 
 
+def _hull_gradient(mesh: Mesh, n_points: int) -> sp.csr_matrix:
+    """Part of :func:`volume_gradient` due to the hull triangles, same shape.
+
+    Vertex k of a cell's face f gets A_f n_f / 3 (outward normal) from that face; the
+    hull faces' share is what a rigid wall beyond the hull takes over.
+    """
+    n_boundary = mesh.boundary_cells.shape[0]
+    values = np.repeat(mesh.boundary_areas[:, None] * mesh.boundary_normals / 3.0, 3, axis=0)
+    rows = np.repeat(mesh.boundary_cells, 9)
+    columns = 3 * mesh.boundary_vertices[:, :, None] + np.arange(3)
+    return sp.csr_matrix(
+        (values.reshape(n_boundary, 3, 3).ravel(), (rows, columns.ravel())),
+        shape=(mesh.n_cells, 3 * n_points),
+    )
+
+
 def saturated_flow(
     state: DEMState,
     drained_walls: Sequence[str],
@@ -172,6 +201,7 @@ def saturated_flow(
     time_step: float,
     *,
     drained_pressure: float = 0.0,
+    enclosed: bool = True,
     solver: CholeskySolver | None = None,
 ) -> SaturatedFlow:
     """Mesh the points and set up the coupling, fluid at the drained pressure.
@@ -191,7 +221,11 @@ def saturated_flow(
     time_step
         DEM time step of the coupled steps [s].
     drained_pressure
-        Pressure of the drained cells and outside the hull [Pa].
+        Pressure of the drained cells (and outside the hull unless enclosed) [Pa].
+    enclosed
+        True if fixed rigid walls close the fluid domain (see the module docstring):
+        the hull triangles then drop out of B. False for a specimen surrounded by
+        fluid at the drained pressure.
     solver
         Solver to use; a new :class:`CholeskySolver` if None.
 
@@ -210,11 +244,13 @@ def saturated_flow(
     conductance = permeability * mesh.facet_areas / (viscosity * mesh.facet_lengths)
     laplacian = assemble_matrix(mesh, pattern, conductance, np.zeros(mesh.n_cells))
     gradient = volume_gradient(mesh.points, mesh.tetrahedra)
+    if enclosed:
+        gradient = (gradient - _hull_gradient(mesh, state.n_points)).tocsr()
     free_gradient = gradient[pattern.free_cells]
     mobility = np.where(state.fixed, 0.0, 1.0 / state.masses)
-    drag = time_step * free_gradient @ sp.diags(np.repeat(mobility, 3)) @ free_gradient.T
-    # L_ff's pattern is part of the drag's (facet neighbours share three vertices)
-    system = sp.tril(laplacian + sp.tril(drag, format="csc"), format="csc")
+    # volume change per pressure within one step through the point masses
+    inertia = time_step * free_gradient @ sp.diags(np.repeat(mobility, 3)) @ free_gradient.T
+    system = sp.tril(laplacian + sp.tril(inertia, format="csc"), format="csc")
     system.sort_indices()
     return SaturatedFlow(
         mesh=mesh,
@@ -225,6 +261,7 @@ def saturated_flow(
         system=system,
         gradient=gradient,
         time_step=float(time_step),
+        enclosed=enclosed,
         drained_pressure=float(drained_pressure),
         pressure=np.full(mesh.n_cells, float(drained_pressure)),
         volumes=mesh.volumes.copy(),
@@ -259,7 +296,8 @@ def coupled_steps(
         DEM parameters (Cundall damping included); keep ``flow.time_step`` below
         :func:`shared.dem.stable_time_step`.
     walls
-        Wall box (moved if servo-controlled), or None.
+        Wall box, or None; fixed (no servo) if the coupling is enclosed, since the
+        fluid volume between hull and walls is taken as constant.
     external_forces
         (n_points, 3) other forces, e.g. a load [N], or None.
 
@@ -270,6 +308,8 @@ def coupled_steps(
     """
     if n_steps < 1:
         raise ValueError(f"n_steps must be >= 1, got {n_steps}")
+    if flow.enclosed and walls is not None and walls.servo and np.any(walls.active):
+        raise ValueError("an enclosed coupling needs fixed walls: set walls.servo = False")
     dt = flow.time_step
     free = flow.pattern.free_cells
     free_gradient = flow.gradient[free]

@@ -203,8 +203,15 @@ def _limit_speed(dem: DEMState, max_speed: float) -> None:
         dem.velocities[fast] *= (max_speed / speed[fast])[:, None]
 
 
+def _in_contact(dem: DEMState, normal_forces: FloatArray) -> npt.NDArray[np.bool_]:
+    """Points that carry at least one compressive contact force."""
+    pairs = dem.contacts.pairs[normal_forces > 0.0]
+    return np.bincount(pairs.ravel(), minlength=dem.n_points) > 0
+
+
 def relax(
-    state: PelletState,
+    dem: DEMState,
+    walls: Walls | None,
     external_forces: FloatArray,
     settings: HydrationSettings,
     parameters: DEMParameters = DEFAULT_DEM,
@@ -217,6 +224,9 @@ def relax(
     radii from their current values to ``target_radii``, over the first
     ``settings.ramp_steps`` steps: a swelling increment applied at once stores elastic
     energy that the explicit dynamics releases as a burst that can scatter the points.
+    A point that has lost every contact is a detached fragment: the pore-fluid and
+    membrane loads, computed for the cells it closed at the start, no longer act on it
+    (held, they would push it away without bound, as the model has no cohesion).
 
     Returns
     -------
@@ -225,25 +235,27 @@ def relax(
     unbalanced : float
         Final unbalanced-force ratio [1].
     """
-    dem = state.dem
     start = external_forces if previous_forces is None else previous_forces
     first_radii = dem.radii.copy()
     final_radii = first_radii if target_radii is None else target_radii
     cap = loaded_time_step(dem, np.maximum(np.abs(external_forces), np.abs(start)), parameters)
-    time_step = min(stable_time_step(dem, parameters, state.walls), cap)
+    time_step = min(stable_time_step(dem, parameters, walls), cap)
     unbalanced = float("inf")
+    attached = np.ones(dem.n_points, dtype=bool)
     for count in range(1, settings.max_relaxation_steps + 1):
         weight = min(count / settings.ramp_steps, 1.0)
         load = start + weight * (external_forces - start)
+        load[~attached] = 0.0
         if weight < 1.0 or count == settings.ramp_steps:
             dem.radii[:] = first_radii + weight * (final_radii - first_radii)
-        report = step(dem, time_step, parameters, load, state.walls, settings.damping)
+        report = step(dem, time_step, parameters, load, walls, settings.damping)
         _limit_speed(dem, settings.max_step_fraction * float(dem.reference_radii.min()) / time_step)
         if count % settings.check_interval == 0:
+            attached = _in_contact(dem, report.normal_forces)
             unbalanced = unbalanced_force(report.forces, report.normal_forces, dem.fixed)
             if weight == 1.0 and unbalanced < settings.unbalanced_force_tolerance:
                 return count, unbalanced
-            time_step = min(stable_time_step(dem, parameters, state.walls), cap)
+            time_step = min(stable_time_step(dem, parameters, walls), cap)
     return settings.max_relaxation_steps, unbalanced
 
 
@@ -483,8 +495,8 @@ def advance_to_balance(
     for flow_steps in range(1, settings.max_flow_steps + 1):
         time_step = _flow_step(state, system, boundary_suction, time_step, settings, material)
         radii, forces = swell(state, material)
-        taken, unbalanced = relax(state, forces, settings, parameters, state.hydraulic_forces,
-                                  radii)
+        taken, unbalanced = relax(state.dem, state.walls, forces, settings, parameters,
+                                  state.hydraulic_forces, radii)
         state.hydraulic_forces = forces
         dem_steps += taken
         _check_finite(state, "mechanical relaxation")

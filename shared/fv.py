@@ -285,7 +285,6 @@ def _solve_increment(
     pressure: FloatArray,
     imposed_pressure: FloatArray,
     force_refactor: bool,
-    source: FloatArray | None = None,
 ) -> FloatArray:
     if np.shape(imposed_pressure) != (mesh.n_cells,):
         raise ValueError(f"imposed_pressure must have shape ({mesh.n_cells},)")
@@ -294,9 +293,6 @@ def _solve_increment(
     if not np.all(np.isfinite(start)):
         raise ValueError("pressure or imposed pressure on Dirichlet cells is not finite")
     rhs = facet_divergence(mesh, conductance, start)[pattern.free_cells]
-    if source is not None:
-        _require_cell_arrays(mesh, source=source)
-        rhs += source[pattern.free_cells]
     matrix = assemble_matrix(mesh, pattern, conductance, storage)
     increment = solver.solve(matrix, rhs, force_refactor=force_refactor)
     start[pattern.free_cells] += increment
@@ -411,9 +407,8 @@ def steady_pressure(
     conductance: FloatArray,
     imposed_pressure: FloatArray,
     initial_pressure: FloatArray | None = None,
-    source: FloatArray | None = None,
 ) -> FloatArray:
-    """Steady pressure field sum_j g_ij (p_j - p_i) + q_i = 0 in free cells.
+    """Steady pressure field sum_j g_ij (p_j - p_i) = 0 in free cells.
 
     Parameters
     ----------
@@ -426,10 +421,6 @@ def steady_pressure(
         Pressure per cell [Pa]; read on Dirichlet cells only.
     initial_pressure
         Starting pressure [Pa] (only improves round-off); defaults to zero.
-    source
-        Fluid volume produced per cell per time q [m3/s], shape (n_cells,), read on
-        free cells (e.g. minus the volume rate of a deforming saturated cell); None
-        for none. The free cells then send sum q to the Dirichlet cells.
 
     Returns
     -------
@@ -438,8 +429,7 @@ def steady_pressure(
     """
     start = np.zeros(mesh.n_cells) if initial_pressure is None else initial_pressure
     return _solve_increment(
-        mesh, pattern, solver, conductance, np.zeros(mesh.n_cells), start, imposed_pressure,
-        False, source,
+        mesh, pattern, solver, conductance, np.zeros(mesh.n_cells), start, imposed_pressure, False
     )
 
 

@@ -46,7 +46,6 @@ __all__ = [
     "build_mesh",
     "delaunay_tetrahedra",
     "mesh_from_tetrahedra",
-    "cell_volumes",
     "wall_index",
     "boundary_cell_mask",
     "mean_spacing",
@@ -409,31 +408,6 @@ def mesh_from_tetrahedra(
         boundary_walls=_walls_of_normals(b_normals),
         bounds=np.stack([points.min(axis=0), points.max(axis=0)]),
     )
-
-
-def cell_volumes(points: npt.ArrayLike, tetrahedra: IntArray) -> FloatArray:
-    """Signed volumes of the cells of a mesh for moved points [m3].
-
-    The cheap part of :func:`mesh_from_tetrahedra`, for couplings that need the volume
-    change of every cell at every step but not the facet geometry.
-
-    Parameters
-    ----------
-    points
-        (n_points, 3) current vertex coordinates [m].
-    tetrahedra
-        (n_cells, 4) positively oriented cells, e.g. ``Mesh.tetrahedra``.
-
-    Returns
-    -------
-    ndarray, shape (n_cells,)
-        Volumes [m3]; negative where a cell has inverted.
-    """
-    signed, _, _ = _cell_geometry(
-        np.ascontiguousarray(points, dtype=np.float64),
-        np.ascontiguousarray(tetrahedra, dtype=np.int64),
-    )
-    return signed
 
 
 def _walls_of_normals(normals: FloatArray) -> IntArray:

@@ -1,9 +1,10 @@
 """Yade 2023.02a side of the Yade comparison benchmark (issue 4): the micro model's cube.
 
 Run headless as ``yade -x -n -j1 partialsat_cube.py SETTINGS.json``. ``SETTINGS.json``
-(written by :mod:`benchmarks.yade_compare`, the single source of every number used
-here) names the points file (``x y z r`` per line, metres) and the output JSON, and
-holds the Table 3.1 parameters and the run lengths.
+(written by :mod:`benchmarks.yade_compare`) names the points file (``x y z r`` per
+line, metres) and the output files, and holds the Table 3.1 clay parameters, the DEM
+parameters and the run lengths; the few numbers set here are those of Appendix .2
+that our model does not have (wall material, porosity clamps, swelling floor).
 
 What it does, after Caulk (2022) Appendix .2 with the corrections of
 REFERENCE_NOTES section 10:
@@ -75,7 +76,10 @@ def build_scene(settings):
         ForceResetter(),
         InsertionSortCollider([Bo1_Sphere_Aabb(aabbEnlargeFactor=1.0), Bo1_Box_Aabb()]),
         InteractionLoop(
-            [Ig2_Sphere_Sphere_ScGeom6D(interactionDetectionFactor=1.0), Ig2_Box_Sphere_ScGeom6D()],
+            [
+                Ig2_Sphere_Sphere_ScGeom6D(interactionDetectionFactor=1.0),
+                Ig2_Box_Sphere_ScGeom6D(),
+            ],
             [Ip2_PartialSatMat_PartialSatMat_MindlinPhys()],
             [Law2_ScGeom_MindlinPhys_Mindlin(includeAdhesion=False)],
         ),
@@ -114,6 +118,7 @@ def configure_flow(settings):
     flow.b = clay["retention_exponent_porosity_factor"]
     flow.constantPorosity = True
     flow.meanInitialPorosity = clay["reference_porosity"]
+    # porosity clamps, swelling floor and smallest cell volume as in Appendix .2
     flow.minPoroClamp = 0.1
     flow.maxPoroClamp = 0.8
     flow.betam = clay["swelling_beta"]
@@ -123,6 +128,8 @@ def configure_flow(settings):
     flow.particleSwelling = True
     flow.waterSurfaceTension = clay["surface_tension"]
     flow.permAreaFactor = clay["crack_roughness_factor"]
+    # Off: a homogeneous specimen at balance opens no cracks, and our timed steps
+    # contain no crack model either.
     flow.crackModelActive = False
     flow.minCellVol = 1e-20
     flow.pZero = -suction

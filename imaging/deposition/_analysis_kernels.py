@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit
 
 from imaging.deposition._contact_kernels import contains_point
-from imaging.deposition._grid_kernels import gather
+from imaging.deposition._grid_kernels import gather_levels
 
 
 @njit(cache=True)
@@ -54,13 +54,13 @@ def _touches_basal_face(px, py, pz, center, rot, axes, d_cont):
 
 
 @njit(cache=True)
-def basal_contact_points(selected, step, centers, rots, axes, exts, head, link, geometry,
-                         found, shifts):
+def basal_contact_points(selected, step, centers, rots, axes, exts, fine, coarse, link,
+                         geometry, found, shifts):
     """Number of square centres of a grid of edge ``step`` [m] laid on the bottom basal
     face of each selected particle that lie within d_cont of another particle's basal
-    face (Ferrage et al. 2015, Eq. 11). ``geometry`` = (box width, cell edge x-y, cell
-    edge z, largest bounding half-extent, d_cont) [m]."""
-    box_width, cell_xy, cell_z, margin, d_cont = geometry
+    face (Ferrage et al. 2015, Eq. 11). ``fine``, ``coarse``, ``link`` and ``geometry``
+    describe the bed's grids (see :func:`._grid_kernels.gather_levels`)."""
+    d_cont = geometry[1]
     lo = np.empty(3)
     hi = np.empty(3)
     total = 0
@@ -68,8 +68,7 @@ def basal_contact_points(selected, step, centers, rots, axes, exts, head, link, 
         a, b, c = axes[i]
         lo[:] = centers[i] - exts[i] - d_cont
         hi[:] = centers[i] + exts[i] + d_cont
-        count = gather(lo, hi, centers, exts, head, link, box_width, cell_xy, cell_z, margin,
-                       found, shifts)
+        count = gather_levels(lo, hi, centers, exts, fine, coarse, link, geometry, found, shifts)
         na = int(np.ceil(a / step))
         nb = int(np.ceil(b / step))
         for u in range(-na, na):

@@ -8,7 +8,7 @@ Minkowski difference, and the vertical distance to contact from conservative
 advancement along -z with the GJK separating plane: each advance is a proven lower
 bound, so a falling particle never enters another one.
 
-All vectors are handled as 3-tuples to keep the inner loops free of allocations.
+Support points are returned as 3-tuples to keep the innermost loop free of allocations.
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ from imaging.deposition._contact_kernels import (
     half_extents,
     support,
 )
-from imaging.deposition._grid_kernels import gather
+from imaging.deposition._grid_kernels import gather_levels
 
 MAX_CONTACTS = 8
 SLIDE = 0
@@ -27,13 +27,13 @@ ROTATE = 2
 
 
 @njit(cache=True)
-def fall(center, rot, axes, centers, rots, all_axes, exts, head, link, geometry,
+def fall(center, rot, axes, centers, rots, all_axes, exts, fine, coarse, link, geometry,
          found, shifts, drops, witness, contacts):
     """Vertical fall of a particle until its lowest gap to the bed or floor is d_cont/2.
 
-    ``geometry`` = (box width, cell edge in x-y, cell edge in z, largest bounding
-    half-extent, d_cont) [m]. Contacts (points [m] within d_cont after the fall) are
-    written to ``contacts``.
+    ``fine``, ``coarse`` and ``link`` are the two grids of the bed and ``geometry`` their
+    layout (see :func:`._grid_kernels.gather_levels`). Contacts (points [m] within
+    d_cont after the fall) are written to ``contacts``.
 
     Returns
     -------
@@ -41,7 +41,8 @@ def fall(center, rot, axes, centers, rots, all_axes, exts, head, link, geometry,
         (drop [m], number of contacts); the drop is -1 if the particle overlaps the bed
         where it starts.
     """
-    box_width, cell_xy, cell_z, margin, d_cont = geometry
+    d_cont = geometry[1]
+    step = geometry[3]
     ext = np.empty(3)
     half_extents(rot, axes, ext)
     floor_drop = center[2] - ext[2]
@@ -51,10 +52,9 @@ def fall(center, rot, axes, centers, rots, all_axes, exts, head, link, geometry,
     count = 0
     best = floor_drop
     while True:
-        reach = min(reach + cell_z, floor_drop + d_cont)
+        reach = min(reach + step, floor_drop + d_cont)
         lo[2] = center[2] - ext[2] - reach
-        count = gather(lo, hi, centers, exts, head, link, box_width, cell_xy, cell_z, margin,
-                       found, shifts)
+        count = gather_levels(lo, hi, centers, exts, fine, coarse, link, geometry, found, shifts)
         bottom = center[2] - ext[2]
         # a candidate whose top is further below than the best drop so far cannot be hit
         # first: visit candidates by increasing bounding-box gap and stop early
@@ -183,7 +183,7 @@ def trial_move(kind, amplitude, u_dir, center, rot, pivot, new_center, new_rot, 
 
 @njit(cache=True)
 def settle(center, rot, axes, uniforms, amplitudes, reduction, n_cycles, n_kinds,
-           centers, rots, all_axes, exts, head, link, geometry,
+           centers, rots, all_axes, exts, fine, coarse, link, geometry,
            found, shifts, drops, witness):
     """Free fall, then ``n_cycles`` cycles of random moves accepted only if the
     barycentre descends without overlap; ``center`` and ``rot`` are updated in place.
@@ -199,24 +199,25 @@ def settle(center, rot, axes, uniforms, amplitudes, reduction, n_cycles, n_kinds
     new_center = np.empty(3)
     new_rot = np.empty((3, 3))
     work = np.empty((3, 3))
-    drop, n_contacts = fall(center, rot, axes, centers, rots, all_axes, exts, head, link,
-                            geometry, found, shifts, drops, witness, contacts)
+    drop, n_contacts = fall(center, rot, axes, centers, rots, all_axes, exts, fine, coarse,
+                            link, geometry, found, shifts, drops, witness, contacts)
     center[2] -= drop
     amp = amplitudes.copy()
     per_cycle = uniforms.shape[0] // n_cycles
-    eps = 1e-6 * geometry[4]
+    eps = 1e-6 * geometry[1]
     accepted = 0
     for attempt in range(uniforms.shape[0]):
         if attempt > 0 and attempt % per_cycle == 0:
             amp *= reduction
         kind = min(int(uniforms[attempt, 0] * n_kinds), n_kinds - 1)
-        pivot_point(center, contacts, n_contacts, uniforms[attempt, 3], geometry[4], pivot)
+        pivot_point(center, contacts, n_contacts, uniforms[attempt, 3], geometry[1], pivot)
         trial_move(kind, uniforms[attempt, 1] * amp[kind], uniforms[attempt, 2], center, rot,
                    pivot, new_center, new_rot, work)
         new_center[0] %= geometry[0]
         new_center[1] %= geometry[0]
-        drop, n_trial = fall(new_center, new_rot, axes, centers, rots, all_axes, exts, head,
-                             link, geometry, found, shifts, drops, witness, trial_contacts)
+        drop, n_trial = fall(new_center, new_rot, axes, centers, rots, all_axes, exts, fine,
+                             coarse, link, geometry, found, shifts, drops, witness,
+                             trial_contacts)
         if drop <= eps:
             continue
         new_center[2] -= drop

@@ -356,6 +356,6 @@ def basal_contact_area(
     bed = BedIndex.of(centers, rotations, semi_axes, box_width, contact_distance)
     count = _analysis_kernels.basal_contact_points(
         np.flatnonzero(selected), grid_step, bed.centers, bed.rotations, bed.axes, bed.extents,
-        bed.head, bed.link, bed.geometry, bed.found, bed.shifts)
+        bed.fine.head, bed.coarse.head, bed.link, bed.geometry, bed.found, bed.shifts)
     mass_g = 1000.0 * density * float(np.sum(volumes(semi_axes[selected])))
     return 2.0 * count * grid_step**2 / mass_g if mass_g > 0 else float("nan")

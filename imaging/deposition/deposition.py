@@ -11,6 +11,18 @@ support functions, see :mod:`._contact_kernels`), which replaces the multiscale 
 of Sec. II.B: there is no scan resolution n_sp, and a fall stops at a vertical gap of
 d_cont/2 to the first obstacle, which the scan only approached to within d_cont.
 
+Readings of Sec. II.A used here:
+
+- moves refer to a pivot point: the contact point, or with two (or more) contacts the
+  foot of the altitude from the barycentre to the line through two of them;
+- a slide moves the particle horizontally away from the pivot, a swivel turns it about
+  the horizontal axis through the pivot along which the barycentre descends fastest
+  (steepest descent), an in-plane rotation turns it about its own normal; the kind of
+  move, its amplitude (uniform in (0, A)) and, for rotations, its sign are random;
+- after a move the barycentre is put back at its previous altitude and the particle
+  falls vertically to a gap of d_cont/2; the move is rejected if the particle overlaps
+  the bed at that altitude or does not end lower than before.
+
 References
 ----------
 E. Ferrage et al., Phys. Rev. E 91, 062210 (2015), doi:10.1103/PhysRevE.91.062210.
@@ -136,7 +148,7 @@ def _entry_pose(
     center = np.array([x * params.box_width, y * params.box_width, 0.0])
     ext = np.empty(3)
     _contact_kernels.half_extents(rot, axes, ext)
-    floor = _grid_kernels.entry_altitude(center, ext, bed.heights, bed.cell_xy)
+    floor = _grid_kernels.entry_altitude(center, ext, bed.heights, bed.fine.cell_xy)
     center[2] = floor + ext[2] + params.contact_distance
     return center, rot
 
@@ -179,8 +191,8 @@ def deposit(
         accepted[i] = _settle_kernels.settle(
             center, rot, axes, uniforms, amplitudes, params.amplitude_reduction,
             params.n_cycles, 3 if elliptic else 2, bed.centers, bed.rotations, bed.axes,
-            bed.extents, bed.head, bed.link, geometry, bed.found, bed.shifts, bed.drops,
-            bed.witness)
+            bed.extents, bed.fine.head, bed.coarse.head, bed.link, geometry, bed.found,
+            bed.shifts, bed.drops, bed.witness)
         bed.add(i, center, rot)
         now = time.perf_counter()
         wall[i] = now - t0

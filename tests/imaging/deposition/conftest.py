@@ -11,10 +11,12 @@ DIAMETER = 1.0e-6
 
 
 def small_bed(seed: int, n: int = 40, box_diameters: float = 3.0, theta_max: float = np.pi / 2,
-              axis_ratio: float = 1.0, attempts: int = 800) -> Packing:
-    """A bed of R = 0.1 disks of equivalent diameter 1 um, high freedom (Table II series 2)."""
+              axis_ratio: float = 1.0, attempts: int = 800, size_sigma: float = 0.0) -> Packing:
+    """A bed of R = 0.1 disks of median equivalent diameter 1 um, high freedom (Table II
+    series 2); ``size_sigma`` is the log-normal sigma of the basal surface."""
     rng = np.random.default_rng(seed)
-    population = Population(basal_surface_median=np.pi / 4 * DIAMETER**2, aspect_ratio_median=0.1,
+    population = Population(basal_surface_median=np.pi / 4 * DIAMETER**2,
+                            basal_surface_sigma=size_sigma, aspect_ratio_median=0.1,
                             axis_ratio_median=axis_ratio)
     semi_axes = sample_semi_axes(population, n, rng)
     params = DepositionParameters(
@@ -28,3 +30,9 @@ def small_bed(seed: int, n: int = 40, box_diameters: float = 3.0, theta_max: flo
 def elliptic_bed() -> Packing:
     """40 elliptic disks (l_a / l_b = 1.5) in a 3 d box."""
     return small_bed(seed=7, axis_ratio=1.5)
+
+
+@pytest.fixture(scope="session")
+def polydisperse_bed() -> Packing:
+    """60 disks, basal surface log-normal with sigma 0.8 (both grids of the bed index used)."""
+    return small_bed(seed=8, n=60, box_diameters=5.0, attempts=200, size_sigma=0.8)

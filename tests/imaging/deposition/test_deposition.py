@@ -46,21 +46,32 @@ def _overlapping_points(bed: Packing) -> tuple[int, int]:
     wrapped[:, 2] = wrapped[:, 2] % (10 * w)
     tree = cKDTree(wrapped, boxsize=[w, w, 10 * w])
     bad = 0
-    pairs = tree.query_pairs(2 * radius.max())
-    for i, j in pairs:
+    examined = 0
+    for i, j in tree.query_pairs(2 * radius.max()):
         shift = bed.centers[j] - bed.centers[i]
         shift[:2] -= w * np.round(shift[:2] / w)
+        if np.linalg.norm(shift) > radius[i] + radius[j]:
+            continue
+        examined += 1
         points = _interior_points(bed.semi_axes[i]) @ bed.rotations[i].T + bed.centers[i]
         other = bed.centers[i] + shift
         bad += int(_inside(points, other, bed.rotations[j], bed.semi_axes[j]).sum())
         points = _interior_points(bed.semi_axes[j]) @ bed.rotations[j].T + bed.centers[i] + shift
         bad += int(_inside(points, bed.centers[i], bed.rotations[i], bed.semi_axes[i]).sum())
-    return bad, len(pairs)
+    return bad, examined
 
 
 def test_no_interpenetration_by_dense_sampling(elliptic_bed: Packing) -> None:
     bad, pairs = _overlapping_points(elliptic_bed)
     assert pairs > 40
+    assert bad == 0
+
+
+def test_no_interpenetration_in_a_polydisperse_bed(polydisperse_bed: Packing) -> None:
+    radius = np.hypot(polydisperse_bed.semi_axes[:, 0], polydisperse_bed.semi_axes[:, 2])
+    assert radius.max() > 2.5 * np.median(radius)
+    bad, pairs = _overlapping_points(polydisperse_bed)
+    assert pairs > 60
     assert bad == 0
 
 

@@ -25,7 +25,7 @@ CONTRACT = ["center", "semi_axes", "euler", "normal", "porosity_profile", "order
 
 def test_run_writes_the_contract(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     with caplog.at_level(logging.INFO, logger="imaging.deposition"):
-        ds = run(TINY, tmp_path / "tiny.nc")
+        ds = run({**TINY, "store_voxel_image": True}, tmp_path / "tiny.nc")
     assert any("ETA" in record.message for record in caplog.records)
     back = read_dataset(tmp_path / "tiny.nc", required=CONTRACT)
     assert (tmp_path / "tiny.png").stat().st_size > 10_000
@@ -38,6 +38,8 @@ def test_run_writes_the_contract(tmp_path: Path, caplog: pytest.LogCaptureFixtur
     assert np.allclose(np.linalg.norm(back["normal"].values, axis=1), 1.0)
     assert float(back["overlap_fraction"]) < 1e-4
     assert 0.2 < float(back["porosity"]) < 0.9
+    solid_fraction = float(back["solid"].mean())
+    assert solid_fraction == pytest.approx(1 - float(back["porosity"]), abs=0.1)
 
 
 @pytest.mark.parametrize(
