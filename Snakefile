@@ -12,6 +12,7 @@ configfile: "config/config.yaml"
 include: "workflow/rules/common.smk"
 include: "workflow/rules/imaging.smk"
 include: "workflow/rules/micro.smk"
+include: "workflow/rules/packing.smk"
 
 
 rule all:

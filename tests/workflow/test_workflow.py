@@ -139,3 +139,9 @@ def test_micro_products(finished):
     # k0 = 1e-20 m2 times k_r = Se^2 with Se about 0.5 and exp(2 (phi - 0.25)) near 1
     assert 1e-22 < float(het["permeability"].sel(phase="water").isel(checkpoint=0).mean()) < 1e-20
     assert (finished / "results/micro/comparison.png").stat().st_size > 10_000
+
+
+def test_bad_packing_key_is_named(tmp_path):
+    config = yaml.safe_load(yaml.safe_dump(TINY))
+    config["packings"] = {"flat": {"n_particles": 0}}
+    _fails_with(tmp_path, config, "packings.flat.n_particles")

@@ -1,6 +1,7 @@
 # Shared helpers of the rules: validation, sample sheet, code hash, input functions.
 import sys
 
+from imaging.deposition.config import resolve as resolve_packing
 from shared.config import ConfigError, load_schema, validate_config
 from shared.provenance import code_sha256
 
@@ -13,6 +14,14 @@ except ConfigError as err:
 
 SAMPLES = sorted(config["samples"])
 CASES = sorted(config["micro"]["cases"])
+PACKINGS = sorted(config["packings"])
+for _name, _section in config["packings"].items():
+    try:
+        resolve_packing(_section)
+    except ValueError as err:
+        sys.exit(
+            f"claychain: invalid configuration: config key 'packings.{_name}.{err}"
+        )
 if config["micro"]["sample"] not in config["samples"]:
     sys.exit(
         f"claychain: invalid configuration: config key 'micro.sample': "
@@ -23,6 +32,7 @@ if config["micro"]["sample"] not in config["samples"]:
 wildcard_constraints:
     sample="|".join(SAMPLES),
     case="|".join(CASES),
+    packing="|".join(PACKINGS) or "(?!)",
 
 
 def code_hash(*packages):
@@ -45,6 +55,11 @@ def get_scan(wildcards):
     return entry["path"]
 
 
+def get_packing_config(wildcards):
+    """The configuration section of a packing (a param, so that its edits rerun it)."""
+    return config["packings"][wildcards.packing]
+
+
 def get_micro_porosity(wildcards):
     """The porosity grid that informs the micro cases."""
     return f"results/porosity/{config['micro']['sample']}.nc"
@@ -62,7 +77,11 @@ def get_final_outputs():
         sample=SAMPLES,
     )
     micro = expand(["results/micro/{case}.nc", "results/micro/{case}.png"], case=CASES)
-    return imaging + micro + ["results/micro/comparison.png"]
+    packing = expand(
+        ["results/packing/{packing}.nc", "results/packing/{packing}.png"],
+        packing=PACKINGS,
+    )
+    return imaging + micro + ["results/micro/comparison.png"] + packing
 
 
 # The sources each stage's rules run; their hash is a param so that edits rerun the rules.
@@ -74,3 +93,6 @@ IMAGING_CODE = code_hash(
     "shared/config.py",
 )
 MICRO_CODE = code_hash("micro", "shared")
+PACKING_CODE = code_hash(
+    "imaging", "shared/io.py", "shared/provenance.py", "shared/figures.py"
+)

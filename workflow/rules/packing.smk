@@ -1,0 +1,19 @@
+# Packing stage: virtual clay porous media by sequential deposition of elliptic disks
+# (Ferrage et al. 2015), one job per entry of config["packings"].
+
+
+rule packing_deposit:
+    output:
+        result="results/packing/{packing}.nc",
+        figure="results/packing/{packing}.png",
+    params:
+        code=PACKING_CODE,
+        section=get_packing_config,
+    conda:
+        "../envs/claychain.yaml"
+    log:
+        "results/logs/packing_deposit/{packing}.log",
+    benchmark:
+        "results/benchmarks/packing_deposit/{packing}.tsv"
+    script:
+        "../scripts/packing_deposit.py"
