@@ -174,62 +174,24 @@ def _cell_geometry(
 
 
 @njit(cache=True)
-def _facet_topology(
-    tetrahedra: IntArray, neighbours: IntArray
-) -> tuple[IntArray, IntArray, IntArray, IntArray]:
-    """Internal facets (cell i < neighbour j) and hull facets, each with its vertices.
-
-    Returns ``facet_cells`` (n_facets, 2), ``facet_vertices`` (n_facets, 3),
-    ``hull_cells`` (n_hull,) and ``hull_vertices`` (n_hull, 3), in cell order.
-    """
-    n_inner, n_hull = 0, 0
-    for c in range(neighbours.shape[0]):
-        for m in range(4):
-            if neighbours[c, m] > c:
-                n_inner += 1
-            elif neighbours[c, m] < 0:
-                n_hull += 1
-    facet_cells = np.empty((n_inner, 2), dtype=np.int64)
-    facet_vertices = np.empty((n_inner, 3), dtype=np.int64)
-    hull_cells = np.empty(n_hull, dtype=np.int64)
-    hull_vertices = np.empty((n_hull, 3), dtype=np.int64)
-    inner, hull = 0, 0
-    for c in range(neighbours.shape[0]):
-        for m in range(4):
-            other = neighbours[c, m]
-            if other > c:
-                facet_cells[inner, 0], facet_cells[inner, 1] = c, other
-                target, row = facet_vertices, inner
-                inner += 1
-            elif other < 0:
-                hull_cells[hull] = c
-                target, row = hull_vertices, hull
-                hull += 1
-            else:
-                continue
-            k = 0
-            for v in range(4):
-                if v != m:
-                    target[row, k] = tetrahedra[c, v]
-                    k += 1
-    return facet_cells, facet_vertices, hull_cells, hull_vertices
-
-
-@njit(cache=True)
 def _triangle_geometry(
-    points: FloatArray, vertices: IntArray, cells: IntArray, centroids: FloatArray
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Areas, unit normals pointing away from the owning cell, and centroids.
-
-    The owning cell's centroid lies on the side of its fourth vertex, so the sign test
-    against it equals the test against that vertex and needs no vertex look-up.
-    """
-    n = vertices.shape[0]
+    points: FloatArray, tetrahedra: IntArray, cells: IntArray, local: IntArray
+) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+    """Vertices, areas, unit normals pointing away from the cell, and centroids."""
+    n = cells.shape[0]
+    vertices = np.empty((n, 3), dtype=np.int64)
     areas = np.empty(n)
     normals = np.empty((n, 3))
     centres = np.empty((n, 3))
     for f in range(n):
+        cell, skip = cells[f], local[f]
+        k = 0
+        for m in range(4):
+            if m != skip:
+                vertices[f, k] = tetrahedra[cell, m]
+                k += 1
         a, b, c = vertices[f, 0], vertices[f, 1], vertices[f, 2]
+        o = tetrahedra[cell, skip]
         ux = points[b, 0] - points[a, 0]
         uy = points[b, 1] - points[a, 1]
         uz = points[b, 2] - points[a, 2]
@@ -237,36 +199,37 @@ def _triangle_geometry(
         vy = points[c, 1] - points[a, 1]
         vz = points[c, 2] - points[a, 2]
         nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
-        for d in range(3):
-            centres[f, d] = (points[a, d] + points[b, d] + points[c, d]) / 3.0
         towards = (
-            nx * (centroids[cells[f], 0] - centres[f, 0])
-            + ny * (centroids[cells[f], 1] - centres[f, 1])
-            + nz * (centroids[cells[f], 2] - centres[f, 2])
+            nx * (points[o, 0] - points[a, 0])
+            + ny * (points[o, 1] - points[a, 1])
+            + nz * (points[o, 2] - points[a, 2])
         )
         twice = np.sqrt(nx * nx + ny * ny + nz * nz)
-        scale = (-1.0 if towards > 0.0 else 1.0) / twice
+        sign = -1.0 if towards > 0.0 else 1.0
         areas[f] = 0.5 * twice
-        normals[f, 0] = nx * scale
-        normals[f, 1] = ny * scale
-        normals[f, 2] = nz * scale
-    return areas, normals, centres
+        normals[f, 0] = sign * nx / twice
+        normals[f, 1] = sign * ny / twice
+        normals[f, 2] = sign * nz / twice
+        for d in range(3):
+            centres[f, d] = (points[a, d] + points[b, d] + points[c, d]) / 3.0
+    return vertices, areas, normals, centres
 
 
 @njit(cache=True)
 def _dual_lengths(
     centroids: FloatArray,
     circumcentres: FloatArray,
-    facet_cells: IntArray,
+    cells: IntArray,
+    others: IntArray,
     normals: FloatArray,
     ratio: float,
 ) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
     """Circumcentre distances projected on the facet normals, with the fallback."""
-    n = facet_cells.shape[0]
+    n = cells.shape[0]
     lengths = np.empty(n)
     fallback = np.zeros(n, dtype=np.bool_)
     for f in range(n):
-        i, j = facet_cells[f, 0], facet_cells[f, 1]
+        i, j = cells[f], others[f]
         dual = 0.0
         squared = 0.0
         for d in range(3):
