@@ -1,33 +1,55 @@
-"""Timing of the partially saturated flow machinery: remesh step versus reuse step.
+"""Timing of the partially saturated flow machinery: remesh, reuse and coupled steps.
 
 A jittered grid of about ``n_points`` points fills a 7 mm cube (the thesis's specimen).
-Phases timed (wall clock, one run each after a warm-up of the numba kernels on a tiny
-mesh): Delaunay, geometry, geometry update of moved points with the same
-connectivity, pattern, conductance, assembly, analysis + factorisation
-(first solve on a new pattern), a refactorisation on the same pattern, a solve that
-reuses the factor unchanged, and a full transient step (conductance, assembly, drift
-check, solve with the stale factor corrected by CG, saturation update) after the state
-drifted slightly. Run ``python -m benchmarks.flow`` to write
-``results/benchmarks/flow.json``.
+Every phase is called once to compile or warm it, then timed ``repeats`` times; the
+records give the median (``*_ms``) and the fastest call (``*_min_ms``, the cost on an
+idle machine) in milliseconds. Timings are measured, never asserted.
+
+* :func:`bench_flow`: Delaunay, geometry, geometry update of moved points with the
+  same connectivity, pattern, conductance, assembly, analysis + factorisation + solve,
+  a refactorisation, a solve with the factor unchanged, and a transient step with a
+  reused (stale) factor after the state drifted slightly.
+* :func:`bench_flow_scaling`: :func:`bench_flow` at 1.5k to 50k points, the fitted
+  exponent of each step's cost versus N and a log-log figure of the curve.
+* :func:`bench_coupled_step`: one coupled step as :mod:`micro.hydration` runs it (DEM
+  step, hydro-mechanical forces, flow step with the reused factor, geometry update).
+
+Run ``python -m benchmarks.flow [--quick]`` to write ``results/benchmarks/flow.json``,
+``flow_scaling.json``, ``flow_scaling.png`` and ``flow_coupled.json``.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
+import os
 import time
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
 
+from benchmarks.dem import _timings_ms
+from micro.forces import sector_weights
+from micro.hydration import FlowSystem, PelletState, swell, update_geometry
+from shared.dem import DEFAULT_DEM, cube_points, new_state, step
 from shared.fv import assemble_matrix, facet_conductance, flow_pattern, transient_step
 from shared.materials import DEFAULT_CLAY
-from shared.mesh import WALLS, boundary_cell_mask, delaunay_tetrahedra, mesh_from_tetrahedra
+from shared.mesh import (
+    WALLS,
+    boundary_cell_mask,
+    build_mesh,
+    delaunay_tetrahedra,
+    mesh_from_tetrahedra,
+    update_mesh,
+)
 from shared.retention import saturation, saturation_derivative
 from shared.solver import CholeskySolver
 
-__all__ = ["bench_flow", "jittered_cube"]
+__all__ = ["bench_flow", "bench_flow_scaling", "bench_coupled_step", "jittered_cube"]
 
 EDGE = 7e-3
+SCALING_SIZES = (1500, 5000, 15000, 50000)
 
 
 def jittered_cube(
@@ -54,11 +76,22 @@ def jittered_cube(
     return grid + rng.uniform(-jitter, jitter, grid.shape) * spacing
 
 
-def _clock(start: float) -> float:
-    return time.perf_counter() - start
+def _unsaturated_state(
+    n_cells: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Porosity [1], pressure [Pa] and saturation [1] of a clay at 40-60 MPa suction."""
+    porosity = rng.uniform(0.2, 0.3, n_cells)
+    pressure = -rng.uniform(40e6, 60e6, n_cells)
+    return porosity, pressure, saturation(-pressure, porosity, DEFAULT_CLAY)
 
 
-def bench_flow(n_points: int = 15000, *, relative_drift: float = 2e-3) -> dict:
+def bench_flow(
+    n_points: int = 15000,
+    *,
+    relative_drift: float = 2e-3,
+    repeats: int = 5,
+    ordering_method: str | None = None,
+) -> dict:
     """Time the flow phases at about ``n_points`` points in a 7 mm cube.
 
     Parameters
@@ -68,120 +101,311 @@ def bench_flow(n_points: int = 15000, *, relative_drift: float = 2e-3) -> dict:
     relative_drift
         Relative random change of the cell pressures before the reuse step [1]; it
         sets the coefficient drift, hence the CG iterations of the reuse step.
+    repeats
+        Timed calls per phase (after one untimed call).
+    ordering_method
+        Passed to :class:`shared.solver.CholeskySolver`: None (the pattern's nested
+        dissection) or a CHOLMOD ordering such as ``"metis"`` for comparison.
 
     Returns
     -------
     dict
-        Sizes (points, cells, facets, unknowns, factor non-zeros), phase times [s],
-        ``remesh_step`` (Delaunay + geometry + pattern + conductance + assembly +
-        analysis + factorisation + solve), ``reuse_step`` (one transient step with a
-        reused factor), their ratio, ``coupled_flow_step`` (geometry update of moved
-        points with fixed connectivity + reuse step: the flow part of one coupled DEM
-        step), the drift and factor applications of the reuse step.
+        Sizes (points, cells, facets, unknowns), the machine's load average before the
+        timings (other jobs share the cores); median and fastest time of each phase
+        [ms]; ``remesh_step_ms`` (Delaunay + geometry + pattern + conductance +
+        assembly + analysis + factorisation + solve), ``reuse_step_ms`` (one transient
+        step with a reused factor), their ratio, ``coupled_flow_step_ms`` (geometry
+        update + reuse step: the flow part of one coupled step), each also as
+        ``*_min_ms`` and as medians in seconds (``*_s``); the drift and factor
+        applications of one reuse step.
     """
     material = DEFAULT_CLAY
-    _warm_up()
-    times: dict[str, float] = {}
-    points = jittered_cube(n_points)
-    start = time.perf_counter()
-    triangulation = delaunay_tetrahedra(points)
-    times["delaunay"] = _clock(start)
-    start = time.perf_counter()
-    mesh = mesh_from_tetrahedra(*triangulation)
-    times["geometry"] = _clock(start)
-    moved = mesh.points * (1.0 + 1e-6)
-    start = time.perf_counter()
-    mesh_from_tetrahedra(moved, mesh.tetrahedra, mesh.neighbours, reorient=False)
-    times["geometry_update"] = _clock(start)
-
     rng = np.random.default_rng(1)
-    porosity = rng.uniform(0.2, 0.3, mesh.n_cells)
-    pressure = -rng.uniform(40e6, 60e6, mesh.n_cells)
-    water = saturation(-pressure, porosity, material)
+    points = jittered_cube(n_points)
+    triangulation = delaunay_tetrahedra(points)
+    mesh = mesh_from_tetrahedra(*triangulation)
+    moved = mesh.points * (1.0 + 1e-6)
+    porosity, pressure, water = _unsaturated_state(mesh.n_cells, rng)
     imposed = np.full(mesh.n_cells, -1e6)
-
-    start = time.perf_counter()
-    pattern = flow_pattern(mesh, boundary_cell_mask(mesh, list(WALLS)))
-    times["pattern"] = _clock(start)
-    start = time.perf_counter()
+    dirichlet = boundary_cell_mask(mesh, list(WALLS))
+    pattern = flow_pattern(mesh, dirichlet)
     conductance = facet_conductance(mesh, water, porosity, "water", material)
-    times["conductance"] = _clock(start)
     # Time step making storage comparable with conduction: a conservative conditioning.
     capacity = porosity * mesh.volumes * saturation_derivative(-pressure, porosity, material)
     time_step = float(capacity.sum() / (2.0 * conductance.sum()))
-    storage = capacity / time_step
-    start = time.perf_counter()
-    matrix = assemble_matrix(mesh, pattern, conductance, storage)
-    times["assembly"] = _clock(start)
+    matrix = assemble_matrix(mesh, pattern, conductance, capacity / time_step)
     rhs = rng.standard_normal(pattern.n_free)
+    solver = CholeskySolver(ordering_method=ordering_method)
+    drifted = pressure * (1.0 + relative_drift * rng.standard_normal(mesh.n_cells))
 
-    solver = CholeskySolver()
-    start = time.perf_counter()
-    solver.solve(matrix, rhs)
-    times["analysis_factorization_solve"] = _clock(start)
-    start = time.perf_counter()
-    solver.solve(matrix, rhs, force_refactor=True)
-    times["factorization_solve"] = _clock(start)
-    start = time.perf_counter()
-    solver.solve(matrix, rhs)
-    times["solve_reused_factor"] = _clock(start)
+    def reuse_step() -> object:
+        return transient_step(
+            mesh, pattern, solver, drifted, water, porosity,
+            facet_conductance(mesh, water, porosity, "water", material),
+            imposed, time_step, material,
+        )
 
-    drifted_pressure = pressure * (1.0 + relative_drift * rng.standard_normal(mesh.n_cells))
-    applications = solver.stats.factor_applications
-    factorizations = solver.stats.factorizations
-    start = time.perf_counter()
-    transient_step(
-        mesh, pattern, solver, drifted_pressure, water, porosity,
-        facet_conductance(mesh, water, porosity, "water", material),
-        imposed, time_step, material,
-    )
-    times["reuse_step"] = _clock(start)
-
-    remesh = (
-        times["delaunay"] + times["geometry"] + times["pattern"] + times["conductance"]
-        + times["assembly"] + times["analysis_factorization_solve"]
-    )
-    return {
+    phases = {
+        "delaunay": lambda: delaunay_tetrahedra(points),
+        "geometry": lambda: mesh_from_tetrahedra(*triangulation),
+        "geometry_update": lambda: update_mesh(mesh, moved),
+        "pattern": lambda: flow_pattern(mesh, dirichlet),
+        "conductance": lambda: facet_conductance(mesh, water, porosity, "water", material),
+        "assembly": lambda: assemble_matrix(mesh, pattern, conductance, capacity / time_step),
+        "analysis_factorization_solve": lambda: CholeskySolver(
+            ordering_method=ordering_method
+        ).solve(matrix, rhs, ordered=True),
+        "factorization_solve": lambda: solver.solve(
+            matrix, rhs, force_refactor=True, ordered=True
+        ),
+        "solve_reused_factor": lambda: solver.solve(matrix, rhs, ordered=True),
+        "reuse_step": reuse_step,
+    }
+    record: dict = {
         "n_points": int(points.shape[0]),
         "n_cells": mesh.n_cells,
         "n_facets": mesh.n_facets,
         "n_unknowns": pattern.n_free,
-        "times_s": times,
-        "analysis_s": times["analysis_factorization_solve"] - times["factorization_solve"],
-        "remesh_step_s": remesh,
-        "reuse_step_s": times["reuse_step"],
-        "coupled_flow_step_s": times["geometry_update"] + times["reuse_step"],
-        "remesh_over_reuse": remesh / times["reuse_step"],
+        "ordering_method": ordering_method or "nested dissection (flow_pattern)",
         "relative_pressure_drift": relative_drift,
-        "reuse_drift": solver.last_drift,
-        "reuse_refactored": solver.stats.factorizations > factorizations,
-        "reuse_factor_applications": solver.stats.factor_applications - applications,
-        "reuse_backward_error": solver.last_residual,
+        "load_average_1min": os.getloadavg()[0],
     }
-
-
-def _warm_up() -> None:
-    """Compile or load the numba kernels on a tiny mesh so they are not timed."""
-    mesh = mesh_from_tetrahedra(*delaunay_tetrahedra(jittered_cube(64)))
-    porosity = np.full(mesh.n_cells, 0.25)
-    water = np.full(mesh.n_cells, 0.5)
-    pressure = np.full(mesh.n_cells, -1e6)
-    pattern = flow_pattern(mesh, boundary_cell_mask(mesh, list(WALLS)))
-    transient_step(
-        mesh, pattern, CholeskySolver(), pressure, water, porosity,
-        facet_conductance(mesh, water, porosity), pressure, 1.0,
+    for name, function in phases.items():
+        record.update(_timings_ms(name, function, repeats))
+    applications, factorizations = solver.stats.factor_applications, solver.stats.factorizations
+    reuse_step()
+    record["reuse_drift"] = solver.last_drift
+    record["reuse_refactored"] = solver.stats.factorizations > factorizations
+    record["reuse_factor_applications"] = solver.stats.factor_applications - applications
+    record["reuse_backward_error"] = solver.last_residual
+    remesh_phases = (
+        "delaunay", "geometry", "pattern", "conductance", "assembly",
+        "analysis_factorization_solve",
     )
+    for suffix in ("ms", "min_ms"):
+        record[f"remesh_step_{suffix}"] = sum(record[f"{p}_{suffix}"] for p in remesh_phases)
+        record[f"coupled_flow_step_{suffix}"] = (
+            record[f"geometry_update_{suffix}"] + record[f"reuse_step_{suffix}"]
+        )
+    record["remesh_over_reuse"] = record["remesh_step_ms"] / record["reuse_step_ms"]
+    # Median step times in seconds, the keys benchmarks.yade_compare reads.
+    for name in ("remesh_step", "reuse_step", "coupled_flow_step"):
+        record[f"{name}_s"] = 1e-3 * record[f"{name}_ms"]
+    return record
 
 
-def main() -> None:
-    """Run at 1.5k and 15k points, two drifts, and write ``results/benchmarks/flow.json``."""
-    results = [
-        bench_flow(n, relative_drift=drift) for n in (1500, 15000) for drift in (2e-3, 1e-5)
-    ]
-    path = Path("results/benchmarks/flow.json")
+def _exponent(sizes: list[int], costs: list[float]) -> float:
+    """Least-squares slope of log(cost) versus log(N) [1]."""
+    return float(np.polyfit(np.log(sizes), np.log(costs), 1)[0])
+
+
+def bench_flow_scaling(
+    sizes: tuple[int, ...] = SCALING_SIZES,
+    *,
+    repeats: int = 3,
+    figure: Path | None = Path("results/benchmarks/flow_scaling.png"),
+) -> dict:
+    """Cost of the flow phases versus the number of points, with fitted exponents.
+
+    Parameters
+    ----------
+    sizes
+        Approximate numbers of points.
+    repeats
+        Timed calls per phase and size.
+    figure
+        Where to write the log-log figure of the curve (None: no figure).
+
+    Returns
+    -------
+    dict
+        ``records`` (one :func:`bench_flow` record per size), ``exponents`` (fitted
+        slope of log(median cost) versus log(N) for every phase and step) and
+        ``n_log_n_exponent``, the slope N log N itself has over the same range (the
+        target: a step's exponent no larger than it).
+    """
+    records = [bench_flow(n, repeats=repeats) for n in sizes]
+    points = [r["n_points"] for r in records]
+    names = [key[:-3] for key in records[0] if key.endswith("_ms") and not key.endswith("min_ms")]
+    exponents = {name: _exponent(points, [r[f"{name}_ms"] for r in records]) for name in names}
+    reference = _exponent(points, [n * np.log(n) for n in points])
+    result = {"records": records, "exponents": exponents, "n_log_n_exponent": reference}
+    if figure is not None:
+        _plot_scaling(records, exponents, figure)
+    return result
+
+
+def _plot_scaling(records: list[dict], exponents: dict[str, float], path: Path) -> None:
+    """Log-log figure of the step and phase costs versus N with an N log N guide."""
+    points = np.array([r["n_points"] for r in records], dtype=float)
+    figure = Figure(figsize=(7.0, 5.0))
+    axes = figure.add_subplot()
+    steps = ("remesh_step", "coupled_flow_step", "reuse_step")
+    phases = ("delaunay", "analysis_factorization_solve", "geometry_update", "pattern")
+    for name in steps + phases:
+        style = "o-" if name in steps else "s--"
+        axes.loglog(
+            points, [r[f"{name}_ms"] for r in records], style,
+            label=f"{name} (N^{exponents[name]:.2f})",
+        )
+    guide = points * np.log(points)
+    anchor = records[0]["coupled_flow_step_ms"]
+    axes.loglog(points, anchor * guide / guide[0], "k:", label="N log N")
+    axes.set_xlabel("points N")
+    axes.set_ylabel("median wall time [ms]")
+    axes.set_title("Flow machinery, 7 mm cube, jittered grid")
+    axes.grid(True, which="both", alpha=0.3)
+    axes.legend(fontsize=7)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(results, indent=2, default=float))
-    print(json.dumps(results, indent=2, default=float))
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+
+
+def bench_coupled_step(n_points: int = 15000, repeats: int = 5, seed: int = 0) -> dict:
+    """Time one coupled step as :func:`micro.hydration.advance_to_balance` runs it.
+
+    The phases run in the order of the hydration loop, on a jittered point cube at
+    50 MPa suction with a 40 MPa boundary: a flow step with the reused factor
+    (conductance + :func:`shared.fv.transient_step`; the state advances from step to
+    step, so the factor goes stale as in a run), the swelling radii and
+    hydro-mechanical forces (:func:`micro.hydration.swell`, which recomputes the facet
+    sector weights), one DEM step (:func:`shared.dem.step`, Verlet list reused) and the
+    geometry update of the moved points (:func:`micro.hydration.update_geometry`).
+    ``*_proposed_*`` keys time the same step with the sector weights cached per mesh
+    and :func:`shared.mesh.update_mesh` for the geometry. A step in which a cell
+    inverted (a remesh) is not counted.
+
+    Parameters
+    ----------
+    n_points
+        Requested number of points (rounded to a cube number).
+    repeats
+        Timed coupled steps (after one untimed step).
+    seed
+        Seed of the point jitter and the porosity.
+
+    Returns
+    -------
+    dict
+        Sizes, the load average after the steps, the timed and remeshed step counts, the
+        factor applications and
+        factorisations of each timed step, median and fastest time per phase [ms], ``coupled_step_ms`` (the sum as
+        hydration runs it) and ``coupled_step_proposed_ms``, with ``*_min_ms`` twins.
+    """
+    material = DEFAULT_CLAY
+    rng = np.random.default_rng(seed)
+    positions, radii = cube_points(n_points, rng, jitter=0.2, radius_factor=1.02)
+    dem = new_state(positions, radii)
+    mesh = build_mesh(dem.positions)
+    porosity = rng.uniform(0.2, 0.3, mesh.n_cells)
+    # Uniform 50 MPa suction wetted from a 40 MPa boundary: a smooth hydration front.
+    pressure = np.full(mesh.n_cells, -50e6)
+    state = PelletState(
+        dem=dem, mesh=mesh, pressure=pressure,
+        saturation=saturation(-pressure, porosity, material),
+        solid_volume=(1.0 - porosity) * mesh.volumes, porosity=porosity,
+    )
+    system = FlowSystem.for_mesh(mesh)
+    time_step = DEFAULT_DEM.time_step
+    flow_time_step = 20.0  # HydrationSettings.initial_time_step [s]
+    loads = np.zeros_like(dem.positions)
+    # HydrationSettings: porosity clamp [1] and relaxation damping [1].
+    bounds, damping = (0.01, 0.95), 0.7
+
+    def flow_step() -> None:
+        conductance = facet_conductance(state.mesh, state.saturation, state.porosity)
+        imposed = np.full(state.mesh.n_cells, -40e6)
+        result = transient_step(
+            state.mesh, system.pattern, system.solver, state.pressure, state.saturation,
+            state.porosity, conductance, imposed, flow_time_step, material,
+        )
+        state.pressure, state.saturation = result.pressure, result.saturation
+
+    def proposed_update() -> None:
+        try:
+            update_mesh(state.mesh, dem.positions)
+        except ValueError:
+            pass  # a cell inverted: update_geometry remeshes next
+
+    # In the order of advance_to_balance; update_mesh runs before update_geometry
+    # replaces the mesh, on the same moved points.
+    phases = {
+        "flow_step": flow_step,
+        "hydro_forces": lambda: swell(state, material),
+        "sector_weights": lambda: sector_weights(state.mesh, dem.positions, dem.radii),
+        "dem_step": lambda: step(dem, time_step, DEFAULT_DEM, loads, None, damping),
+        "update_mesh": proposed_update,
+        "geometry_update": lambda: update_geometry(state, bounds, material),
+    }
+    times: dict[str, list[float]] = {name: [] for name in phases}
+    applications: list[int] = []
+    factorizations: list[int] = []
+    remeshes = 0
+    for count in range(repeats + 1):
+        before = (system.solver.stats.factor_applications, system.solver.stats.factorizations)
+        elapsed = {}
+        for name, function in phases.items():
+            start = time.perf_counter()
+            function()
+            elapsed[name] = 1e3 * (time.perf_counter() - start)
+        if state.n_remesh > remeshes:
+            # A cell inverted and update_geometry remeshed: rebuild the flow system as
+            # hydration does, and leave this step out of the reuse-step statistics.
+            remeshes = state.n_remesh
+            system = FlowSystem.for_mesh(state.mesh)
+            continue
+        if count > 0:  # the first step compiles or warms the kernels
+            for name, value in elapsed.items():
+                times[name].append(value)
+            applications.append(system.solver.stats.factor_applications - before[0])
+            factorizations.append(system.solver.stats.factorizations - before[1])
+    record: dict = {
+        "n_points": dem.n_points,
+        "n_cells": mesh.n_cells,
+        "n_unknowns": system.pattern.n_free,
+        "load_average_1min": os.getloadavg()[0],
+        "timed_steps": len(applications),
+        "remeshed_steps": remeshes,
+        "factor_applications_per_step": applications,
+        "factorizations_per_step": factorizations,
+    }
+    for name, values in times.items():
+        record[f"{name}_ms"] = float(np.median(values))
+        record[f"{name}_min_ms"] = float(np.min(values))
+    for suffix in ("ms", "min_ms"):
+        as_run = ("dem_step", "hydro_forces", "flow_step", "geometry_update")
+        record[f"coupled_step_{suffix}"] = sum(record[f"{p}_{suffix}"] for p in as_run)
+        record[f"coupled_step_proposed_{suffix}"] = (
+            record[f"dem_step_{suffix}"]
+            + record[f"hydro_forces_{suffix}"] - record[f"sector_weights_{suffix}"]
+            + record[f"flow_step_{suffix}"] + record[f"update_mesh_{suffix}"]
+        )
+    return record
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Write flow.json (1.5k and 15k, two drifts), flow_scaling.json/.png, flow_coupled.json."""
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="sizes up to 15k, 2 repeats")
+    parser.add_argument("--output", type=Path, default=Path("results/benchmarks"))
+    arguments = parser.parse_args(argv)
+    repeats = 2 if arguments.quick else 3
+    sizes = SCALING_SIZES[:-1] if arguments.quick else SCALING_SIZES
+    output = arguments.output
+    output.mkdir(parents=True, exist_ok=True)
+    results = {
+        "flow": [
+            bench_flow(n, relative_drift=drift, repeats=repeats)
+            for n in (1500, 15000) for drift in (2e-3, 1e-5)
+        ],
+        "flow_scaling": bench_flow_scaling(
+            sizes, repeats=repeats, figure=output / "flow_scaling.png"
+        ),
+        "flow_coupled": [bench_coupled_step(n, repeats=repeats) for n in (1500, 15000)],
+    }
+    for name, result in results.items():
+        (output / f"{name}.json").write_text(json.dumps(result, indent=1, default=float))
+    print(json.dumps(results["flow_scaling"]["exponents"], indent=1))
 
 
 if __name__ == "__main__":

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from micro.hydration import PelletState, update_cracks
+from micro.hydration import FlowSystem, PelletState, update_cracks
 from shared.dem.state import ContactList, DEMState
 from shared.dem.walls import Walls
 from shared.materials import DEFAULT_CLAY, ClayParameters
@@ -33,14 +33,15 @@ def _jsonable(record: dict[str, Any]) -> dict[str, Any]:
 
 
 def save_checkpoint(
-    path: Path, digest: str, state: PelletState, records: list[dict[str, Any]],
-    reference_volume: float,
+    path: Path, digest: str, state: PelletState, system: FlowSystem,
+    records: list[dict[str, Any]], reference_volume: float,
 ) -> None:
-    """Write the state and the records so far, atomically."""
+    """Write the state, its flow system's boundary cells and the records so far, atomically."""
     arrays: dict[str, Any] = {f"dem_{k}": getattr(state.dem, k) for k in _DEM_ARRAYS}
     arrays.update({f"contacts_{k}": getattr(state.dem.contacts, k) for k in _CONTACT_ARRAYS})
     arrays.update({f"cell_{k}": getattr(state, k) for k in _CELL_ARRAYS})
-    arrays.update(mesh_tetrahedra=state.mesh.tetrahedra, mesh_neighbours=state.mesh.neighbours)
+    arrays.update(mesh_tetrahedra=state.mesh.tetrahedra, mesh_neighbours=state.mesh.neighbours,
+                  dirichlet=system.dirichlet)
     if state.hydraulic_forces is not None:
         arrays["hydraulic_forces"] = state.hydraulic_forces
     if state.walls is not None:
@@ -59,8 +60,8 @@ def save_checkpoint(
 
 def load_checkpoint(
     path: Path, digest: str, material: ClayParameters = DEFAULT_CLAY
-) -> tuple[PelletState, list[dict[str, Any]], float] | None:
-    """The saved state, records and reference volume, or None if absent or stale.
+) -> tuple[PelletState, FlowSystem, list[dict[str, Any]], float] | None:
+    """The saved state, flow system, records and reference volume, or None if absent or stale.
 
     A file written under another configuration (different hash) is ignored. The crack
     network, a function of the saved state, is rebuilt.
@@ -86,7 +87,8 @@ def load_checkpoint(
             hydraulic_forces=data["hydraulic_forces"] if "hydraulic_forces" in data else None,
             **{k: data[f"cell_{k}"] for k in _CELL_ARRAYS},
         )
+        system = FlowSystem.for_mesh(mesh, data["dirichlet"])
     update_cracks(state, material)
     records = [{k: (np.asarray(v) if isinstance(v, list) else v) for k, v in r.items()}
                for r in meta["records"]]
-    return state, records, float(meta["reference_volume"])
+    return state, system, records, float(meta["reference_volume"])

@@ -259,6 +259,12 @@ def relax(
     return settings.max_relaxation_steps, unbalanced
 
 
+def _unsigned_volumes(positions: FloatArray, tetrahedra: npt.NDArray[np.int64]) -> FloatArray:
+    """Volumes of tetrahedra, whatever their orientation [m3]."""
+    edges = positions[tetrahedra[:, 1:]] - positions[tetrahedra[:, :1]]
+    return np.abs(np.einsum("ij,ij->i", edges[:, 0], np.cross(edges[:, 1], edges[:, 2]))) / 6.0
+
+
 def triangulate(
     positions: FloatArray, flat_ratio: float = 1e-9
 ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
@@ -273,9 +279,7 @@ def triangulate(
         As :func:`shared.mesh.delaunay_tetrahedra`, with -1 for no neighbour.
     """
     _, tetrahedra, neighbours = delaunay_tetrahedra(positions)
-    corners = positions[tetrahedra]
-    edges = corners[:, 1:] - corners[:, :1]
-    volumes = np.abs(np.einsum("ij,ij->i", edges[:, 0], np.cross(edges[:, 1], edges[:, 2]))) / 6
+    volumes = _unsigned_volumes(positions, tetrahedra)
     keep = volumes > flat_ratio * volumes.mean()
     renumber = np.full(tetrahedra.shape[0] + 1, -1, dtype=np.int64)
     renumber[:-1][keep] = np.arange(int(keep.sum()))
@@ -312,7 +316,11 @@ def update_geometry(
         return False
     except ValueError:
         pass
-    water = state.water_volume()
+    # the water of the moved cells, as the fixed-connectivity path would count it, so
+    # that a remesh neither adds nor removes water of its own
+    moved_volumes = _unsigned_volumes(positions, state.mesh.tetrahedra)
+    moved_porosity = porosity_from_solid_volume(state.solid_volume, moved_volumes, *porosity_bounds)
+    water = float((moved_porosity * moved_volumes * state.saturation).sum())
     new = mesh_from_tetrahedra(positions, *triangulate(positions))
     moved = transfer_cell_state(state.mesh, new, state.pressure, state.saturation,
                                 state.porosity, material, conserve_water=False)
@@ -337,9 +345,16 @@ class FlowSystem:
     solver: CholeskySolver
 
     @classmethod
-    def for_mesh(cls, mesh: Mesh) -> FlowSystem:
-        """All six walls impose the boundary suction (thesis Sec. 3.5.1)."""
-        dirichlet = boundary_cell_mask(mesh, WALLS)
+    def for_mesh(
+        cls, mesh: Mesh, dirichlet: npt.NDArray[np.bool_] | None = None
+    ) -> FlowSystem:
+        """All six walls impose the boundary suction (thesis Sec. 3.5.1).
+
+        The boundary layer is found from the geometry at a (re)mesh and kept until the
+        next one; pass the saved mask to rebuild the same system when resuming.
+        """
+        if dirichlet is None:
+            dirichlet = boundary_cell_mask(mesh, WALLS)
         return cls(dirichlet, flow_pattern(mesh, dirichlet), CholeskySolver())
 
 
@@ -489,6 +504,9 @@ def advance_to_balance(
         If the pressure or the points become non-finite, or the specimen flies apart
         (its extent more than doubles).
     """
+    # a fresh factor at each checkpoint makes a run resumed from its checkpoint file
+    # follow the same arithmetic as an uninterrupted one
+    system.solver.reset()
     time_step = settings.initial_time_step
     dem_steps, unbalanced, misfit = 0, float("nan"), float("inf")
     flow_steps = 0

@@ -165,12 +165,12 @@ def run(
         state = initial_state(spec, grid if heterogeneous else None,
                               None if heterogeneous else _specimen_mean(spec, grid),
                               DEFAULT_CLAY, parameters)
+        system = FlowSystem.for_mesh(state.mesh)
         records: list[dict[str, Any]] = []
         reference_volume = float(state.mesh.volumes.sum())
     else:
-        state, records, reference_volume = resumed
+        state, system, records, reference_volume = resumed
         log.info("%s: resuming after checkpoint %d of %d", case, len(records), checkpoints.size)
-    system = FlowSystem.for_mesh(state.mesh)
     progress = Progress(checkpoints.size, f"micro {case}", log, interval=0.0)
     started = time.monotonic()
     for index in range(len(records), checkpoints.size):
@@ -186,7 +186,7 @@ def run(
         record = measure_checkpoint(state, suction, reference_volume, DEFAULT_CLAY, settings.cracks)
         record.update(diagnostics)
         records.append(record)
-        save_checkpoint(state_file, digest, state, records, reference_volume)
+        save_checkpoint(state_file, digest, state, system, records, reference_volume)
         log.info("%s: s = %.3g Pa, S = %.3f, eps_v = %.4f, cracks %d, k_w,x = %.3g m2, "
                  "k_g,x = %.3g m2, balanced %d", case, suction, record["saturation"],
                  record["eps_v"], record["crack_count"], record["permeability"][0, 0],

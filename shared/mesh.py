@@ -27,6 +27,8 @@ large triangles, so pressure boundary conditions use a boundary *layer* of cells
 wall plane, plus the cells owning the wall's hull triangles.
 
 All loops over cells and facets run in serial numba kernels or vectorised numpy.
+:func:`update_mesh` recomputes only the geometry of moved points on the facet lists
+of a previous mesh (the per-step update of a coupled run).
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ __all__ = [
     "build_mesh",
     "delaunay_tetrahedra",
     "mesh_from_tetrahedra",
+    "update_mesh",
     "wall_index",
     "boundary_cell_mask",
     "mean_spacing",
@@ -174,24 +177,62 @@ def _cell_geometry(
 
 
 @njit(cache=True)
+def _facet_topology(
+    tetrahedra: IntArray, neighbours: IntArray
+) -> tuple[IntArray, IntArray, IntArray, IntArray]:
+    """Internal facets (cell i < neighbour j) and hull facets, each with its vertices.
+
+    Returns ``facet_cells`` (n_facets, 2), ``facet_vertices`` (n_facets, 3),
+    ``hull_cells`` (n_hull,) and ``hull_vertices`` (n_hull, 3), in cell order.
+    """
+    n_inner, n_hull = 0, 0
+    for c in range(neighbours.shape[0]):
+        for m in range(4):
+            if neighbours[c, m] > c:
+                n_inner += 1
+            elif neighbours[c, m] < 0:
+                n_hull += 1
+    facet_cells = np.empty((n_inner, 2), dtype=np.int64)
+    facet_vertices = np.empty((n_inner, 3), dtype=np.int64)
+    hull_cells = np.empty(n_hull, dtype=np.int64)
+    hull_vertices = np.empty((n_hull, 3), dtype=np.int64)
+    inner, hull = 0, 0
+    for c in range(neighbours.shape[0]):
+        for m in range(4):
+            other = neighbours[c, m]
+            if other > c:
+                facet_cells[inner, 0], facet_cells[inner, 1] = c, other
+                target, row = facet_vertices, inner
+                inner += 1
+            elif other < 0:
+                hull_cells[hull] = c
+                target, row = hull_vertices, hull
+                hull += 1
+            else:
+                continue
+            k = 0
+            for v in range(4):
+                if v != m:
+                    target[row, k] = tetrahedra[c, v]
+                    k += 1
+    return facet_cells, facet_vertices, hull_cells, hull_vertices
+
+
+@njit(cache=True)
 def _triangle_geometry(
-    points: FloatArray, tetrahedra: IntArray, cells: IntArray, local: IntArray
-) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
-    """Vertices, areas, unit normals pointing away from the cell, and centroids."""
-    n = cells.shape[0]
-    vertices = np.empty((n, 3), dtype=np.int64)
+    points: FloatArray, vertices: IntArray, cells: IntArray, centroids: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Areas, unit normals pointing away from the owning cell, and centroids.
+
+    The owning cell's centroid lies on the side of its fourth vertex, so the sign test
+    against it equals the test against that vertex and needs no vertex look-up.
+    """
+    n = vertices.shape[0]
     areas = np.empty(n)
     normals = np.empty((n, 3))
     centres = np.empty((n, 3))
     for f in range(n):
-        cell, skip = cells[f], local[f]
-        k = 0
-        for m in range(4):
-            if m != skip:
-                vertices[f, k] = tetrahedra[cell, m]
-                k += 1
         a, b, c = vertices[f, 0], vertices[f, 1], vertices[f, 2]
-        o = tetrahedra[cell, skip]
         ux = points[b, 0] - points[a, 0]
         uy = points[b, 1] - points[a, 1]
         uz = points[b, 2] - points[a, 2]
@@ -199,37 +240,36 @@ def _triangle_geometry(
         vy = points[c, 1] - points[a, 1]
         vz = points[c, 2] - points[a, 2]
         nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
-        towards = (
-            nx * (points[o, 0] - points[a, 0])
-            + ny * (points[o, 1] - points[a, 1])
-            + nz * (points[o, 2] - points[a, 2])
-        )
-        twice = np.sqrt(nx * nx + ny * ny + nz * nz)
-        sign = -1.0 if towards > 0.0 else 1.0
-        areas[f] = 0.5 * twice
-        normals[f, 0] = sign * nx / twice
-        normals[f, 1] = sign * ny / twice
-        normals[f, 2] = sign * nz / twice
         for d in range(3):
             centres[f, d] = (points[a, d] + points[b, d] + points[c, d]) / 3.0
-    return vertices, areas, normals, centres
+        towards = (
+            nx * (centroids[cells[f], 0] - centres[f, 0])
+            + ny * (centroids[cells[f], 1] - centres[f, 1])
+            + nz * (centroids[cells[f], 2] - centres[f, 2])
+        )
+        twice = np.sqrt(nx * nx + ny * ny + nz * nz)
+        scale = (-1.0 if towards > 0.0 else 1.0) / twice
+        areas[f] = 0.5 * twice
+        normals[f, 0] = nx * scale
+        normals[f, 1] = ny * scale
+        normals[f, 2] = nz * scale
+    return areas, normals, centres
 
 
 @njit(cache=True)
 def _dual_lengths(
     centroids: FloatArray,
     circumcentres: FloatArray,
-    cells: IntArray,
-    others: IntArray,
+    facet_cells: IntArray,
     normals: FloatArray,
     ratio: float,
 ) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
     """Circumcentre distances projected on the facet normals, with the fallback."""
-    n = cells.shape[0]
+    n = facet_cells.shape[0]
     lengths = np.empty(n)
     fallback = np.zeros(n, dtype=np.bool_)
     for f in range(n):
-        i, j = cells[f], others[f]
+        i, j = facet_cells[f, 0], facet_cells[f, 1]
         dual = 0.0
         squared = 0.0
         for d in range(3):
@@ -357,34 +397,102 @@ def mesh_from_tetrahedra(
     neighbours = np.array(neighbours, dtype=np.int64)
     points = np.ascontiguousarray(points, dtype=np.float64)
     signed, centroids, circumcentres = _cell_geometry(points, tetrahedra)
-    negative = signed < 0.0
-    if not reorient and np.any(negative):
-        raise ValueError(f"{int(negative.sum())} inverted tetrahedra: the mesh must be rebuilt")
-    # Swapping two vertices flips the orientation; neighbours are indexed by the
-    # opposite vertex and must be swapped alongside.
-    tetrahedra[negative] = tetrahedra[negative][:, [0, 1, 3, 2]]
-    neighbours[negative] = neighbours[negative][:, [0, 1, 3, 2]]
-    volumes = np.abs(signed)
-    if np.any(volumes <= degenerate_volume_ratio * volumes.mean()):
-        count = int(np.sum(volumes <= degenerate_volume_ratio * volumes.mean()))
-        raise ValueError(
-            f"{count} degenerate (flat) tetrahedra: points are coplanar or duplicated; "
-            "jitter them"
-        )
+    if reorient:
+        # Swapping two vertices flips the orientation; neighbours are indexed by the
+        # opposite vertex and must be swapped alongside.
+        negative = signed < 0.0
+        tetrahedra[negative] = tetrahedra[negative][:, [0, 1, 3, 2]]
+        neighbours[negative] = neighbours[negative][:, [0, 1, 3, 2]]
+        signed = np.abs(signed)
+    return _mesh_geometry(
+        points, tetrahedra, neighbours, _checked_volumes(signed, degenerate_volume_ratio),
+        centroids, circumcentres, *_facet_topology(tetrahedra, neighbours),
+        min_dual_length_ratio,
+    )
 
-    cell_index = np.arange(tetrahedra.shape[0], dtype=np.int64)[:, None]
-    inner_cell, inner_local = np.nonzero(neighbours > cell_index)
-    other_cell = neighbours[inner_cell, inner_local]
-    vertices, areas, normals, facet_centroids = _triangle_geometry(
-        points, tetrahedra, inner_cell, inner_local
+
+def update_mesh(
+    mesh: Mesh,
+    points: npt.ArrayLike,
+    *,
+    min_dual_length_ratio: float = 1e-6,
+    degenerate_volume_ratio: float = 1e-12,
+) -> Mesh:
+    """Geometry of a mesh for moved points, keeping its connectivity.
+
+    Same result as ``mesh_from_tetrahedra(points, mesh.tetrahedra, mesh.neighbours,
+    reorient=False)``, but the connectivity and facet lists of ``mesh`` are shared
+    (not copied or recomputed), so that only the geometry is computed: the per-step
+    update of a coupled run.
+
+    Parameters
+    ----------
+    mesh
+        Mesh of the points before they moved.
+    points
+        Moved vertex coordinates [m], shape ``mesh.points.shape``.
+    min_dual_length_ratio, degenerate_volume_ratio
+        See :func:`mesh_from_tetrahedra`.
+
+    Returns
+    -------
+    Mesh
+        The mesh with the same cells and facets at the new points.
+
+    Raises
+    ------
+    ValueError
+        If the points do not match the mesh, or a cell inverted or degenerated (the
+        mesh must then be rebuilt).
+    """
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    if points.shape != mesh.points.shape:
+        raise ValueError(f"points must have shape {mesh.points.shape}, got {points.shape}")
+    signed, centroids, circumcentres = _cell_geometry(points, mesh.tetrahedra)
+    return _mesh_geometry(
+        points, mesh.tetrahedra, mesh.neighbours,
+        _checked_volumes(signed, degenerate_volume_ratio), centroids, circumcentres,
+        mesh.facet_cells, mesh.facet_vertices, mesh.boundary_cells, mesh.boundary_vertices,
+        min_dual_length_ratio,
+    )
+
+
+def _checked_volumes(signed: FloatArray, degenerate_volume_ratio: float) -> FloatArray:
+    """Volumes of positively oriented cells [m3]; raise on inverted or flat ones."""
+    negative = signed < 0.0
+    if np.any(negative):
+        raise ValueError(f"{int(negative.sum())} inverted tetrahedra: the mesh must be rebuilt")
+    degenerate = signed <= degenerate_volume_ratio * signed.mean()
+    if np.any(degenerate):
+        raise ValueError(
+            f"{int(degenerate.sum())} degenerate (flat) tetrahedra: points are coplanar or "
+            "duplicated; jitter them"
+        )
+    return signed
+
+
+def _mesh_geometry(
+    points: FloatArray,
+    tetrahedra: IntArray,
+    neighbours: IntArray,
+    volumes: FloatArray,
+    centroids: FloatArray,
+    circumcentres: FloatArray,
+    facet_cells: IntArray,
+    facet_vertices: IntArray,
+    hull_cells: IntArray,
+    hull_vertices: IntArray,
+    min_dual_length_ratio: float,
+) -> Mesh:
+    """Facet and hull geometry on given connectivity, gathered into a :class:`Mesh`."""
+    areas, normals, facet_centroids = _triangle_geometry(
+        points, facet_vertices, facet_cells[:, 0], centroids
     )
     lengths, fallback = _dual_lengths(
-        centroids, circumcentres, inner_cell, other_cell, normals, min_dual_length_ratio
+        centroids, circumcentres, facet_cells, normals, min_dual_length_ratio
     )
-
-    hull_cell, hull_local = np.nonzero(neighbours < 0)
-    b_vertices, b_areas, b_normals, b_centroids = _triangle_geometry(
-        points, tetrahedra, hull_cell, hull_local
+    b_areas, b_normals, b_centroids = _triangle_geometry(
+        points, hull_vertices, hull_cells, centroids
     )
     return Mesh(
         points=points,
@@ -393,15 +501,15 @@ def mesh_from_tetrahedra(
         volumes=volumes,
         centroids=centroids,
         circumcentres=circumcentres,
-        facet_cells=np.stack([inner_cell, other_cell], axis=1),
-        facet_vertices=vertices,
+        facet_cells=facet_cells,
+        facet_vertices=facet_vertices,
         facet_areas=areas,
         facet_normals=normals,
         facet_centroids=facet_centroids,
         facet_lengths=lengths,
         facet_length_fallback=fallback,
-        boundary_cells=hull_cell.astype(np.int64),
-        boundary_vertices=b_vertices,
+        boundary_cells=hull_cells,
+        boundary_vertices=hull_vertices,
         boundary_areas=b_areas,
         boundary_normals=b_normals,
         boundary_centroids=b_centroids,

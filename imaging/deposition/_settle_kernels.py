@@ -148,18 +148,22 @@ def _horizontal_unit(vx, vy, fallback_angle):
 
 
 @njit(cache=True)
-def trial_move(kind, amplitude, u_dir, center, rot, pivot, new_center, new_rot, work):
+def trial_move(kind, amplitude, u_dir, steepest_slide, steepest_swivel, center, rot, pivot,
+               new_center, new_rot, work):
     """Apply one random move; the barycentre is then put back at its former altitude.
 
-    Slide: horizontal translation by ``amplitude`` [m] away from the pivot. Swivel:
-    rotation by ``amplitude`` [rad] about the horizontal axis through the pivot that
-    lowers the barycentre fastest (steepest descent). Rotate: in-plane rotation by
-    +-``amplitude`` [rad] about the particle normal (sign from ``u_dir``).
+    Slide: horizontal translation by ``amplitude`` [m]. Swivel: rotation by
+    ``amplitude`` [rad] about a horizontal axis through the pivot. With
+    ``steepest_slide`` the slide goes away from the pivot, with ``steepest_swivel`` the
+    swivel axis is the one along which the barycentre descends fastest (steepest
+    descent); otherwise the direction or axis is drawn from ``u_dir``. Rotate: in-plane rotation by +-``amplitude`` [rad] about the
+    particle normal (sign from ``u_dir``).
     """
     new_center[:] = center
     new_rot[:, :] = rot
-    rx = center[0] - pivot[0]
-    ry = center[1] - pivot[1]
+    steepest = steepest_slide if kind == SLIDE else steepest_swivel
+    rx = center[0] - pivot[0] if steepest else 0.0
+    ry = center[1] - pivot[1] if steepest else 0.0
     if kind == SLIDE:
         ux, uy = _horizontal_unit(rx, ry, 2.0 * np.pi * u_dir)
         new_center[0] += amplitude * ux
@@ -182,7 +186,7 @@ def trial_move(kind, amplitude, u_dir, center, rot, pivot, new_center, new_rot, 
 
 
 @njit(cache=True)
-def settle(center, rot, axes, uniforms, amplitudes, reduction, n_cycles, n_kinds,
+def settle(center, rot, axes, uniforms, amplitudes, reduction, n_cycles, n_kinds, steepest,
            centers, rots, all_axes, exts, fine, coarse, link, geometry,
            found, shifts, drops, witness):
     """Free fall, then ``n_cycles`` cycles of random moves accepted only if the
@@ -190,7 +194,8 @@ def settle(center, rot, axes, uniforms, amplitudes, reduction, n_cycles, n_kinds
 
     ``uniforms`` (n_cycles * attempts, 4) in [0, 1) choose the kind of move, its
     amplitude, its direction and the contact pair; ``amplitudes`` = (slide [m],
-    swivel [rad], rotate [rad]) are multiplied by ``reduction`` after each cycle.
+    swivel [rad], rotate [rad]) are multiplied by ``reduction`` after each cycle;
+    ``steepest`` = (slide, swivel) flags of the direction rule of :func:`trial_move`.
     Returns the number of accepted moves.
     """
     contacts = np.empty((MAX_CONTACTS, 3))
@@ -211,8 +216,8 @@ def settle(center, rot, axes, uniforms, amplitudes, reduction, n_cycles, n_kinds
             amp *= reduction
         kind = min(int(uniforms[attempt, 0] * n_kinds), n_kinds - 1)
         pivot_point(center, contacts, n_contacts, uniforms[attempt, 3], geometry[1], pivot)
-        trial_move(kind, uniforms[attempt, 1] * amp[kind], uniforms[attempt, 2], center, rot,
-                   pivot, new_center, new_rot, work)
+        trial_move(kind, uniforms[attempt, 1] * amp[kind], uniforms[attempt, 2], steepest[0],
+                   steepest[1], center, rot, pivot, new_center, new_rot, work)
         new_center[0] %= geometry[0]
         new_center[1] %= geometry[0]
         drop, n_trial = fall(new_center, new_rot, axes, centers, rots, all_axes, exts, fine,

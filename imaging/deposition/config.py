@@ -23,6 +23,8 @@ rotation_amplitude_deg      80.0           A_rot [deg] (elliptic disks only)
 n_cycles                    3              cycles of move attempts
 attempts_per_cycle          800            attempts per cycle
 amplitude_reduction         0.5            amplitude factor between cycles
+slide_direction             "steepest"     "steepest": away from the contact; "random"
+swivel_axis                 "steepest"     "steepest": fastest descent; "random" (horiz.)
 seed                        0              seed of the numpy Generator
 voxel_resolution            256            voxels across w (image of the linear zone)
 profile_bin_width_m         null           slice thickness dz [m]; null: d / 2
@@ -70,6 +72,8 @@ DEFAULTS: dict[str, Any] = {
     "n_cycles": 3,
     "attempts_per_cycle": 800,
     "amplitude_reduction": 0.5,
+    "slide_direction": "steepest",
+    "swivel_axis": "steepest",
     "seed": 0,
     "voxel_resolution": 256,
     "profile_bin_width_m": None,
@@ -156,6 +160,9 @@ def resolve(section: Mapping[str, Any] | None) -> dict[str, Any]:
     _check_numbers(out)
     if out["theta_initial_mode"] not in ("random", "fixed"):
         raise ValueError("theta_initial_mode: must be 'random' or 'fixed'")
+    for key in ("slide_direction", "swivel_axis"):
+        if out[key] not in ("steepest", "random"):
+            raise ValueError(f"{key}: must be 'steepest' or 'random', got {out[key]!r}")
     population = population_of(out)
     semi_major = population.median_semi_major_axis
     if out["box_width_m"] <= 2.0 * semi_major:
@@ -202,5 +209,7 @@ def parameters_of(section: Mapping[str, Any]) -> DepositionParameters:
         n_cycles=int(section["n_cycles"]),
         attempts_per_cycle=int(section["attempts_per_cycle"]),
         amplitude_reduction=float(section["amplitude_reduction"]),
+        steepest_slide=section["slide_direction"] == "steepest",
+        steepest_swivel=section["swivel_axis"] == "steepest",
         log_interval=float(section["log_interval_s"]),
     )

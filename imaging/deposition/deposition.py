@@ -18,7 +18,9 @@ Readings of Sec. II.A used here:
 - a slide moves the particle horizontally away from the pivot, a swivel turns it about
   the horizontal axis through the pivot along which the barycentre descends fastest
   (steepest descent), an in-plane rotation turns it about its own normal; the kind of
-  move, its amplitude (uniform in (0, A)) and, for rotations, its sign are random;
+  move, its amplitude (uniform in (0, A)) and, for rotations, its sign are random
+  (``steepest_slide`` / ``steepest_swivel`` set to False draw the slide direction or
+  the swivel axis at random instead);
 - after a move the barycentre is put back at its previous altitude and the particle
   falls vertically to a gap of d_cont/2; the move is rejected if the particle overlaps
   the bed at that altitude or does not end lower than before.
@@ -73,6 +75,13 @@ class DepositionParameters:
         Move attempts per cycle.
     amplitude_reduction : float
         Factor applied to the amplitudes after each cycle.
+    steepest_slide : bool
+        True: slides go horizontally away from the pivot; False: in a random horizontal
+        direction.
+    steepest_swivel : bool
+        True: swivels turn about the horizontal axis of steepest descent of the
+        barycentre; False: about a random horizontal axis. Either way a move is accepted
+        only if the barycentre descends.
     log_interval : float
         Seconds between progress log lines [s].
     """
@@ -87,6 +96,8 @@ class DepositionParameters:
     n_cycles: int = 3
     attempts_per_cycle: int = 800
     amplitude_reduction: float = 0.5
+    steepest_slide: bool = True
+    steepest_swivel: bool = True
     log_interval: float = 30.0
 
 
@@ -179,6 +190,7 @@ def deposit(
     amplitudes = np.array(
         [params.slide_amplitude, params.swivel_amplitude, params.rotation_amplitude])
     n_attempts = params.n_cycles * params.attempts_per_cycle
+    steepest = np.array([params.steepest_slide, params.steepest_swivel])
     accepted = np.zeros(n, dtype=np.int64)
     wall = np.zeros(n)
     start = last_log = time.perf_counter()
@@ -190,9 +202,9 @@ def deposit(
         elliptic = axes[0] > axes[1] * (1.0 + 1e-12) and params.rotation_amplitude > 0.0
         accepted[i] = _settle_kernels.settle(
             center, rot, axes, uniforms, amplitudes, params.amplitude_reduction,
-            params.n_cycles, 3 if elliptic else 2, bed.centers, bed.rotations, bed.axes,
-            bed.extents, bed.fine.head, bed.coarse.head, bed.link, geometry, bed.found,
-            bed.shifts, bed.drops, bed.witness)
+            params.n_cycles, 3 if elliptic else 2, steepest, bed.centers,
+            bed.rotations, bed.axes, bed.extents, bed.fine.head, bed.coarse.head, bed.link,
+            geometry, bed.found, bed.shifts, bed.drops, bed.witness)
         bed.add(i, center, rot)
         now = time.perf_counter()
         wall[i] = now - t0

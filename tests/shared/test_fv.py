@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
+from sksparse.cholmod import cholesky
 
 from shared.fv import (
     assemble_matrix,
@@ -199,3 +201,31 @@ def test_fv_transient_uptake_follows_slab_diffusion_series(rng: np.random.Genera
     series = 1.0 - np.sum(8.0 / a**2 * np.exp(-diffusivity * a**2 * duration / (4 * length**2)))
     assert series == pytest.approx(0.504, abs=1e-3)
     assert final / maximum == pytest.approx(series, rel=0.10)
+
+
+def _factor_entries(lower: sp.csc_matrix, ordering_method: str) -> int:
+    return int(cholesky(lower, ordering_method=ordering_method).L().nnz)
+
+
+def test_fv_pattern_orders_unknowns_for_little_fill(rng: np.random.Generator) -> None:
+    mesh = jittered_mesh(12, rng)
+    dirichlet = boundary_cell_mask(mesh, list(WALLS))
+    pattern = flow_pattern(mesh, dirichlet)
+    np.testing.assert_array_equal(np.sort(pattern.free_cells), np.flatnonzero(~dirichlet))
+    matrix_rows = pattern.free_index[pattern.free_cells]
+    np.testing.assert_array_equal(matrix_rows, np.arange(pattern.n_free))
+    lower = assemble_matrix(mesh, pattern, np.ones(mesh.n_facets), np.ones(mesh.n_cells))
+    # Each column: diagonal first, then strictly increasing rows.
+    for column in range(pattern.n_free):
+        rows = lower.indices[lower.indptr[column]:lower.indptr[column + 1]]
+        assert rows[0] == column and np.all(np.diff(rows) > 0)
+    # The same matrix with the unknowns in Qhull's cell order.
+    full = (lower + sp.tril(lower, -1).T).tocsr()
+    by_cell = np.argsort(pattern.free_cells)
+    unordered = sp.tril(full[by_cell][:, by_cell], format="csc")
+    unordered.sort_indices()
+    ordered = _factor_entries(lower, "natural")
+    # The nested dissection order comes within half of METIS's fill (1.27 times) and
+    # far below that of the cell order (12 times METIS).
+    assert ordered < 1.5 * _factor_entries(lower, "metis")
+    assert ordered < 0.5 * _factor_entries(unordered, "natural")

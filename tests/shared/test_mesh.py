@@ -14,6 +14,7 @@ from shared.mesh import (
     mesh_from_tetrahedra,
     point_average,
     porosity_at_centroids,
+    update_mesh,
 )
 
 
@@ -179,3 +180,41 @@ def test_mesh_update_with_moved_points_detects_inversion(rng: np.random.Generato
     inverted[a] -= 2.0 * np.dot(inverted[a] - inverted[b], normal) * normal
     with pytest.raises(ValueError, match="inverted"):
         mesh_from_tetrahedra(inverted, mesh.tetrahedra, mesh.neighbours, reorient=False)
+
+
+def test_update_mesh_matches_a_rebuild_on_the_same_connectivity(rng: np.random.Generator) -> None:
+    mesh = build_mesh(jittered_grid(6, rng))
+    # Small enough moves that no hull sliver inverts.
+    moved = mesh.points + rng.normal(0.0, 1e-5, mesh.points.shape)
+    rebuilt = mesh_from_tetrahedra(moved, mesh.tetrahedra, mesh.neighbours, reorient=False)
+    updated = update_mesh(mesh, moved)
+    for name in rebuilt.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(updated, name), getattr(rebuilt, name), err_msg=name)
+    # The connectivity is shared, not copied: the update allocates geometry only.
+    assert updated.facet_cells is mesh.facet_cells
+    assert updated.boundary_vertices is mesh.boundary_vertices
+    with pytest.raises(ValueError, match="shape"):
+        update_mesh(mesh, moved[:-1])
+
+
+def test_update_mesh_detects_inversion(rng: np.random.Generator) -> None:
+    mesh = build_mesh(jittered_grid(4, rng))
+    inverted = mesh.points.copy()
+    a, b, c, d = mesh.tetrahedra[0]
+    normal = np.cross(inverted[c] - inverted[b], inverted[d] - inverted[b])
+    normal /= np.linalg.norm(normal)
+    inverted[a] -= 2.0 * np.dot(inverted[a] - inverted[b], normal) * normal
+    with pytest.raises(ValueError, match="inverted"):
+        update_mesh(mesh, inverted)
+
+
+def test_mesh_facet_normals_point_from_first_to_second_cell(rng: np.random.Generator) -> None:
+    mesh = build_mesh(jittered_grid(5, rng))
+    i, j = mesh.facet_cells.T
+    towards = np.einsum("ij,ij->i", mesh.centroids[j] - mesh.centroids[i], mesh.facet_normals)
+    assert np.all(towards > 0.0)
+    outwards = np.einsum(
+        "ij,ij->i", mesh.boundary_centroids - mesh.centroids[mesh.boundary_cells],
+        mesh.boundary_normals,
+    )
+    assert np.all(outwards > 0.0)

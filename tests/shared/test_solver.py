@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from shared.solver import CholeskySolver, SolverError
+from shared.solver import CholeskySolver, SolverError, _scaled_drift, _symmetric_product
 
 
 def laplacian_system(n: int, rng: np.random.Generator) -> sp.csc_matrix:
@@ -86,3 +86,53 @@ def test_solver_rejects_a_full_or_unsorted_matrix(rng: np.random.Generator) -> N
         CholeskySolver().solve(matrix.tocsc(), np.ones(20))
     with pytest.raises(ValueError, match="CSC"):
         CholeskySolver().solve(sp.tril(matrix, format="csr"), np.ones(20))
+
+
+def test_solver_kernels_match_numpy(rng: np.random.Generator) -> None:
+    matrix = laplacian_system(50, rng)
+    lower = lower_of(matrix)
+    vector = rng.standard_normal(50)
+    np.testing.assert_allclose(
+        _symmetric_product(lower.indptr, lower.indices, lower.data, vector), matrix @ vector,
+        rtol=1e-12, atol=1e-12 * np.abs(matrix @ vector).max(),
+    )
+    old = lower.data.copy()
+    new = lower.data * (1.0 + 0.01 * rng.uniform(-1.0, 1.0, lower.nnz))
+    diagonal = np.abs(old[lower.indptr[:-1]])
+    columns = np.repeat(np.arange(50), np.diff(lower.indptr))
+    expected = np.max(np.abs(new - old) / np.sqrt(diagonal[lower.indices] * diagonal[columns]))
+    drift = _scaled_drift(lower.indptr, lower.indices, new, old)
+    assert drift == pytest.approx(expected, rel=1e-14)
+
+
+def test_solver_ordered_matrix_skips_the_ordering(rng: np.random.Generator) -> None:
+    matrix = laplacian_system(90, rng)
+    rhs = rng.standard_normal(90)
+    solver = CholeskySolver()
+    solution = solver.solve(lower_of(matrix), rhs, ordered=True)
+    np.testing.assert_allclose(solution, np.linalg.solve(matrix.toarray(), rhs), rtol=1e-10)
+    # CHOLMOD's natural ordering keeps the given order up to its postordering: the
+    # factor's permutation differs from METIS's.
+    metis = CholeskySolver(ordering_method="metis")
+    metis.solve(lower_of(matrix), rhs, ordered=True)
+    assert solver._factor is not None and metis._factor is not None
+    assert not np.array_equal(solver._factor.P(), metis._factor.P())
+
+
+def test_solver_refactors_after_enough_stale_iterations(rng: np.random.Generator) -> None:
+    matrix = laplacian_system(100, rng)
+    rhs = rng.standard_normal(100)
+    solver = CholeskySolver(refactor_tolerance=0.05, refactor_iterations=4)
+    solver.solve(lower_of(matrix), rhs)
+    drifted = matrix.copy()
+    drifted.data *= 1.0 + 0.02 * rng.uniform(-1.0, 1.0, drifted.nnz)
+    drifted = lower_of((drifted + drifted.T) / 2.0)
+    solver.solve(drifted, rhs)
+    assert solver.stats.factorizations == 1
+    assert solver.stats.iterations >= 4
+    # The next solve buys a factor instead of renting more iterations.
+    solver.solve(drifted, rhs)
+    assert solver.stats.factorizations == 2
+    iterations = solver.stats.iterations
+    solver.solve(drifted, rhs)
+    assert solver.stats.iterations == iterations

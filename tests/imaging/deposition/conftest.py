@@ -11,9 +11,11 @@ DIAMETER = 1.0e-6
 
 
 def small_bed(seed: int, n: int = 40, box_diameters: float = 3.0, theta_max: float = np.pi / 2,
-              axis_ratio: float = 1.0, attempts: int = 800, size_sigma: float = 0.0) -> Packing:
+              axis_ratio: float = 1.0, attempts: int = 800, size_sigma: float = 0.0,
+              steepest: bool = True) -> Packing:
     """A bed of R = 0.1 disks of median equivalent diameter 1 um, high freedom (Table II
-    series 2); ``size_sigma`` is the log-normal sigma of the basal surface."""
+    series 2); ``size_sigma`` is the log-normal sigma of the basal surface, ``steepest``
+    the direction rule of slides and swivels."""
     rng = np.random.default_rng(seed)
     population = Population(basal_surface_median=np.pi / 4 * DIAMETER**2,
                             basal_surface_sigma=size_sigma, aspect_ratio_median=0.1,
@@ -22,7 +24,8 @@ def small_bed(seed: int, n: int = 40, box_diameters: float = 3.0, theta_max: flo
     params = DepositionParameters(
         box_width=box_diameters * DIAMETER, contact_distance=5e-4 * DIAMETER, theta_max=theta_max,
         theta_random=True, slide_amplitude=5 * DIAMETER, swivel_amplitude=np.radians(80),
-        rotation_amplitude=np.radians(80), attempts_per_cycle=attempts)
+        rotation_amplitude=np.radians(80), attempts_per_cycle=attempts, steepest_slide=steepest,
+        steepest_swivel=steepest)
     return deposit(semi_axes, params, rng)
 
 
@@ -34,5 +37,7 @@ def elliptic_bed() -> Packing:
 
 @pytest.fixture(scope="session")
 def polydisperse_bed() -> Packing:
-    """60 disks, basal surface log-normal with sigma 0.8 (both grids of the bed index used)."""
-    return small_bed(seed=8, n=60, box_diameters=5.0, attempts=200, size_sigma=0.8)
+    """60 disks, basal surface log-normal with sigma 0.8 (both grids of the bed index used),
+    moved in random directions."""
+    return small_bed(seed=8, n=60, box_diameters=5.0, attempts=200, size_sigma=0.8,
+                     steepest=False)

@@ -51,6 +51,7 @@ def test_run_writes_the_contract(tmp_path: Path, caplog: pytest.LogCaptureFixtur
         ("n_particles", 0),
         ("theta_initial_deg", 95.0),
         ("theta_initial_mode", "sideways"),
+        ("swivel_axis", "sideways"),
         ("amplitude_reduction", 0.0),
         ("n_particle", 10),
         ("seed", -1),
@@ -69,7 +70,8 @@ def test_box_narrower_than_the_largest_sampled_particle(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("preset", PRESETS, ids=lambda p: p.stem)
 def test_paper_presets_are_valid_and_fit_the_box(preset: Path) -> None:
-    section = resolve(yaml.safe_load(preset.read_text())["packing"])
+    (section,) = yaml.safe_load(preset.read_text())["packings"].values()
+    section = resolve(section)
     semi_axes = sample_semi_axes(population_of(section), section["n_particles"],
                                  np.random.default_rng(section["seed"]))
     assert 2 * semi_axes[:, 0].max() < section["box_width_m"]
