@@ -15,7 +15,13 @@ import subprocess
 import sys
 from pathlib import Path
 
-CASE_MODULES = ("benchmarks.imaging", "benchmarks.deposition", "benchmarks.flow", "benchmarks.dem")
+CASE_MODULES = (
+    "benchmarks.imaging",
+    "benchmarks.deposition",
+    "benchmarks.flow",
+    "benchmarks.dem",
+    "benchmarks.yade_compare",
+)
 OUT = Path("results/benchmarks")
 
 

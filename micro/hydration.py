@@ -45,7 +45,14 @@ from shared.fv import (
     transient_step,
 )
 from shared.materials import DEFAULT_CLAY, ClayParameters
-from shared.mesh import WALLS, Mesh, boundary_cell_mask, delaunay_tetrahedra, mesh_from_tetrahedra
+from shared.mesh import (
+    WALLS,
+    Mesh,
+    boundary_cell_mask,
+    delaunay_tetrahedra,
+    mesh_from_tetrahedra,
+    update_mesh,
+)
 from shared.retention import saturation as retention_saturation
 from shared.solver import CholeskySolver
 from shared.swelling import swollen_radius, volumetric_strain
@@ -307,9 +314,7 @@ def update_geometry(
     """
     positions = state.dem.positions
     try:
-        state.mesh = mesh_from_tetrahedra(
-            positions, state.mesh.tetrahedra, state.mesh.neighbours, reorient=False
-        )
+        state.mesh = update_mesh(state.mesh, positions)
         state.porosity = porosity_from_solid_volume(
             state.solid_volume, state.mesh.volumes, *porosity_bounds
         )
