@@ -1,3 +1,4 @@
+# ruff: noqa: F821  (Yade injects O, Sphere, flow and its engine classes as globals)
 """Yade 2023.02a side of the Yade comparison benchmark (issue 4): the micro model's cube.
 
 Run headless as ``yade -x -n -j1 partialsat_cube.py SETTINGS.json``. ``SETTINGS.json``

@@ -1,0 +1,27 @@
+"""Static checks that CI runs through pytest: the workflow linter, snakefmt and ruff."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _run(*command: str) -> subprocess.CompletedProcess:
+    return subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=300)
+
+
+def test_snakemake_lint_is_clean():
+    result = _run(sys.executable, "-m", "snakemake", "--lint")
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "Congratulations" in result.stdout + result.stderr
+
+
+def test_snakefmt_leaves_the_workflow_unchanged():
+    result = _run(sys.executable, "-m", "snakefmt", "--check", "Snakefile", "workflow/rules")
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_ruff_finds_no_undefined_or_unused_names():
+    result = _run(sys.executable, "-m", "ruff", "check", ".")
+    assert result.returncode == 0, result.stdout + result.stderr
