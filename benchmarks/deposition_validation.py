@@ -1,0 +1,374 @@
+"""Paper-target validation table of the sequential deposition (issue 3; Ferrage et al. 2015).
+
+Runs the six presets of ``config/paper/packing_*.yaml`` (Table II series 1-3, and the three
+vermiculite size fractions of Table III) through :func:`imaging.deposition.run.run`, and
+compares what the packing file holds with the paper: Table IV for the fractions, the
+porosity ranges of Sec. III for the Table II series. Writes, in ``results/benchmarks/``:
+
+- ``deposition_validation.json``: one row per run (preset and scale), ours and paper's;
+- ``deposition_validation.md``: the table, ours vs paper, relative difference, pass/fail;
+- ``deposition_validation.png``: a Fig. 6a analogue, porosity vs S_part of every run;
+- ``deposition_validation/<preset>_s<scale>.nc`` and ``.png``: the packing files of
+  :func:`~imaging.deposition.run.run`.
+
+Rows accumulate over calls (a row is replaced only by a new run of the same preset at the
+same scale), so quick scaled runs and the full-scale runs that fit a time budget end up
+in one table.
+
+Scaled-down runs (``scale`` < 1) multiply ``n_particles`` by ``scale`` and ``box_width_m``
+by ``sqrt(scale)``: the number of particles per unit floor area, hence the bed height in
+particle diameters, stays that of the preset, while the bed is narrower. The voxel
+resolution is multiplied by ``sqrt(scale)`` too, to keep the voxel edge l_v (f_o and the
+chord lengths depend on it). The narrower box cannot hold the largest particles of the
+polydisperse size laws, so scaled runs of the fractions truncate the basal surface law at
+a diameter w / 2 (``basal_surface_max_m2 = pi (w / 4)^2``), the rule the 1-2 um preset
+already follows at full scale; it cuts 0.4-0.7 % of the particles of the other two
+fractions at scale 0.2. A narrower box gives noisier values and a box-limited REV edge:
+scaled rows are a check that the chain runs, the full-scale rows are the validation.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first)
+import numpy as np  # noqa: E402
+import yaml  # noqa: E402
+
+from imaging.deposition.run import run  # noqa: E402
+
+PRESET_DIR = Path("config/paper")
+OUT = Path("results/benchmarks")
+STEM = "deposition_validation"
+
+#: Presets in the order of the table: Table II series, then the size fractions.
+PRESETS = (
+    "table2_series1", "table2_series2", "table2_series3",
+    "fraction_0p1-0p2um", "fraction_1-2um", "fraction_10-20um",
+)
+
+#: Quantities of the table: (key in the row, label, unit, key in the packing dataset,
+#: factor from the dataset's unit to the table's unit).
+QUANTITIES = (
+    ("porosity", "porosity", "1", "porosity", 1.0),
+    ("S_part", "S_part", "1", "S_part", 1.0),
+    ("S_vol", "S_vol", "1", "S_vol", 1.0),
+    ("eta", "eta", "1", "eta", 1.0),
+    ("beta", "beta", "deg", "beta", 1.0),
+    ("A_B", "A_B", "m2/g", "A_B", 1.0),
+    ("A_L", "A_L", "m2/g", "A_L", 1.0),
+    ("A_T", "A_T", "m2/g", "A_T", 1.0),
+    ("A_Bcont", "A_Bcont", "m2/g", "A_Bcont", 1.0),
+    ("f_o", "f_o", "1", "overlap_fraction", 1.0),
+    ("w_eps", "w_eps", "um", "w_rev_porosity", 1.0e6),
+    ("w_sp", "w_s-p", "um", "w_rev_interface", 1.0e6),
+    ("R_p", "R_p", "1", "R_p", 1.0),
+    ("R_s", "R_s", "1", "R_s", 1.0),
+)
+
+#: Table IV of the paper (calculated values; w_eps, w_s-p in um, areas in m2/g, beta in deg).
+TABLE_IV: dict[str, dict[str, float]] = {
+    "fraction_0p1-0p2um": dict(
+        porosity=0.63, S_part=0.63, S_vol=0.60, eta=0.007, beta=0.12, A_L=18.3, A_B=76.2,
+        A_T=94.5, A_Bcont=5.3, f_o=6.9e-5, w_eps=0.39, w_sp=0.66, R_p=0.494, R_s=0.481),
+    "fraction_1-2um": dict(
+        porosity=0.64, S_part=0.36, S_vol=0.34, eta=0.008, beta=0.32, A_L=2.6, A_B=10.3,
+        A_T=12.9, A_Bcont=0.66, f_o=2.3e-5, w_eps=4.2, w_sp=4.8, R_p=0.689, R_s=0.691),
+    "fraction_10-20um": dict(
+        porosity=0.70, S_part=0.10, S_vol=0.11, eta=0.011, beta=1.19, A_L=0.07, A_B=0.32,
+        A_T=0.39, A_Bcont=0.014, f_o=2.0e-6, w_eps=87.0, w_sp=112.0, R_p=0.880, R_s=0.916),
+}
+
+#: What the paper's text gives for the Table II series (disks, R = 0.1); it prints no
+#: per-series values at R = 0.1 (only Figs. 4-6), so the ranges are the citable bounds.
+#: Sec. III A: "the obtained eps values range between 0.84 and 0.51" over the amplitude
+#: tests with theta_ini random in (0, pi/2) (Fig. 4a), i.e. series 1 and 2 settings;
+#: Sec. III D: "porosity values range between 0.46 and 0.84" over all R = 0.1 tests,
+#: the low end from theta_ini = 0 with high freedom, i.e. series 3; low freedom lies at
+#: the high end, high freedom at the low end (Sec. III A, Fig. 4a). Sec. III D also gives
+#: the mean eta (~0.003) and beta (0.47 deg) over all R = 0.1 packings.
+TABLE_II_TEXT: dict[str, dict[str, Any]] = {
+    "table2_series1": {"porosity_range": (0.51, 0.84), "source": "Sec. III A, Fig. 4a"},
+    "table2_series2": {"porosity_range": (0.51, 0.84), "source": "Sec. III A, Fig. 4a"},
+    "table2_series3": {"porosity_range": (0.46, 0.84), "source": "Sec. III D"},
+}
+TABLE_II_MEANS = {"eta": 0.003, "beta": 0.47}
+
+#: Pass criteria of issue 3: porosity and S_part of the fractions against Table IV
+#: (absolute tolerances: 0.02 is the paper's stated uncertainty on eps, Sec. III A; 0.05 on
+#: S_part is our reading, the issue naming no number), eta < 0.02 and beta < 1.5 deg for
+#: every run, A_L, A_B, A_T within 15 % of Table IV. Table II series pass on porosity when
+#: inside the paper's range.
+ABS_TOLERANCE = {"porosity": 0.02, "S_part": 0.05}
+REL_TOLERANCE = {"A_L": 0.15, "A_B": 0.15, "A_T": 0.15}
+UPPER_BOUND = {"eta": 0.02, "beta": 1.5}
+
+
+def _as_fraction(scale: float) -> float:
+    """The scale factor as a fraction: the harness passes ``--size`` as an int, read as a
+    percentage when above 1 (``--size 20`` is scale 0.2)."""
+    scale = float(scale)
+    if scale > 1.0:
+        scale /= 100.0
+    if not 0.0 < scale <= 1.0:
+        raise ValueError(f"scale: must be in (0, 1] (or a percentage in (1, 100]), got {scale!r}")
+    return scale
+
+
+def preset_section(name: str, scale: float = 1.0) -> dict[str, Any]:
+    """The packing section of a paper preset, scaled down for a quick check.
+
+    Parameters
+    ----------
+    name : str
+        Preset name, ``config/paper/packing_<name>.yaml``.
+    scale : float
+        Fraction of the particles in (0, 1]; the box width scales by ``sqrt(scale)``
+        (constant particles per floor area) as does the voxel resolution (constant voxel
+        edge); polydisperse size laws are truncated at a diameter w / 2.
+
+    Returns
+    -------
+    dict
+        The section (unresolved; :func:`~imaging.deposition.run.run` fills defaults).
+    """
+    text = (PRESET_DIR / f"packing_{name}.yaml").read_text()
+    (section,) = yaml.safe_load(text)["packings"].values()
+    if scale == 1.0:
+        return section
+    root = math.sqrt(scale)
+    section["n_particles"] = max(1, round(section["n_particles"] * scale))
+    section["box_width_m"] = section["box_width_m"] * root
+    if "voxel_resolution" in section:
+        section["voxel_resolution"] = max(16, round(section["voxel_resolution"] * root))
+    if section.get("basal_surface_sigma", 0.0) > 0.0:
+        # The narrower box no longer holds the tail of the size law; truncate it at a
+        # diameter w / 2, the rule the 1-2 um preset already follows at full scale.
+        section["basal_surface_max_m2"] = math.pi * (section["box_width_m"] / 4.0) ** 2
+    return section
+
+
+def _paper(name: str) -> dict[str, Any]:
+    """The paper's values of a preset: Table IV, or the Sec. III text for Table II."""
+    if name in TABLE_IV:
+        return {"source": "Table IV", **TABLE_IV[name]}
+    return {**TABLE_II_TEXT[name], **TABLE_II_MEANS}
+
+
+def _checks(ours: Mapping[str, float], paper: Mapping[str, Any]) -> dict[str, bool]:
+    """Pass/fail of one run against the criteria of issue 3 (see the module constants)."""
+    checks = {key: bool(ours[key] < bound) for key, bound in UPPER_BOUND.items()}
+    if "porosity_range" in paper:
+        low, high = paper["porosity_range"]
+        checks["porosity"] = bool(low <= ours["porosity"] <= high)
+        return checks
+    for key, tolerance in ABS_TOLERANCE.items():
+        checks[key] = bool(abs(ours[key] - paper[key]) <= tolerance)
+    for key, tolerance in REL_TOLERANCE.items():
+        checks[key] = bool(abs(ours[key] / paper[key] - 1.0) <= tolerance)
+    return checks
+
+
+def validate_preset(name: str, scale: float, directory: Path) -> dict[str, Any]:
+    """Run one preset and compare it with the paper.
+
+    Parameters
+    ----------
+    name : str
+        Preset name (see :data:`PRESETS`).
+    scale : float
+        Fraction of the particles in (0, 1] (see :func:`preset_section`).
+    directory : Path
+        Where the packing file and its figure are written.
+
+    Returns
+    -------
+    dict
+        ``preset``, ``scale``, ``n_particles``, ``box_width_m``, ``ours`` (the quantities
+        of :data:`QUANTITIES` in the table's units, plus ``S``), ``paper``, ``rel_diff``
+        (ours / paper - 1 where the paper gives a value), ``checks``, ``passed``,
+        ``wall_time_s`` (deposition, analyses and writing), ``deposition_s`` (summed
+        settling time) and ``particles_per_second`` (over the deposition only).
+    """
+    section = preset_section(name, scale)
+    start = time.perf_counter()
+    ds = run(section, directory / f"{name}_s{scale:g}.nc")
+    wall = time.perf_counter() - start
+    ours = {key: float(ds[var]) * factor if var in ds else float("nan")
+            for key, _, _, var, factor in QUANTITIES}
+    ours["S"] = float(ds["S"])
+    paper = _paper(name)
+    checks = _checks(ours, paper)
+    deposition = float(ds["settle_time"].sum())
+    n_particles = int(ds.sizes["particle"])
+    return {
+        "preset": name,
+        "scale": scale,
+        "n_particles": n_particles,
+        "box_width_m": float(section["box_width_m"]),
+        "ours": ours,
+        "paper": paper,
+        "rel_diff": {key: ours[key] / paper[key] - 1.0 for key in ours
+                     if isinstance(paper.get(key), float)},
+        "checks": checks,
+        "passed": all(checks.values()),
+        "wall_time_s": wall,
+        "deposition_s": deposition,
+        "particles_per_second": n_particles / deposition,
+    }
+
+
+def _cell(value: float | None) -> str:
+    """A table cell: three significant digits, or n/a for a missing value."""
+    return "n/a" if value is None or not np.isfinite(value) else f"{value:.3g}"
+
+
+def markdown_table(rows: Iterable[Mapping[str, Any]]) -> str:
+    """The markdown table of the runs: one block per run, ours vs paper per quantity.
+
+    Parameters
+    ----------
+    rows : iterable of dict
+        Rows of :func:`validate_preset`.
+
+    Returns
+    -------
+    str
+    """
+    lines = ["# Sequential deposition vs Ferrage et al. (2015)", "",
+             "Criteria (issue 3): porosity |diff| <= 0.02 and S_part |diff| <= 0.05 vs Table IV "
+             "(fractions); porosity inside the Sec. III range (Table II series); eta < 0.02, "
+             "beta < 1.5 deg (all runs); A_L, A_B, A_T within 15 % of Table IV (fractions). "
+             "Scale < 1: N x scale, w x sqrt(scale) (a quick check, not a validation).", "",
+             "| preset | scale | N | porosity (paper) | S_part (paper) | eta | beta [deg] | "
+             "A_T [m2/g] (paper) | wall [s] | particles/s | result |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for row in rows:
+        ours, paper = row["ours"], row["paper"]
+        porosity = ("{:.2f}-{:.2f}".format(*paper["porosity_range"])
+                    if "porosity_range" in paper else _cell(paper["porosity"]))
+        lines.append(
+            f"| {row['preset']} | {row['scale']:g} | {row['n_particles']} | "
+            f"{_cell(ours['porosity'])} ({porosity}) | "
+            f"{_cell(ours['S_part'])} ({_cell(paper.get('S_part'))}) | {_cell(ours['eta'])} | "
+            f"{_cell(ours['beta'])} | {_cell(ours['A_T'])} ({_cell(paper.get('A_T'))}) | "
+            f"{row['wall_time_s']:.0f} | {row['particles_per_second']:.1f} | "
+            f"{'PASS' if row['passed'] else 'FAIL'} |")
+    lines.append("")
+    for row in rows:
+        paper, checks = row["paper"], row["checks"]
+        lines += [f"## {row['preset']} (scale {row['scale']:g}, N = {row['n_particles']}, "
+                  f"w = {row['box_width_m'] * 1e6:.3g} um): "
+                  f"{'PASS' if row['passed'] else 'FAIL'}", "",
+                  f"paper source: {paper['source']}; wall time {row['wall_time_s']:.0f} s "
+                  f"(deposition {row['deposition_s']:.0f} s, "
+                  f"{row['particles_per_second']:.2f} particles/s)", "",
+                  "| quantity | unit | ours | paper | rel. diff | check |",
+                  "|---|---|---|---|---|---|"]
+        for key, label, unit, _, _ in QUANTITIES:
+            target = paper.get(key)
+            if key == "porosity" and "porosity_range" in paper:
+                target_text = "{:.2f}-{:.2f}".format(*paper["porosity_range"])
+            else:
+                target_text = _cell(target)
+            diff = row["rel_diff"].get(key, float("nan"))
+            check = "" if key not in checks else ("pass" if checks[key] else "FAIL")
+            lines.append(f"| {label} | {unit} | {_cell(row['ours'][key])} | {target_text} | "
+                         f"{f'{diff:+.1%}' if np.isfinite(diff) else ''} | {check} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def porosity_order_figure(rows: Iterable[Mapping[str, Any]], path: Path) -> Path:
+    """Fig. 6a analogue: porosity vs S_part of every run, with the paper's points.
+
+    Parameters
+    ----------
+    rows : iterable of dict
+        Rows of :func:`validate_preset`.
+    path : Path
+        PNG file.
+
+    Returns
+    -------
+    Path
+    """
+    fig, ax = plt.subplots(figsize=(6.0, 4.5))
+    # The paper's R = 0.1 disk porosities (Sec. III D) span this band; its master curve
+    # is printed only as a figure.
+    ax.axhspan(0.46, 0.84, color="0.9", label="paper, porosity range of R = 0.1 disks")
+    for name, values in TABLE_IV.items():
+        ax.plot(values["S_part"], values["porosity"], "ks", mfc="none")
+        ax.annotate(name.removeprefix("fraction_"), (values["S_part"], values["porosity"]),
+                    textcoords="offset points", xytext=(4, -10), fontsize=7)
+    ax.plot([], [], "ks", mfc="none", label="paper, Table IV fractions")
+    for row in rows:
+        full = row["scale"] == 1.0
+        ax.plot(row["ours"]["S_part"], row["ours"]["porosity"], "o" if full else "x",
+                color="C0" if row["preset"].startswith("table2") else "C3")
+        ax.annotate(f"{row['preset']} s{row['scale']:g}",
+                    (row["ours"]["S_part"], row["ours"]["porosity"]),
+                    textcoords="offset points", xytext=(4, 4), fontsize=6)
+    ax.plot([], [], "o", color="C0", label="ours, Table II series (o full, x scaled)")
+    ax.plot([], [], "o", color="C3", label="ours, fractions (o full, x scaled)")
+    ax.set_xlabel("order parameter $S_{part}$ [-]")
+    ax.set_ylabel("porosity $\\epsilon$ [-]")
+    ax.set_xlim(-0.5, 1.0)
+    ax.legend(fontsize=7, loc="lower left")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def bench_deposition_validation(scale: float = 1.0, presets: Iterable[str] = PRESETS) -> dict:
+    """Run the paper presets and tabulate them against Ferrage et al. (2015).
+
+    Parameters
+    ----------
+    scale : float
+        Fraction of each preset's particles in (0, 1]; values above 1 are percentages
+        (the harness's integer ``--size``). See the module docstring for the scaling.
+    presets : iterable of str
+        Subset of :data:`PRESETS` to run (default: all six).
+
+    Returns
+    -------
+    dict
+        ``rows`` (every run in the JSON file, this call's and earlier ones, in table
+        order), ``passed`` (all runs of this call pass), ``total_s`` (this call) [s].
+    """
+    scale = _as_fraction(scale)
+    presets = tuple(presets)
+    unknown = sorted(set(presets) - set(PRESETS))
+    if unknown or not presets:
+        raise ValueError(f"presets: unknown {unknown} or none; choose from {PRESETS}")
+    OUT.mkdir(parents=True, exist_ok=True)
+    directory = OUT / STEM
+    directory.mkdir(exist_ok=True)
+    json_path = OUT / f"{STEM}.json"
+    start = time.perf_counter()
+    fresh = []
+    for name in presets:
+        fresh.append(validate_preset(name, scale, directory))
+        # Rows of earlier or concurrent calls (other presets or scales) are re-read before
+        # every write and kept, so that one table gathers the runs a time budget allows;
+        # writing after every preset keeps what a call cut short had finished.
+        previous = json.loads(json_path.read_text())["rows"] if json_path.exists() else []
+        table = {(row["preset"], row["scale"]): row for row in previous + fresh}
+        rows = sorted(table.values(), key=lambda r: (PRESETS.index(r["preset"]), r["scale"]))
+        result = {"rows": rows, "passed": all(r["passed"] for r in fresh),
+                  "total_s": time.perf_counter() - start}
+        json_path.write_text(json.dumps(result, indent=2))
+        (OUT / f"{STEM}.md").write_text(markdown_table(rows))
+        porosity_order_figure(rows, OUT / f"{STEM}.png")
+    return result
