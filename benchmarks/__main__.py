@@ -18,6 +18,7 @@ from pathlib import Path
 CASE_MODULES = (
     "benchmarks.imaging",
     "benchmarks.deposition",
+    "benchmarks.deposition_validation",
     "benchmarks.flow",
     "benchmarks.dem",
     "benchmarks.yade_compare",
