@@ -23,8 +23,9 @@ from shared.mesh import mesh_from_tetrahedra
 __all__ = ["save_checkpoint", "load_checkpoint"]
 
 _DEM_ARRAYS = ("positions", "velocities", "spins", "radii", "reference_radii", "masses",
-               "inertia", "bonds", "fixed")
-_CONTACT_ARRAYS = ("pairs", "shear_forces", "detection_positions", "detection_radii")
+               "inertia", "bonds", "bond_overlaps", "bond_broken", "fixed")
+_CONTACT_ARRAYS = ("pairs", "shear_forces", "detection_positions", "detection_radii",
+                   "reference_overlaps")
 _CELL_ARRAYS = ("pressure", "saturation", "solid_volume", "porosity", "reference_extent")
 
 

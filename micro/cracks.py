@@ -114,9 +114,16 @@ class CrackConductivity:
 
 
 def bond_apertures(
-    bonds: npt.ArrayLike, positions: npt.ArrayLike, radii: npt.ArrayLike
+    bonds: npt.ArrayLike,
+    positions: npt.ArrayLike,
+    radii: npt.ArrayLike,
+    reference_overlaps: npt.ArrayLike | None = None,
+    reference_radii: npt.ArrayLike | None = None,
 ) -> FloatArray:
-    """Aperture w = |x_b - x_a| - (r_a + r_b) of each bond [m]; > 0 means open.
+    """Opening w of each bond beyond its stress-free contact [m]; > 0 means open.
+
+    w = |x_b - x_a| - (r_a + r_b) + delta0 (r_a + r_b) / (r0_a + r0_b), delta0 the
+    bond's stress-free overlap (0: the gap between the two spheres).
 
     Parameters
     ----------
@@ -126,12 +133,23 @@ def bond_apertures(
         (n_points, 3) point centres [m].
     radii
         (n_points,) current interaction radii [m].
+    reference_overlaps
+        (n_bonds,) stress-free overlaps delta0 at the reference radii [m], or None (0).
+    reference_radii
+        (n_points,) reference radii r0 [m]; needed with ``reference_overlaps``.
     """
     bonds = np.asarray(bonds, dtype=np.int64).reshape(-1, 2)
     positions = np.asarray(positions, dtype=np.float64)
     radii = np.asarray(radii, dtype=np.float64)
     distance = np.linalg.norm(positions[bonds[:, 1]] - positions[bonds[:, 0]], axis=1)
-    return distance - radii[bonds[:, 0]] - radii[bonds[:, 1]]
+    contact = radii[bonds[:, 0]] + radii[bonds[:, 1]]
+    if reference_overlaps is None:
+        return distance - contact
+    if reference_radii is None:
+        raise ValueError("reference_radii are needed with reference_overlaps")
+    reference = np.asarray(reference_radii, dtype=np.float64)
+    scale = contact / (reference[bonds[:, 0]] + reference[bonds[:, 1]])
+    return distance - contact + np.asarray(reference_overlaps, dtype=np.float64) * scale
 
 
 def _edge_patches(
@@ -181,8 +199,12 @@ def crack_network(
     cell_suction: npt.ArrayLike,
     material: ClayParameters = DEFAULT_CLAY,
     min_aperture: float = 0.0,
+    *,
+    reference_overlaps: npt.ArrayLike | None = None,
+    reference_radii: npt.ArrayLike | None = None,
+    broken: npt.ArrayLike | None = None,
 ) -> CrackNetwork:
-    """Cracks (open bonds on mesh edges), their patches, state and geometry.
+    """Cracks (open broken bonds on mesh edges), their patches, state and geometry.
 
     Parameters
     ----------
@@ -204,6 +226,13 @@ def crack_network(
         ``surface_tension`` gamma [N/m].
     min_aperture
         Bonds open wider than this count as cracks [m]; 0 follows the zero-force rule.
+    reference_overlaps, reference_radii
+        Stress-free bond overlaps [m] and reference radii [m]
+        (``DEMState.bond_overlaps``, ``DEMState.reference_radii``); see
+        :func:`bond_apertures`. None: apertures are the gaps between the spheres.
+    broken
+        (n_bonds,) which bonds broke (``DEMState.bond_broken``); an intact bond is
+        never a crack. None: every bond may be.
 
     Returns
     -------
@@ -218,8 +247,11 @@ def crack_network(
     cell_centres = np.asarray(cell_centres, dtype=np.float64)
     cell_suction = np.asarray(cell_suction, dtype=np.float64)
 
-    apertures = bond_apertures(bonds, positions, radii)
-    open_bonds = np.nonzero(apertures > min_aperture)[0]
+    apertures = bond_apertures(bonds, positions, radii, reference_overlaps, reference_radii)
+    candidates = apertures > min_aperture
+    if broken is not None:
+        candidates &= np.asarray(broken, dtype=bool)
+    open_bonds = np.nonzero(candidates)[0]
     crack, facet, third = _edge_patches(bonds[open_bonds], facet_vertices, positions.shape[0])
     on_mesh, crack = np.unique(crack, return_inverse=True)
     index = open_bonds[on_mesh]
@@ -227,7 +259,9 @@ def crack_network(
     w = apertures[index]
     x_a, x_b = positions[pairs[:, 0]], positions[pairs[:, 1]]
     normals = (x_b - x_a) / np.linalg.norm(x_b - x_a, axis=1, keepdims=True)
-    centres = x_a + normals * (radii[pairs[:, 0]] + 0.5 * w)[:, None]
+    # the crack plane lies midway between the two spheres' surfaces along the bond
+    distance = np.linalg.norm(x_b - x_a, axis=1)
+    centres = x_a + normals * (0.5 * (distance + radii[pairs[:, 0]] - radii[pairs[:, 1]]))[:, None]
 
     p3 = centres[crack]
     c_i, c_j = cell_centres[facet_cells[facet, 0]], cell_centres[facet_cells[facet, 1]]

@@ -377,11 +377,13 @@ def conductances(
 
 
 def update_cracks(state: PelletState, material: ClayParameters) -> None:
-    """Find the open bonds on mesh edges and their imbibed or gas-filled state."""
+    """Find the open broken bonds on mesh edges and their imbibed or gas-filled state."""
+    dem = state.dem
     state.cracks = crack_network(
-        state.dem.bonds, state.dem.positions, state.dem.radii, state.mesh.facet_vertices,
+        dem.bonds, dem.positions, dem.radii, state.mesh.facet_vertices,
         state.mesh.facet_cells, state.mesh.centroids, np.maximum(-state.pressure, 0.0),
-        material,
+        material, reference_overlaps=dem.bond_overlaps, reference_radii=dem.reference_radii,
+        broken=dem.bond_broken,
     )
 
 

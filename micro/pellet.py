@@ -123,7 +123,8 @@ def initial_state(
     """
     rng = np.random.default_rng(spec.seed)
     positions, radii = cube_points(spec.n_points, rng, spec.edge_length, spec.layout, spec.jitter)
-    dem = new_state(positions, radii, parameters)
+    # the as-built cloud is the compacted pellet at rest: its overlaps store no stress
+    dem = new_state(positions, radii, parameters, stress_free_bonds=True)
     if not spec.rotations:
         dem.inertia[:] = np.inf
     mesh = mesh_from_tetrahedra(dem.positions, *triangulate(dem.positions))

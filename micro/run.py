@@ -158,7 +158,8 @@ def run(
     digest = config_sha256(section)
     grid = read_dataset(porosity_input, ["porosity"])["porosity"]
     parameters = dataclasses.replace(
-        DEFAULT_DEM, wall_max_velocity=config["micro"]["numerics"]["wall_max_velocity_m_s"]
+        DEFAULT_DEM, wall_max_velocity=config["micro"]["numerics"]["wall_max_velocity_m_s"],
+        bond_tensile_strength=config["micro"]["bond_tensile_strength_pa"],
     )
     resumed = load_checkpoint(state_file, digest, DEFAULT_CLAY)
     if resumed is None:

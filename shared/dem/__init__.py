@@ -9,8 +9,14 @@ Typical use in a coupled loop::
     state.radii = swollen_radius(state.reference_radii, eps_v)  # stiffness follows
 """
 
-from shared.dem.contacts import bond_pairs, contacts_need_update, detect_contacts, update_contacts
-from shared.dem.hertz import contact_forces
+from shared.dem.contacts import (
+    bond_pairs,
+    contacts_need_update,
+    detect_contacts,
+    pair_values,
+    update_contacts,
+)
+from shared.dem.hertz import bond_tension, contact_forces
 from shared.dem.integrator import (
     StepReport,
     integrate,
@@ -40,6 +46,7 @@ __all__ = [
     "WallLoads",
     "Walls",
     "bond_pairs",
+    "bond_tension",
     "contact_forces",
     "contacts_need_update",
     "cube_points",
@@ -47,6 +54,7 @@ __all__ = [
     "integrate",
     "kinetic_energy",
     "new_state",
+    "pair_values",
     "servo_walls",
     "stable_time_step",
     "step",

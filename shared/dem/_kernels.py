@@ -80,12 +80,16 @@ def find_pairs(positions, radii, cutoff_factor, skin, cell_xyz, dims, cell_start
 
 
 @njit(cache=True)
-def hertz_mindlin(positions, velocities, spins, radii, pairs, shear_forces,
-                  effective_modulus, shear_coefficient, time_step, forces, torques):
+def hertz_mindlin(positions, velocities, spins, radii, reference_radii, pairs,
+                  reference_overlaps, shear_forces, effective_modulus, shear_coefficient,
+                  time_step, forces, torques):
     """Add Hertz-Mindlin contact forces and torques; update ``shear_forces`` in place.
 
     ``shear_forces[k]`` is the shear force on ``pairs[k, 0]`` [N]; stiffness follows
-    the current radii. Returns the normal force magnitude per contact [N] (0 if apart).
+    the current radii. The normal force acts on the overlap beyond the pair's
+    stress-free overlap, ``reference_overlaps[k]`` at the reference radii, scaled with
+    r_i + r_j; the shear stiffness on the whole overlap.
+    Returns the normal force magnitude per contact [N] (0 if apart).
     Scalar arithmetic only: small temporary arrays would be heap-allocated per contact.
     """
     normal_forces = np.zeros(pairs.shape[0])
@@ -99,9 +103,17 @@ def hertz_mindlin(positions, velocities, spins, radii, pairs, shear_forces,
         if overlap <= 0.0 or dist == 0.0:
             shear_forces[k, 0] = shear_forces[k, 1] = shear_forces[k, 2] = 0.0
             continue
+        loaded = overlap - reference_overlaps[k] * (
+            (radii[i] + radii[j]) / (reference_radii[i] + reference_radii[j])
+        )
         nx, ny, nz = dx / dist, dy / dist, dz / dist
-        a = np.sqrt(radii[i] * radii[j] / (radii[i] + radii[j]) * overlap)
-        fn = 4.0 / 3.0 * effective_modulus * a * overlap
+        # shear stiffness follows the contact's area (the whole overlap), the normal
+        # force only the overlap beyond the stress-free one
+        r_star = radii[i] * radii[j] / (radii[i] + radii[j])
+        a = np.sqrt(r_star * overlap)
+        fn = 0.0
+        if loaded > 0.0:
+            fn = 4.0 / 3.0 * effective_modulus * np.sqrt(r_star * loaded) * loaded
         normal_forces[k] = fn
         # branch lengths from each centre to the contact point, mid-overlap
         arm_i, arm_j = radii[i] - 0.5 * overlap, radii[j] - 0.5 * overlap
@@ -183,6 +195,42 @@ def gershgorin_rates(positions, radii, pairs, masses, inertia, effective_modulus
         translation = 1.0 / mi + 1.0 / mj
         rates[i, 1] += k_t * arm_i / ii * (rotation + translation)
         rates[j, 1] += k_t * arm_j / ij * (rotation + translation)
+
+
+@njit(cache=True)
+def bond_tension(positions, radii, reference_radii, bonds, bond_overlaps, broken,
+                 effective_modulus, strength, forces):
+    """Add the tension of intact bonds stretched beyond their stress-free overlap.
+
+    Stretch u = (r_i + r_j) delta0 / (r0_i + r0_j) - overlap > 0; tension k u with
+    k = E* r_m (r_m the mean radius of the pair) while k u <= strength pi r_m^2, else the
+    bond breaks for good (``broken`` set) and carries nothing.
+    """
+    for b in range(bonds.shape[0]):
+        if broken[b]:
+            continue
+        i, j = bonds[b, 0], bonds[b, 1]
+        dx = positions[j, 0] - positions[i, 0]
+        dy = positions[j, 1] - positions[i, 1]
+        dz = positions[j, 2] - positions[i, 2]
+        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+        scale = (radii[i] + radii[j]) / (reference_radii[i] + reference_radii[j])
+        stretch = bond_overlaps[b] * scale - (radii[i] + radii[j] - dist)
+        mean_radius = 0.5 * (radii[i] + radii[j])
+        k = effective_modulus * mean_radius
+        if stretch <= 0.0 or dist == 0.0:
+            continue
+        tension = k * stretch
+        if tension > strength * np.pi * mean_radius * mean_radius:
+            broken[b] = True
+            continue
+        f = tension / dist
+        forces[i, 0] += f * dx
+        forces[i, 1] += f * dy
+        forces[i, 2] += f * dz
+        forces[j, 0] -= f * dx
+        forces[j, 1] -= f * dy
+        forces[j, 2] -= f * dz
 
 
 @njit(cache=True)

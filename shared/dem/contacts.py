@@ -13,7 +13,9 @@ from shared.dem.parameters import DEFAULT_DEM, DEMParameters
 if TYPE_CHECKING:
     from shared.dem.state import DEMState
 
-__all__ = ["detect_contacts", "bond_pairs", "contacts_need_update", "update_contacts"]
+__all__ = [
+    "detect_contacts", "bond_pairs", "pair_values", "contacts_need_update", "update_contacts",
+]
 
 IntArray = npt.NDArray[np.int64]
 
@@ -99,6 +101,35 @@ def bond_pairs(
     return detect_contacts(positions, radii, 1.0 + tolerance, 0.0)
 
 
+def pair_values(
+    pairs: IntArray, keyed_pairs: IntArray, values: npt.ArrayLike, n_points: int
+) -> npt.NDArray[np.float64]:
+    """``values`` of the pairs found in ``keyed_pairs`` (sorted, i < j), 0 for the others.
+
+    Parameters
+    ----------
+    pairs
+        (m, 2) pairs i < j to look up.
+    keyed_pairs
+        (k, 2) pairs i < j, sorted lexicographically (e.g. ``DEMState.bonds``).
+    values
+        (k,) value of each keyed pair.
+    n_points
+        Number of points (key i n + j).
+    """
+    values = np.asarray(values, dtype=np.float64)
+    result = np.zeros(pairs.shape[0])
+    if keyed_pairs.shape[0] == 0 or pairs.shape[0] == 0:
+        return result
+    n = np.int64(n_points)
+    keys = keyed_pairs[:, 0] * n + keyed_pairs[:, 1]
+    wanted = pairs[:, 0] * n + pairs[:, 1]
+    where = np.minimum(np.searchsorted(keys, wanted), keys.size - 1)
+    found = keys[where] == wanted
+    result[found] = values[where[found]]
+    return result
+
+
 def contacts_need_update(state: DEMState) -> bool:
     """True once some pair may have closed the Verlet skin since the last detection.
 
@@ -147,6 +178,7 @@ def update_contacts(
         shear[kept] = contacts.shear_forces[where[kept]]
     contacts.pairs = pairs
     contacts.shear_forces = shear
+    contacts.reference_overlaps = pair_values(pairs, state.bonds, state.bond_overlaps, state.n_points)
     contacts.detection_positions = state.positions.copy()
     contacts.detection_radii = state.radii.copy()
     return True

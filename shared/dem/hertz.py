@@ -9,7 +9,7 @@ from shared.dem import _kernels
 from shared.dem.parameters import DEFAULT_DEM, DEMParameters
 from shared.dem.state import DEMState
 
-__all__ = ["contact_forces"]
+__all__ = ["contact_forces", "bond_tension"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -61,6 +61,14 @@ def contact_forces(
     updates them; Yade freezes them at contact creation (REFERENCE_NOTES section 8,
     defect 11). Separated pairs lose their shear history, as a deleted Yade
     interaction does.
+
+    A bonded pair with a stress-free overlap delta0 (``ContactList.reference_overlaps``,
+    see :func:`shared.dem.new_state`) takes its normal force from
+    delta - delta0 (r_a + r_b) / (r0_a + r0_b) in place of delta (0 below it): the
+    as-built cloud is then the unloaded material, and uniform swelling, which scales
+    the cloud and delta0 alike, loads nothing. Its shear stiffness keeps the whole
+    overlap, the contact area the points share: a cemented contact resists shear
+    before any normal load (a jittered lattice without it is a mechanism).
     """
     n = state.n_points
     forces = _zeros_or_checked(forces, n, "forces")
@@ -69,11 +77,53 @@ def contact_forces(
         raise ValueError(f"time_step must be finite and > 0, got {time_step}")
     contacts = state.contacts
     normal_forces = _kernels.hertz_mindlin(
-        state.positions, state.velocities, state.spins, state.radii, contacts.pairs,
-        contacts.shear_forces, parameters.effective_modulus,
-        parameters.shear_coefficient, float(time_step), forces, torques,
+        state.positions, state.velocities, state.spins, state.radii, state.reference_radii,
+        contacts.pairs, contacts.reference_overlaps, contacts.shear_forces,
+        parameters.effective_modulus, parameters.shear_coefficient, float(time_step),
+        forces, torques,
     )
     return forces, torques, normal_forces
+
+
+def bond_tension(
+    state: DEMState, parameters: DEMParameters = DEFAULT_DEM, forces: FloatArray | None = None
+) -> FloatArray:
+    """Tension of the intact bonds; breaks those loaded beyond their strength.
+
+    Parameters
+    ----------
+    state
+        Assembly; ``state.bond_broken`` is updated in place.
+    parameters
+        E* [Pa] (bond stiffness k = E* r_m) and ``bond_tensile_strength`` sigma_t [Pa].
+    forces
+        (n, 3) array the forces are added to [N]; a new zero array if None.
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+        ``forces`` with the bond tensions added [N].
+
+    Notes
+    -----
+    A bond pulled beyond its stress-free overlap delta0 (scaled with the radii) by
+    u > 0 pulls back with k u, k = E* r_m, r_m the mean radius of the pair, and breaks
+    once k u exceeds sigma_t pi r_m^2; in compression the Hertz contact acts on the
+    overlap beyond delta0 (:func:`contact_forces`). Why bonds at all: the thesis's
+    points are cohesionless, and a cohesionless quasi-static assembly opens bonds
+    wherever the Bishop confinement S s of the compacted state relaxes, with or
+    without a porosity field (measured on 1 000 points under a uniform suction, no
+    front: 571 open bonds at 1 MPa in a homogeneous specimen), which contradicts the
+    thesis's Sec. 3.5.5. With sigma_t > 0 only differential loads (a porosity
+    field's differences of S s, hydration fronts) break bonds.
+    """
+    forces = _zeros_or_checked(forces, state.n_points, "forces")
+    _kernels.bond_tension(
+        state.positions, state.radii, state.reference_radii, state.bonds, state.bond_overlaps,
+        state.bond_broken, parameters.effective_modulus, parameters.bond_tensile_strength,
+        forces,
+    )
+    return forces
 
 
 def _zeros_or_checked(array: FloatArray | None, n: int, name: str) -> FloatArray:

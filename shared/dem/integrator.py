@@ -9,7 +9,7 @@ import numpy.typing as npt
 
 from shared.dem import _kernels
 from shared.dem.contacts import update_contacts
-from shared.dem.hertz import contact_forces
+from shared.dem.hertz import bond_tension, contact_forces
 from shared.dem.parameters import DEFAULT_DEM, DEMParameters
 from shared.dem.state import DEMState
 from shared.dem.walls import WallLoads, Walls, servo_walls, wall_forces
@@ -93,6 +93,7 @@ def stable_time_step(
         state.positions, state.radii, state.contacts.pairs, state.masses, state.inertia,
         parameters.effective_modulus, parameters.shear_coefficient, rates,
     )
+    rates[:, 0] += _bond_rates(state, parameters)
     if walls is not None:
         wall_stiffness = np.zeros(state.n_points)
         wall_forces(state, walls, np.zeros((state.n_points, 3)), parameters, wall_stiffness)
@@ -101,6 +102,22 @@ def stable_time_step(
     if largest == 0.0:
         return float("inf")
     return float(safety * 2.0 / np.sqrt(largest))
+
+
+def _bond_rates(state: DEMState, parameters: DEMParameters) -> FloatArray:
+    """Gershgorin row sums of the intact bonds' tension springs, per point [1/s^2].
+
+    Without tensile strength a bond breaks at its first stretch and never acts as a
+    spring; otherwise every intact bond counts, stretched or not (conservative).
+    """
+    intact = state.bonds[~state.bond_broken]
+    if intact.shape[0] == 0 or parameters.bond_tensile_strength == 0.0:
+        return np.zeros(state.n_points)
+    stiffness = parameters.effective_modulus * 0.5 * state.radii[intact].sum(axis=1)
+    root = np.sqrt(state.masses[intact])
+    coupling = stiffness * (1.0 / root[:, 0] + 1.0 / root[:, 1])
+    return np.bincount(intact.ravel(), (coupling[:, None] / root).ravel(),
+                       minlength=state.n_points)
 
 
 def integrate(
@@ -184,7 +201,7 @@ def step(
     walls: Walls | None = None,
     damping: float | None = None,
 ) -> StepReport:
-    """One DEM step: contact list, Hertz-Mindlin and wall forces, leapfrog, servo.
+    """One DEM step: contact list, Hertz-Mindlin, bond and wall forces, leapfrog, servo.
 
     Parameters
     ----------
@@ -210,6 +227,8 @@ def step(
     if external_forces is not None:
         forces += external_forces
     forces, torques, normal_forces = contact_forces(state, time_step, parameters, forces)
+    if state.bonds.shape[0]:
+        bond_tension(state, parameters, forces)
     loads = None if walls is None else wall_forces(state, walls, forces, parameters)
     integrate(
         state, forces, torques, time_step,

@@ -42,6 +42,12 @@ class DEMParameters:
     confining_stress
         Compressive stress imposed by the servo walls on each axis [Pa]
         (Sec. 3.5.4: 10e6 in the confined case, 0 for free swelling).
+    bond_tensile_strength
+        sigma_t, tensile strength of a bond [Pa]: an intact bond carries a tension up
+        to sigma_t pi r^2 (r the mean radius of its two points) and breaks beyond. 0
+        (default) is the thesis's cohesionless reading: a bond breaks as soon as its
+        normal force would turn tensile. Not a parameter of the thesis (see
+        :func:`shared.dem.bond_tension` for why the micro model needs it).
     """
 
     young_modulus: float = 100e8
@@ -54,6 +60,7 @@ class DEMParameters:
     wall_max_velocity: float = 1e-4
     wall_gain: float = 0.25
     confining_stress: float = 0.0
+    bond_tensile_strength: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("young_modulus", "density", "interaction_radius_factor", "time_step"):
@@ -63,6 +70,10 @@ class DEMParameters:
             raise ValueError(f"poisson_ratio must lie in (-1, 0.5), got {self.poisson_ratio}")
         if not 0.0 <= self.damping < 1.0:
             raise ValueError(f"damping must lie in [0, 1), got {self.damping}")
+        if not self.bond_tensile_strength >= 0.0:
+            raise ValueError(
+                f"bond_tensile_strength must be >= 0, got {self.bond_tensile_strength}"
+            )
         if not 0.0 < self.time_step_safety <= 1.0:
             raise ValueError("time_step_safety must lie in (0, 1]")
 

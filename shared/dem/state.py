@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from shared.dem.contacts import bond_pairs, detect_contacts
+from shared.dem.contacts import bond_pairs, detect_contacts, pair_values
 from shared.dem.parameters import DEFAULT_DEM, DEMParameters
 
 __all__ = ["ContactList", "DEMState", "new_state"]
@@ -35,6 +35,9 @@ class ContactList:
     skin
         Verlet margin added to the detection distance [m]; the list stays valid while
         no pair can have closed this margin.
+    reference_overlaps
+        (n_contacts,) stress-free overlap of each pair at the reference radii [m]:
+        the bond's (``DEMState.bond_overlaps``), 0 for unbonded pairs.
     """
 
     pairs: IntArray
@@ -42,6 +45,11 @@ class ContactList:
     detection_positions: FloatArray
     detection_radii: FloatArray
     skin: float
+    reference_overlaps: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self) -> None:
+        if self.reference_overlaps.shape != (self.pairs.shape[0],):
+            self.reference_overlaps = np.zeros(self.pairs.shape[0])
 
 
 @dataclass
@@ -67,8 +75,14 @@ class DEMState:
     contacts
         Candidate contact list with shear history.
     bonds
-        (n_bonds, 2) point pairs in contact in the reference state, first < second;
-        the crack model opens a bond when its normal force reaches zero.
+        (n_bonds, 2) point pairs in contact in the reference state, first < second,
+        sorted lexicographically; a broken bond that opens is a crack.
+    bond_overlaps
+        (n_bonds,) stress-free overlap of each bond at the reference radii [m]; zeros
+        unless the state was built with ``stress_free_bonds``.
+    bond_broken
+        (n_bonds,) bonds that broke (:func:`shared.dem.bond_tension`); they carry no
+        tension any more.
     fixed
         (n,) points held still by the integrator (e.g. during a permeability test).
     time
@@ -84,6 +98,8 @@ class DEMState:
     inertia: FloatArray
     contacts: ContactList
     bonds: IntArray
+    bond_overlaps: FloatArray = field(default_factory=lambda: np.zeros(0))
+    bond_broken: BoolArray = field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
     fixed: BoolArray = field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
     time: float = 0.0
 
@@ -97,6 +113,11 @@ class DEMState:
                 raise ValueError(f"{name} must have shape ({n},)")
         if self.fixed.shape != (n,):
             self.fixed = np.zeros(n, dtype=np.bool_)
+        n_bonds = self.bonds.shape[0]
+        if self.bond_overlaps.shape != (n_bonds,):
+            self.bond_overlaps = np.zeros(n_bonds)
+        if self.bond_broken.shape != (n_bonds,):
+            self.bond_broken = np.zeros(n_bonds, dtype=np.bool_)
 
     @property
     def n_points(self) -> int:
@@ -110,6 +131,7 @@ def new_state(
     parameters: DEMParameters = DEFAULT_DEM,
     skin_fraction: float = 0.1,
     bond_tolerance: float = 1e-9,
+    stress_free_bonds: bool = False,
 ) -> DEMState:
     """Assemble a state at rest, detect its contacts and take them as its bonds.
 
@@ -127,6 +149,10 @@ def new_state(
         Pairs up to (1 + bond_tolerance)(r_a + r_b) apart are bonded [1]; raise it to
         the grid jitter to bond every neighbour of a jittered grid, or re-bond with
         :func:`shared.dem.bond_pairs` once the specimen is in equilibrium.
+    stress_free_bonds
+        Take the given cloud as the unloaded material: each bond's overlap becomes its
+        stress-free overlap (``bond_overlaps``), so the state starts without the
+        self-stress that the overlaps of a jittered grid would otherwise store.
 
     Returns
     -------
@@ -145,6 +171,12 @@ def new_state(
         detection_radii=radii.copy(),
         skin=skin,
     )
+    bonds = bond_pairs(positions, radii, bond_tolerance)
+    overlaps = np.zeros(bonds.shape[0])
+    if stress_free_bonds:
+        gaps = np.linalg.norm(positions[bonds[:, 1]] - positions[bonds[:, 0]], axis=1)
+        overlaps = np.maximum(radii[bonds].sum(axis=1) - gaps, 0.0)
+    contacts.reference_overlaps = pair_values(pairs, bonds, overlaps, positions.shape[0])
     masses = parameters.density * 4.0 / 3.0 * np.pi * radii**3
     return DEMState(
         positions=positions.copy(),
@@ -155,5 +187,6 @@ def new_state(
         masses=masses,
         inertia=0.4 * masses * radii**2,
         contacts=contacts,
-        bonds=bond_pairs(positions, radii, bond_tolerance),
+        bonds=bonds,
+        bond_overlaps=overlaps,
     )

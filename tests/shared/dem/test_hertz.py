@@ -1,9 +1,11 @@
 """Hertz-Mindlin forces of two spheres against the closed-form laws."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
-from shared.dem import DEFAULT_DEM, contact_forces, new_state
+from shared.dem import DEFAULT_DEM, bond_tension, contact_forces, new_state
 
 E_STAR = 100e8 / (2.0 * (1.0 - 0.3**2))  # two identical points, Table 3.1 E and nu
 G = 100e8 / (2.0 * 1.3)
@@ -89,3 +91,52 @@ def test_kernel_matches_numpy_reference_on_random_assembly():
     assert np.count_nonzero(magnitude) > 200
     np.testing.assert_allclose(normal, magnitude, rtol=1e-12)
     np.testing.assert_allclose(forces, expected, rtol=1e-10, atol=1e-12 * magnitude.max())
+
+
+def _bonded_pair(overlap, strength):
+    """Two points of radius 1e-4 m built at ``overlap`` as their stress-free state."""
+    positions = np.array([[0.0, 0.0, 0.0], [2e-4 - overlap, 0.0, 0.0]])
+    parameters = dataclasses.replace(DEFAULT_DEM, bond_tensile_strength=strength)
+    return new_state(positions, np.full(2, 1e-4), stress_free_bonds=True), parameters
+
+
+def _pair_force(state, parameters):
+    forces, _, _ = contact_forces(state, 1e-9, parameters)
+    return bond_tension(state, parameters, forces)[1, 0]
+
+
+def test_stress_free_bond_loads_only_beyond_its_reference_overlap():
+    state, parameters = _bonded_pair(5e-6, 1e7)
+    assert _pair_force(state, parameters) == 0.0
+    state.positions[1, 0] -= 2e-6  # 2 um more overlap than the stress-free 5 um
+    expected = 4.0 / 3.0 * E_STAR * np.sqrt(0.5e-4) * 2e-6**1.5
+    assert _pair_force(state, parameters) == pytest.approx(expected, rel=1e-12)
+
+
+def test_uniform_swelling_of_a_stress_free_bond_loads_nothing():
+    state, parameters = _bonded_pair(5e-6, 1e7)
+    state.radii *= 1.1
+    state.positions *= 1.1  # the swollen pair is the stress-free one, scaled
+    assert abs(_pair_force(state, parameters)) < 1e-12 * E_STAR * 1e-4 * 5e-6
+
+
+def test_bond_pulls_back_linearly_and_breaks_at_its_strength():
+    """Tension E* r u; the bond breaks at sigma_t pi r^2, i.e. u = sigma_t pi r / E*."""
+    strength = 1e7
+    state, parameters = _bonded_pair(5e-6, strength)
+    breaking = strength * np.pi * 1e-4 / E_STAR
+    state.positions[1, 0] += 0.5 * breaking
+    assert _pair_force(state, parameters) == pytest.approx(-E_STAR * 1e-4 * 0.5 * breaking,
+                                                           rel=1e-9)
+    state.positions[1, 0] += 0.51 * breaking
+    assert _pair_force(state, parameters) == 0.0
+    assert state.bond_broken.all()
+    state.positions[1, 0] -= 1.01 * breaking  # back to the stress-free overlap
+    assert abs(_pair_force(state, parameters)) < 1e-12 * E_STAR * 1e-4 * 5e-6
+
+
+def test_without_strength_a_bond_breaks_at_its_first_stretch():
+    state, parameters = _bonded_pair(0.0, 0.0)
+    state.positions[1, 0] += 1e-9
+    assert _pair_force(state, parameters) == 0.0
+    assert state.bond_broken.all()
