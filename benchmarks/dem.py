@@ -66,8 +66,10 @@ def bench_dem(
         Seed of the point jitter.
     hydro
         Also time the per-step point coupling of the flow model on a Delaunay mesh of
-        the points: ``hydro_forces_ms`` (Eqs. 3.28-3.32 with cached sector weights),
-        ``point_suction_ms``, and ``sector_weights_ms`` (once per remesh).
+        the points: ``hydro_forces_ms`` (Eqs. 3.28-3.32 as :mod:`micro.hydration` calls
+        it, sector weights computed in the force kernel), ``point_suction_ms``, and for
+        comparison ``hydro_forces_cached_weights_ms`` (weights passed in) and
+        ``sector_weights_ms`` (computing them separately).
 
     Returns
     -------
@@ -143,6 +145,9 @@ def _bench_hydro(positions: np.ndarray, radii: np.ndarray, repeats: int) -> dict
     weights = sector_weights(mesh, positions, radii)
 
     def hydro_forces() -> object:
+        return hydromechanical_forces(mesh, positions, radii, pressure, saturation)
+
+    def hydro_forces_cached() -> object:
         return hydromechanical_forces(
             mesh, positions, radii, pressure, saturation, weights=weights
         )
@@ -156,6 +161,7 @@ def _bench_hydro(positions: np.ndarray, radii: np.ndarray, repeats: int) -> dict
     record: dict = {"n_cells": mesh.n_cells}
     for name, function in (
         ("hydro_forces", hydro_forces),
+        ("hydro_forces_cached_weights", hydro_forces_cached),
         ("point_suction", suction),
         ("sector_weights", weighting),
     ):

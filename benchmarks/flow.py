@@ -7,12 +7,14 @@ idle machine) in milliseconds. Timings are measured, never asserted.
 
 * :func:`bench_flow`: Delaunay, geometry, geometry update of moved points with the
   same connectivity, pattern, conductance, assembly, analysis + factorisation + solve,
-  a refactorisation, a solve with the factor unchanged, and a transient step with a
-  reused (stale) factor after the state drifted slightly.
+  a refactorisation (with one and two BLAS threads), a solve with the factor
+  unchanged, and a transient step with a reused (stale) factor after the state
+  drifted slightly.
 * :func:`bench_flow_scaling`: :func:`bench_flow` at 1.5k to 50k points, the fitted
   exponent of each step's cost versus N and a log-log figure of the curve.
-* :func:`bench_coupled_step`: one coupled step as :mod:`micro.hydration` runs it (DEM
-  step, hydro-mechanical forces, flow step with the reused factor, geometry update).
+* :func:`bench_coupled_step`: coupled steps as :mod:`micro.hydration` runs them (DEM
+  step, hydro-mechanical forces, flow step with the factor reused as the solver's
+  rent-or-buy rule decides, geometry update), with the work of each step.
 
 Run ``python -m benchmarks.flow [--quick]`` to write ``results/benchmarks/flow.json``,
 ``flow_scaling.json``, ``flow_scaling.png`` and ``flow_coupled.json``.
@@ -21,16 +23,17 @@ Run ``python -m benchmarks.flow [--quick]`` to write ``results/benchmarks/flow.j
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from benchmarks.dem import _timings_ms
-from micro.forces import sector_weights
 from micro.hydration import FlowSystem, PelletState, swell, update_geometry
 from shared.dem import DEFAULT_DEM, cube_points, new_state, step
 from shared.fv import assemble_matrix, facet_conductance, flow_pattern, transient_step
@@ -76,6 +79,27 @@ def jittered_cube(
     return grid + rng.uniform(-jitter, jitter, grid.shape) * spacing
 
 
+def _timings_after_setup_ms(
+    name: str, setup: Callable[[], object], function: Callable[[], object], repeats: int
+) -> dict:
+    """Median and fastest of ``repeats`` calls [ms], each after an untimed ``setup``.
+
+    One untimed call first (compilation), as :func:`benchmarks.dem._timings_ms`.
+    """
+    setup()
+    function()
+    times = []
+    for _ in range(repeats):
+        setup()
+        start = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - start)
+    return {
+        f"{name}_ms": 1e3 * float(np.median(times)),
+        f"{name}_min_ms": 1e3 * float(np.min(times)),
+    }
+
+
 def _unsaturated_state(
     n_cells: int, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -112,12 +136,15 @@ def bench_flow(
     dict
         Sizes (points, cells, facets, unknowns), the machine's load average before the
         timings (other jobs share the cores); median and fastest time of each phase
-        [ms]; ``remesh_step_ms`` (Delaunay + geometry + pattern + conductance +
+        [ms] (``factorization_solve_blas2``: the refactorisation with two OpenBLAS
+        threads, :class:`shared.solver.CholeskySolver` ``factor_blas_threads=2``);
+        ``remesh_step_ms`` (Delaunay + geometry + pattern + conductance +
         assembly + analysis + factorisation + solve), ``reuse_step_ms`` (one transient
         step with a reused factor), their ratio, ``coupled_flow_step_ms`` (geometry
         update + reuse step: the flow part of one coupled step), each also as
         ``*_min_ms`` and as medians in seconds (``*_s``); the drift and factor
-        applications of one reuse step.
+        applications, CG iterations and backward error of one reuse step (from the
+        factor of the undrifted matrix, ``residual_tolerance`` of the solver).
     """
     material = DEFAULT_CLAY
     rng = np.random.default_rng(1)
@@ -136,14 +163,20 @@ def bench_flow(
     matrix = assemble_matrix(mesh, pattern, conductance, capacity / time_step)
     rhs = rng.standard_normal(pattern.n_free)
     solver = CholeskySolver(ordering_method=ordering_method)
+    threaded = CholeskySolver(ordering_method=ordering_method, factor_blas_threads=2)
     drifted = pressure * (1.0 + relative_drift * rng.standard_normal(mesh.n_cells))
+    stale = CholeskySolver(ordering_method=ordering_method)
 
     def reuse_step() -> object:
         return transient_step(
-            mesh, pattern, solver, drifted, water, porosity,
+            mesh, pattern, stale, drifted, water, porosity,
             facet_conductance(mesh, water, porosity, "water", material),
             imposed, time_step, material,
         )
+
+    def fresh_stale_factor() -> None:
+        # Every timed reuse step starts from the factor of the undrifted matrix.
+        stale.solve(matrix, rhs, force_refactor=True, ordered=True)
 
     phases = {
         "delaunay": lambda: delaunay_tetrahedra(points),
@@ -158,8 +191,10 @@ def bench_flow(
         "factorization_solve": lambda: solver.solve(
             matrix, rhs, force_refactor=True, ordered=True
         ),
+        "factorization_solve_blas2": lambda: threaded.solve(
+            matrix, rhs, force_refactor=True, ordered=True
+        ),
         "solve_reused_factor": lambda: solver.solve(matrix, rhs, ordered=True),
-        "reuse_step": reuse_step,
     }
     record: dict = {
         "n_points": int(points.shape[0]),
@@ -172,12 +207,22 @@ def bench_flow(
     }
     for name, function in phases.items():
         record.update(_timings_ms(name, function, repeats))
-    applications, factorizations = solver.stats.factor_applications, solver.stats.factorizations
+    record.update(_timings_after_setup_ms("reuse_step", fresh_stale_factor, reuse_step, repeats))
+    fresh_stale_factor()
+    before = dataclasses.replace(stale.stats)
     reuse_step()
-    record["reuse_drift"] = solver.last_drift
-    record["reuse_refactored"] = solver.stats.factorizations > factorizations
-    record["reuse_factor_applications"] = solver.stats.factor_applications - applications
-    record["reuse_backward_error"] = solver.last_residual
+    drifted_matrix = assemble_matrix(
+        mesh, pattern, conductance,
+        porosity * mesh.volumes * saturation_derivative(-drifted, porosity, material) / time_step,
+    )
+    record["reuse_drift"] = stale.drift(drifted_matrix)
+    record["reuse_refactored"] = stale.stats.factorizations > before.factorizations
+    record["reuse_factor_applications"] = (
+        stale.stats.factor_applications - before.factor_applications
+    )
+    record["reuse_iterations"] = stale.stats.iterations - before.iterations
+    record["reuse_backward_error"] = stale.last_residual
+    record["residual_tolerance"] = stale.residual_tolerance
     remesh_phases = (
         "delaunay", "geometry", "pattern", "conductance", "assembly",
         "analysis_factorization_solve",
@@ -261,40 +306,54 @@ def _plot_scaling(records: list[dict], exponents: dict[str, float], path: Path) 
     figure.savefig(path, dpi=120)
 
 
-def bench_coupled_step(n_points: int = 15000, repeats: int = 5, seed: int = 0) -> dict:
-    """Time one coupled step as :func:`micro.hydration.advance_to_balance` runs it.
+def bench_coupled_step(
+    n_points: int = 15000, repeats: int = 8, seed: int = 0, radius_factor: float = 1.02
+) -> dict:
+    """Time coupled steps as :func:`micro.hydration.advance_to_balance` runs them.
 
     The phases run in the order of the hydration loop, on a jittered point cube at
-    50 MPa suction with a 40 MPa boundary: a flow step with the reused factor
-    (conductance + :func:`shared.fv.transient_step`; the state advances from step to
-    step, so the factor goes stale as in a run), the swelling radii and
-    hydro-mechanical forces (:func:`micro.hydration.swell`, which recomputes the facet
-    sector weights), one DEM step (:func:`shared.dem.step`, Verlet list reused) and the
-    geometry update of the moved points (:func:`micro.hydration.update_geometry`).
-    ``*_proposed_*`` keys time the same step with the sector weights cached per mesh
-    and :func:`shared.mesh.update_mesh` for the geometry. A step in which a cell
-    inverted (a remesh) is not counted.
+    50 MPa suction with a 40 MPa boundary: a flow step (conductance +
+    :func:`shared.fv.transient_step` with the solver :class:`micro.hydration.FlowSystem`
+    builds; the state advances from step to step, so the factor goes stale as in a run
+    and the solver's rent-or-buy rule decides when to refactor), the swelling radii
+    and hydro-mechanical forces (:func:`micro.hydration.swell`), one DEM step
+    (:func:`shared.dem.step`, Verlet list reused) and the geometry update of the moved
+    points (:func:`micro.hydration.update_geometry`). A step in which a cell inverted
+    (a remesh) is not counted.
+
+    With the default ``radius_factor`` the points start overlapping and unrelaxed, so
+    they accelerate from step to step; near-cospherical cell pairs and slivers then
+    change their conductances by orders of magnitude per step, and the stale factor
+    needs more CG iterations each step. With ``radius_factor`` 0.8 no two points of
+    the jittered grid touch: the points start at rest and barely move, as near
+    mechanical balance, and only the hydration front changes the matrix.
 
     Parameters
     ----------
     n_points
         Requested number of points (rounded to a cube number).
     repeats
-        Timed coupled steps (after one untimed step).
+        Coupled steps after one untimed step (remeshed steps are not timed).
     seed
         Seed of the point jitter and the porosity.
+    radius_factor
+        Interaction radius over half the grid spacing [1] (:func:`shared.dem.cube_points`).
 
     Returns
     -------
     dict
-        Sizes, the load average after the steps, the timed and remeshed step counts, the
-        factor applications and
-        factorisations of each timed step, median and fastest time per phase [ms], ``coupled_step_ms`` (the sum as
-        hydration runs it) and ``coupled_step_proposed_ms``, with ``*_min_ms`` twins.
+        Sizes, the radius factor, the load average after the steps, the timed and
+        remeshed step counts;
+        per timed step the factor applications, CG iterations and factorisations;
+        median and fastest time per phase [ms]; ``coupled_step_ms`` / ``_min_ms`` (the
+        sum as hydration runs it, median and fastest over all timed steps),
+        ``coupled_step_mean_ms`` (the mean: the amortised cost, refactorisations
+        included) and ``coupled_step_reused_ms`` / ``_min_ms`` (median and fastest
+        over the steps that reused the factor, None if none did).
     """
     material = DEFAULT_CLAY
     rng = np.random.default_rng(seed)
-    positions, radii = cube_points(n_points, rng, jitter=0.2, radius_factor=1.02)
+    positions, radii = cube_points(n_points, rng, jitter=0.2, radius_factor=radius_factor)
     dem = new_state(positions, radii)
     mesh = build_mesh(dem.positions)
     porosity = rng.uniform(0.2, 0.3, mesh.n_cells)
@@ -321,28 +380,17 @@ def bench_coupled_step(n_points: int = 15000, repeats: int = 5, seed: int = 0) -
         )
         state.pressure, state.saturation = result.pressure, result.saturation
 
-    def proposed_update() -> None:
-        try:
-            update_mesh(state.mesh, dem.positions)
-        except ValueError:
-            pass  # a cell inverted: update_geometry remeshes next
-
-    # In the order of advance_to_balance; update_mesh runs before update_geometry
-    # replaces the mesh, on the same moved points.
     phases = {
         "flow_step": flow_step,
         "hydro_forces": lambda: swell(state, material),
-        "sector_weights": lambda: sector_weights(state.mesh, dem.positions, dem.radii),
         "dem_step": lambda: step(dem, time_step, DEFAULT_DEM, loads, None, damping),
-        "update_mesh": proposed_update,
         "geometry_update": lambda: update_geometry(state, bounds, material),
     }
     times: dict[str, list[float]] = {name: [] for name in phases}
-    applications: list[int] = []
-    factorizations: list[int] = []
+    work: dict[str, list[int]] = {"applications": [], "iterations": [], "factorizations": []}
     remeshes = 0
     for count in range(repeats + 1):
-        before = (system.solver.stats.factor_applications, system.solver.stats.factorizations)
+        before = dataclasses.replace(system.solver.stats)
         elapsed = {}
         for name, function in phases.items():
             start = time.perf_counter()
@@ -350,41 +398,48 @@ def bench_coupled_step(n_points: int = 15000, repeats: int = 5, seed: int = 0) -
             elapsed[name] = 1e3 * (time.perf_counter() - start)
         if state.n_remesh > remeshes:
             # A cell inverted and update_geometry remeshed: rebuild the flow system as
-            # hydration does, and leave this step out of the reuse-step statistics.
+            # hydration does, and leave this step out of the statistics.
             remeshes = state.n_remesh
             system = FlowSystem.for_mesh(state.mesh)
             continue
         if count > 0:  # the first step compiles or warms the kernels
             for name, value in elapsed.items():
                 times[name].append(value)
-            applications.append(system.solver.stats.factor_applications - before[0])
-            factorizations.append(system.solver.stats.factorizations - before[1])
+            stats = system.solver.stats
+            work["applications"].append(stats.factor_applications - before.factor_applications)
+            work["iterations"].append(stats.iterations - before.iterations)
+            work["factorizations"].append(stats.factorizations - before.factorizations)
+    totals = np.sum([times[name] for name in phases], axis=0)
+    reused = totals[np.array(work["factorizations"]) == 0]
     record: dict = {
         "n_points": dem.n_points,
         "n_cells": mesh.n_cells,
         "n_unknowns": system.pattern.n_free,
+        "radius_factor": radius_factor,
+        "residual_tolerance": system.solver.residual_tolerance,
+        "refactor_iterations": system.solver.refactor_iterations,
         "load_average_1min": os.getloadavg()[0],
-        "timed_steps": len(applications),
+        "timed_steps": len(totals),
         "remeshed_steps": remeshes,
-        "factor_applications_per_step": applications,
-        "factorizations_per_step": factorizations,
+        "factor_applications_per_step": work["applications"],
+        "iterations_per_step": work["iterations"],
+        "factorizations_per_step": work["factorizations"],
+        "coupled_step_per_step_ms": totals.tolist(),
     }
     for name, values in times.items():
         record[f"{name}_ms"] = float(np.median(values))
         record[f"{name}_min_ms"] = float(np.min(values))
-    for suffix in ("ms", "min_ms"):
-        as_run = ("dem_step", "hydro_forces", "flow_step", "geometry_update")
-        record[f"coupled_step_{suffix}"] = sum(record[f"{p}_{suffix}"] for p in as_run)
-        record[f"coupled_step_proposed_{suffix}"] = (
-            record[f"dem_step_{suffix}"]
-            + record[f"hydro_forces_{suffix}"] - record[f"sector_weights_{suffix}"]
-            + record[f"flow_step_{suffix}"] + record[f"update_mesh_{suffix}"]
-        )
+    record["coupled_step_ms"] = float(np.median(totals))
+    record["coupled_step_min_ms"] = float(np.min(totals))
+    record["coupled_step_mean_ms"] = float(np.mean(totals))
+    record["coupled_step_reused_ms"] = float(np.median(reused)) if reused.size else None
+    record["coupled_step_reused_min_ms"] = float(np.min(reused)) if reused.size else None
     return record
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Write flow.json (1.5k and 15k, two drifts), flow_scaling.json/.png, flow_coupled.json."""
+    """Write flow.json (1.5k and 15k, two drifts; 15k with METIS), flow_scaling.json/.png,
+    flow_coupled.json (1.5k and 15k, overlapping and settled points)."""
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--quick", action="store_true", help="sizes up to 15k, 2 repeats")
     parser.add_argument("--output", type=Path, default=Path("results/benchmarks"))
@@ -397,11 +452,14 @@ def main(argv: list[str] | None = None) -> None:
         "flow": [
             bench_flow(n, relative_drift=drift, repeats=repeats)
             for n in (1500, 15000) for drift in (2e-3, 1e-5)
-        ],
+        ] + [bench_flow(15000, repeats=repeats, ordering_method="metis")],
         "flow_scaling": bench_flow_scaling(
             sizes, repeats=repeats, figure=output / "flow_scaling.png"
         ),
-        "flow_coupled": [bench_coupled_step(n, repeats=repeats) for n in (1500, 15000)],
+        "flow_coupled": [
+            bench_coupled_step(n, radius_factor=factor)
+            for n in (1500, 15000) for factor in (1.02, 0.8)
+        ],
     }
     for name, result in results.items():
         (output / f"{name}.json").write_text(json.dumps(result, indent=1, default=float))

@@ -16,8 +16,9 @@ Compared (ratio = ours / Yade's):
   coupled step (:mod:`benchmarks.flow`: ``coupled_flow_step_s``), at hydraulic balance
   as Yade's and, separately, during hydration;
 * a remesh: ours is :mod:`benchmarks.flow`'s ``remesh_step_s`` (Delaunay to first
-  solve, factorisation included) plus the sector weights of the point forces and the
-  transfer of the cell state to the new mesh, timed here;
+  solve, factorisation included) plus the transfer of the cell state to the new mesh,
+  timed here (the sector weights of the point forces are computed in the force kernel
+  at every step, so they are part of ``hydro_forces``, not of a remesh);
 * the water permeability along x of the homogeneous specimen (porosity phi_0) after
   Yade's equilibration, at the equilibrium saturation S(s_0) and fully saturated,
   both by the wall-flux method (REFERENCE_NOTES section 10), ours on Yade's
@@ -48,7 +49,6 @@ import numpy as np
 
 from benchmarks.dem import bench_dem
 from benchmarks.flow import bench_flow
-from micro.forces import sector_weights
 from micro.permeability import permeability_tensor_axes
 from shared.dem import DEFAULT_DEM
 from shared.dem.points import cube_points
@@ -194,7 +194,7 @@ def _our_permeability(positions: np.ndarray) -> dict:
 
 
 def _remesh_extras_s(positions: np.ndarray, radii: np.ndarray) -> dict:
-    """Remesh costs outside ``bench_flow``: sector weights and the cell-state transfer."""
+    """Remesh cost outside ``bench_flow``: the cell-state transfer."""
     material = DEFAULT_CLAY
     old = build_mesh(positions)
     moved = positions + np.random.default_rng(1).uniform(-1e-3, 1e-3, positions.shape) * (
@@ -204,16 +204,11 @@ def _remesh_extras_s(positions: np.ndarray, radii: np.ndarray) -> dict:
     porosity = np.full(old.n_cells, material.reference_porosity)
     water = np.full(old.n_cells, 0.5)
     pressure = np.full(old.n_cells, -material.initial_suction)
-    # one untimed call each, so that numba compilation is not counted
-    sector_weights(new, moved, radii)
+    # one untimed call, so that numba compilation is not counted
     transfer_cell_state(old, new, pressure, water, porosity, material)
     start = time.perf_counter()
-    sector_weights(new, moved, radii)
-    weights = time.perf_counter() - start
-    start = time.perf_counter()
     transfer_cell_state(old, new, pressure, water, porosity, material)
-    transfer = time.perf_counter() - start
-    return {"sector_weights_s": weights, "transfer_cell_state_s": transfer}
+    return {"transfer_cell_state_s": time.perf_counter() - start}
 
 
 def _our_timings(n_points: int, positions: np.ndarray, radii: np.ndarray) -> dict:

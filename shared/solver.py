@@ -6,22 +6,36 @@ solves a stale system. Here:
 
 * the symbolic analysis (fill-reducing ordering) is kept while the sparsity pattern is
   unchanged, and redone only when it changes;
-* the numeric factor is refreshed when the coefficients drifted beyond
-  ``refactor_tolerance`` since the last factorisation, measured as the largest
-  symmetric-scaled entry change max |a_ij - a0_ij| / sqrt(a0_ii a0_jj), or on demand;
-* otherwise the old factor preconditions conjugate gradients on the *current* matrix,
-  run until the normwise backward error ||b - A x|| / (||A|| ||x|| + ||b||) (infinity
-  norms) is below ``residual_tolerance``.
-  If that does not converge within ``max_iterations`` the matrix is refactored;
-* once the CG iterations spent since the last factorisation reach
-  ``refactor_iterations`` (about the cost of one factorisation in substitutions), the
-  next solve refactors too: the rent-or-buy rule, never more than twice the cheaper
-  of always and never refactoring. A hydration front that jumps once and then moves
-  slowly otherwise pays ten substitutions per step for ever.
+* the old factor preconditions conjugate gradients on the *current* matrix, run until
+  the normwise backward error ||b - A x|| / (||A|| ||x|| + ||b||) (infinity norms, of
+  the current A) is below ``residual_tolerance``;
+* the numeric factor is refreshed by a rent-or-buy rule: once the CG iterations
+  spent since the last factorisation reach ``refactor_iterations`` (about the cost of
+  one factorisation in substitutions), the solve refactors, in the middle of a solve
+  if need be, and finishes from the iterate it had. A solve also refactors at once
+  when the previous solve's stale iterations alone would exhaust what is left of that
+  budget (the drift only accumulates, so the next solve needs at least as many).
+  When even the first solve after a factorisation exhausts the budget, one step of
+  drift costs more than a factorisation: the next solves buy at once, 1, 2, 4, ...
+  up to 32 of them before the next such probe, until a probe converges within its
+  budget. At 15k points of a coupled step whose matrix changes much per step,
+  renting the whole budget before buying, step after step, cost up to twice as much
+  as always refactoring. The
+  total work is then never more than about twice that of the better of always and
+  never refactoring, whatever the drift does; a hydration front that jumps once and
+  then moves slowly does not pay ten substitutions per step for ever;
+* a refactorisation can also be requested on demand, or (``refactor_tolerance``) when
+  the largest symmetric-scaled entry change max |a_ij - a0_ij| / sqrt(a0_ii a0_jj)
+  exceeds a threshold. That trigger is off by default: measured on the coupled step
+  at 15k points, a few hundred of 215k entries change by up to 1e3-1e4 times their
+  scale from one step to the next (dual lengths of near-cospherical cell pairs,
+  sliver porosities). The CG iterations the stale factor needs depend on how many
+  entries changed, not on the largest change: a few entries changed a thousandfold
+  cost a few iterations (``tests/shared/test_solver.py``).
 
-So every answer solves the current matrix to the stated tolerance; the drift
-threshold only trades factorisations against iterations. Counters in
-:class:`SolverStats` serve the benchmarks.
+So every answer solves the current matrix to the stated tolerance; the rules only
+trade factorisations against iterations, deterministically (iteration counts, not
+timings, decide). Counters in :class:`SolverStats` serve the benchmarks.
 """
 
 from __future__ import annotations
@@ -38,6 +52,9 @@ from sksparse.cholmod import CholmodNotPositiveDefiniteError, Factor, analyze
 __all__ = ["SolverError", "SolverStats", "CholeskySolver", "set_cholmod_blas_threads"]
 
 FloatArray = npt.NDArray[np.float64]
+
+# Most solves that buy a factor at once between two probes of the stale factor.
+_MAX_BACKOFF = 32
 
 
 class SolverError(RuntimeError):
@@ -202,16 +219,20 @@ class CholeskySolver:
     Parameters
     ----------
     refactor_tolerance
-        Largest scaled coefficient drift tolerated before refactoring [1].
+        Largest scaled coefficient drift tolerated before refactoring [1]; None
+        (default) disables this trigger and leaves the decision to the rent-or-buy rule.
     residual_tolerance
         Target normwise backward error ||b - A x|| / (||A|| ||x|| + ||b||) of every
-        solve, infinity norms [1].
+        solve, infinity norms [1]. The default 1e-10 is a thousand times the round-off
+        of a direct solve and saves one to three CG iterations per stale solve
+        (measured at 1.5k points); the water volume rate imbalance it allows per cell
+        is 1e-10 (||A|| ||x|| + ||b||) [m3/s] for the flow systems of :mod:`shared.fv`.
     max_iterations
-        CG iterations allowed with a stale factor before refactoring.
+        CG iterations allowed in one solve with a fresh factor (with a stale one the
+        rent-or-buy budget also applies).
     refactor_iterations
-        CG iterations since the last factorisation after which the next solve
-        refactors [1]; measured: a factorisation costs 20-30 substitutions from 1.5k
-        to 50k points.
+        CG iterations since the last factorisation after which the solve refactors [1];
+        measured: a factorisation costs 20-30 substitutions from 1.5k to 50k points.
     ordering_method
         CHOLMOD fill-reducing ordering (``"metis"``, ``"amd"``, ``"natural"``, ...);
         ``None`` (default) uses ``"natural"`` for matrices passed with ``ordered=True``
@@ -219,6 +240,13 @@ class CholeskySolver:
     blas_threads
         If given, the OpenBLAS thread count set at construction
         (:func:`set_cholmod_blas_threads`, process-wide); ``None`` leaves it alone.
+    factor_blas_threads
+        If given (and ``blas_threads`` too), the OpenBLAS thread count during numeric
+        factorisations only, ``blas_threads`` being restored after: the large dense
+        supernodes of a factorisation gain from threads that the small blocks of the
+        substitutions lose to. Measured at 15k points on the shared 2-core machine: two
+        threads took 300-390 ms against 430-600 ms in some runs, but 350-590 ms against
+        330-510 ms in others (the other core busy); hence off by default.
 
     Notes
     -----
@@ -231,28 +259,35 @@ class CholeskySolver:
 
     def __init__(
         self,
-        refactor_tolerance: float = 0.05,
-        residual_tolerance: float = 1e-13,
+        refactor_tolerance: float | None = None,
+        residual_tolerance: float = 1e-10,
         max_iterations: int = 20,
         refactor_iterations: int = 20,
         ordering_method: str | None = None,
         blas_threads: int | None = 1,
+        factor_blas_threads: int | None = None,
     ) -> None:
         self.refactor_tolerance = refactor_tolerance
         self.residual_tolerance = residual_tolerance
         self.max_iterations = max_iterations
         self.refactor_iterations = refactor_iterations
         self.ordering_method = ordering_method
+        self.blas_threads = blas_threads
         self.blas_threads_set = blas_threads is not None and set_cholmod_blas_threads(blas_threads)
+        self.factor_blas_threads = factor_blas_threads if self.blas_threads_set else None
         self.stats = SolverStats()
-        self.last_drift = 0.0
+        # drift of the last solve's matrix, computed only for the optional trigger
+        self.last_drift = float("nan")
         self.last_residual = 0.0
         self._factor: Factor | None = None
         self._indptr: npt.NDArray[np.int32] | None = None
         self._indices: npt.NDArray[np.int32] | None = None
         self._factored_data: FloatArray | None = None
-        self._matrix_norm = 0.0
         self._stale_iterations = 0
+        self._last_rent = 0
+        self._stale_solves = 0
+        self._buy_at_once = 0
+        self._backoff = 1
 
     def reset(self) -> None:
         """Forget the analysis and factor (the next solve analyses again)."""
@@ -269,6 +304,7 @@ class CholeskySolver:
         )
 
     def _factorize(self, matrix: sp.csc_matrix, ordered: bool) -> None:
+        threaded = self.factor_blas_threads is not None
         try:
             if not self._same_pattern(matrix):
                 _check_lower(matrix)
@@ -278,6 +314,8 @@ class CholeskySolver:
                 self._indices = matrix.indices.copy()
                 self.stats.analyses += 1
             assert self._factor is not None
+            if threaded:
+                set_cholmod_blas_threads(self.factor_blas_threads)
             self._factor.cholesky_inplace(matrix)
         except CholmodNotPositiveDefiniteError as error:
             self.reset()
@@ -285,14 +323,23 @@ class CholeskySolver:
                 "matrix not positive definite: a set of free cells without storage is "
                 "not connected to any imposed pressure, or a coefficient is negative"
             ) from error
+        finally:
+            if threaded:
+                set_cholmod_blas_threads(self.blas_threads)
         self._factored_data = matrix.data.copy()
-        self._matrix_norm = _infinity_norm(matrix.indptr, matrix.indices, matrix.data)
         self._stale_iterations = 0
+        self._stale_solves = 0
         self.stats.factorizations += 1
 
-    def _drift(self, matrix: sp.csc_matrix) -> float:
-        assert self._factored_data is not None
-        return _scaled_drift(matrix.indptr, matrix.indices, matrix.data, self._factored_data)
+    def drift(self, lower: sp.csc_matrix) -> float:
+        """Largest scaled entry change of ``lower`` since the last factorisation [1].
+
+        max |a_ij - a0_ij| / sqrt(|a0_ii a0_jj|) over the lower triangle (same pattern
+        as the factored matrix); a diagnostic, and the optional refactor trigger.
+        """
+        if self._factored_data is None or not self._same_pattern(lower):
+            raise ValueError("no factor of a matrix with this sparsity pattern")
+        return _scaled_drift(lower.indptr, lower.indices, lower.data, self._factored_data)
 
     def _apply(self, vector: FloatArray) -> FloatArray:
         assert self._factor is not None
@@ -317,7 +364,7 @@ class CholeskySolver:
         rhs
             Right-hand side b, shape (n,).
         force_refactor
-            Refactor even if the coefficients did not drift (e.g. at remesh).
+            Refactor even if the rent-or-buy rule would not (e.g. at remesh).
         ordered
             The unknowns are already numbered in a fill-reducing order (as
             :func:`shared.fv.flow_pattern` numbers them): with the default
@@ -326,7 +373,8 @@ class CholeskySolver:
         Returns
         -------
         ndarray, shape (n,)
-            x with ||b - A x|| <= residual_tolerance (||A|| ||x|| + ||b||).
+            x with ||b - A x|| <= residual_tolerance (||A|| ||x|| + ||b||), infinity
+            norms of the current A.
 
         Raises
         ------
@@ -341,18 +389,34 @@ class CholeskySolver:
             raise SolverError("matrix contains NaN or inf")
         self.stats.solves += 1
         fresh = force_refactor or self._factor is None or not self._same_pattern(lower)
-        self.last_drift = 0.0 if fresh else self._drift(lower)
-        if (
-            fresh
-            or self.last_drift > self.refactor_tolerance
-            or self._stale_iterations >= self.refactor_iterations
-        ):
+        remaining = self.refactor_iterations - self._stale_iterations
+        refactor = fresh or self._last_rent >= remaining or self._buy_at_once > 0
+        self._buy_at_once = max(self._buy_at_once - 1, 0)
+        if self.refactor_tolerance is not None and not fresh:
+            self.last_drift = self.drift(lower)
+            refactor = refactor or self.last_drift > self.refactor_tolerance
+        if refactor:
             self._factorize(lower, ordered)
-            fresh = True
-        solution, converged = self._corrected_solve(lower, rhs)
-        if not converged and not fresh:
+        norm = _infinity_norm(lower.indptr, lower.indices, lower.data)
+        # A stale factor may only rent the iterations left before buying a new one.
+        budget = self.max_iterations if refactor else min(self.max_iterations, remaining)
+        rented = self._stale_iterations
+        probe = not refactor and self._stale_solves == 0
+        self._stale_solves += 0 if refactor else 1
+        solution, converged = self._corrected_solve(lower, rhs, norm, budget)
+        self._last_rent = 0 if refactor else self._stale_iterations - rented
+        if probe:
+            # A first stale solve that exhausts its budget shows one step of drift to
+            # cost more than a factorisation: buy at once for the next solves, twice
+            # as many after each failed probe (exponential back-off).
+            self._buy_at_once = 0 if converged else self._backoff
+            self._backoff = 1 if converged else min(2 * self._backoff, _MAX_BACKOFF)
+        if not converged and not refactor:
+            # Buy: refactor and finish from the iterate reached with the old factor.
             self._factorize(lower, ordered)
-            solution, converged = self._corrected_solve(lower, rhs)
+            solution, converged = self._corrected_solve(
+                lower, rhs, norm, self.max_iterations, solution
+            )
         if not converged:
             raise SolverError(
                 f"residual {self.last_residual:.3e} above tolerance "
@@ -360,30 +424,37 @@ class CholeskySolver:
             )
         return solution
 
-    def _corrected_solve(self, lower: sp.csc_matrix, rhs: FloatArray) -> tuple[FloatArray, bool]:
-        """Preconditioned CG on the current matrix, started from the factor's solution.
+    def _corrected_solve(
+        self,
+        lower: sp.csc_matrix,
+        rhs: FloatArray,
+        norm: float,
+        iterations: int,
+        start: FloatArray | None = None,
+    ) -> tuple[FloatArray, bool]:
+        """Preconditioned CG on the current matrix, from the factor's solution or ``start``.
 
         Convergence is judged on the normwise backward error
-        ||r||_inf / (||A||_inf ||x||_inf + ||b||_inf), which a backward-stable direct
-        solve reaches at round-off level whatever the conditioning; ||A||_inf is that of
-        the last factored matrix (within the drift tolerance of the current one).
+        ||r||_inf / (||A||_inf ||x||_inf + ||b||_inf) with ``norm`` = ||A||_inf of the
+        current matrix, which a backward-stable direct solve reaches at round-off level
+        whatever the conditioning. At most ``iterations`` CG iterations.
         """
         norm_rhs = float(np.max(np.abs(rhs), initial=0.0))
         if norm_rhs == 0.0:
             self.last_residual = 0.0
             return np.zeros_like(rhs), True
         indptr, indices, data = lower.indptr, lower.indices, lower.data
-        solution = self._apply(rhs)
+        solution = self._apply(rhs) if start is None else start.copy()
         residual = rhs - _symmetric_product(indptr, indices, data, solution)
         direction = np.zeros_like(rhs)
         rho = 1.0
-        for iteration in range(self.max_iterations + 1):
+        for iteration in range(iterations + 1):
             self._check_finite(solution)
-            scale = self._matrix_norm * float(np.max(np.abs(solution))) + norm_rhs
+            scale = norm * float(np.max(np.abs(solution))) + norm_rhs
             self.last_residual = float(np.max(np.abs(residual))) / scale
             if self.last_residual <= self.residual_tolerance:
                 return solution, True
-            if iteration == self.max_iterations:
+            if iteration == iterations:
                 break
             rho, advanced = _cg_update(
                 indptr, indices, data, self._apply(residual), solution, residual, direction, rho

@@ -3,7 +3,12 @@
 import numpy as np
 import pytest
 
-from micro.forces import facet_vertex_weights, hydromechanical_forces, point_suction
+from micro.forces import (
+    facet_vertex_weights,
+    hydromechanical_forces,
+    point_suction,
+    sector_weights,
+)
 from shared.mesh import build_mesh
 
 EDGE = 1e-3
@@ -108,3 +113,26 @@ def test_kernel_matches_numpy_reference_for_random_fields(cube):
             np.add.at(expected, vertices[:, k],
                       (weights[:, k] * jumps * areas)[:, None] * normals)
     np.testing.assert_allclose(forces, expected, rtol=1e-9, atol=1e-12 * 1e6 * EDGE**2)
+
+
+def test_weights_computed_in_the_kernel_equal_precomputed_ones(cube):
+    """The on-the-fly sector weights equal sector_weights of the same moved points."""
+    mesh, radii = cube
+    rng = np.random.default_rng(11)
+    moved = mesh.points + rng.uniform(-0.02, 0.02, mesh.points.shape) * EDGE
+    swollen = radii * rng.uniform(1.0, 1.2, radii.shape)
+    pressure = rng.uniform(-1e7, -1e6, mesh.n_cells)
+    saturation = rng.uniform(0.3, 1.0, mesh.n_cells)
+    on_the_fly = hydromechanical_forces(mesh, moved, swollen, pressure, saturation)
+    precomputed = hydromechanical_forces(
+        mesh, moved, swollen, pressure, saturation,
+        weights=sector_weights(mesh, moved, swollen),
+    )
+    np.testing.assert_allclose(on_the_fly, precomputed, rtol=0,
+                               atol=1e-13 * np.abs(precomputed).max())
+    # Weights of the unmoved points are visibly different: the kernel uses the current ones.
+    stale = hydromechanical_forces(
+        mesh, moved, swollen, pressure, saturation,
+        weights=sector_weights(mesh, mesh.points, radii),
+    )
+    assert np.abs(stale - precomputed).max() > 1e-6 * np.abs(precomputed).max()

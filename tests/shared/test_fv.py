@@ -225,7 +225,7 @@ def test_fv_pattern_orders_unknowns_for_little_fill(rng: np.random.Generator) ->
     unordered = sp.tril(full[by_cell][:, by_cell], format="csc")
     unordered.sort_indices()
     ordered = _factor_entries(lower, "natural")
-    # The nested dissection order comes within half of METIS's fill (1.27 times) and
-    # far below that of the cell order (12 times METIS).
-    assert ordered < 1.5 * _factor_entries(lower, "metis")
+    # The nested dissection order comes within a quarter of METIS's fill (1.16 times;
+    # 1.27 with median cuts) and far below that of the cell order (12 times METIS).
+    assert ordered < 1.25 * _factor_entries(lower, "metis")
     assert ordered < 0.5 * _factor_entries(unordered, "natural")
