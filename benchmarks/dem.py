@@ -33,15 +33,23 @@ from shared.mesh import build_mesh
 __all__ = ["bench_dem"]
 
 
-def _timings_ms(name: str, function: Callable[[], object], repeats: int) -> dict:
+def _timings_ms(
+    name: str,
+    function: Callable[[], object],
+    repeats: int,
+    setup: Callable[[], object] | None = None,
+) -> dict:
     """Median and fastest of ``repeats`` calls after a warm-up call [ms].
 
     The fastest call estimates the cost on an idle machine; the median includes the
-    contention of a shared one.
+    contention of a shared one. ``setup``, if given, runs untimed before every call.
     """
+    prepare = setup if setup is not None else (lambda: None)
+    prepare()
     function()
     times = []
     for _ in range(repeats):
+        prepare()
         start = time.perf_counter()
         function()
         times.append(time.perf_counter() - start)

@@ -27,7 +27,6 @@ import dataclasses
 import json
 import os
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -77,27 +76,6 @@ def jittered_cube(
     grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
     rng = np.random.default_rng(seed)
     return grid + rng.uniform(-jitter, jitter, grid.shape) * spacing
-
-
-def _timings_after_setup_ms(
-    name: str, setup: Callable[[], object], function: Callable[[], object], repeats: int
-) -> dict:
-    """Median and fastest of ``repeats`` calls [ms], each after an untimed ``setup``.
-
-    One untimed call first (compilation), as :func:`benchmarks.dem._timings_ms`.
-    """
-    setup()
-    function()
-    times = []
-    for _ in range(repeats):
-        setup()
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return {
-        f"{name}_ms": 1e3 * float(np.median(times)),
-        f"{name}_min_ms": 1e3 * float(np.min(times)),
-    }
 
 
 def _unsaturated_state(
@@ -207,7 +185,7 @@ def bench_flow(
     }
     for name, function in phases.items():
         record.update(_timings_ms(name, function, repeats))
-    record.update(_timings_after_setup_ms("reuse_step", fresh_stale_factor, reuse_step, repeats))
+    record.update(_timings_ms("reuse_step", reuse_step, repeats, setup=fresh_stale_factor))
     fresh_stale_factor()
     before = dataclasses.replace(stale.stats)
     reuse_step()
