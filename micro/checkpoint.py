@@ -64,14 +64,16 @@ def load_checkpoint(
 ) -> tuple[PelletState, FlowSystem, list[dict[str, Any]], float] | None:
     """The saved state, flow system, records and reference volume, or None if absent or stale.
 
-    A file written under another configuration (different hash) is ignored. The crack
-    network, a function of the saved state, is rebuilt.
+    A file written under another configuration (different hash) or by a version of the
+    code that saved fewer arrays is ignored. The crack network, a function of the saved
+    state, is rebuilt.
     """
     if not path.is_file():
         return None
     with np.load(path) as data:
         meta = json.loads(str(data["meta"]))
-        if meta["digest"] != digest:
+        needed = [f"dem_{k}" for k in _DEM_ARRAYS] + [f"contacts_{k}" for k in _CONTACT_ARRAYS]
+        if meta["digest"] != digest or not set(needed) <= set(data.files):
             return None
         contacts = ContactList(skin=meta["skin"], **{k: data[f"contacts_{k}"] for k in _CONTACT_ARRAYS})
         dem = DEMState(contacts=contacts, time=meta["dem_time"],
