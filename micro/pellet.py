@@ -48,6 +48,9 @@ class SpecimenSpec:
         locked by default.
     seed
         Seed of the point layout.
+    offset
+        Shift (x, y, z) of the cube's centre from the centre of the scanned specimen
+        [m], to cut sub-regions for a scale study (thesis Sec. 3.5.9).
     """
 
     edge_length: float = 7e-3
@@ -57,14 +60,20 @@ class SpecimenSpec:
     confinement: float = 0.0
     rotations: bool = False
     seed: int = 0
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
-def centred_grid(porosity: xr.DataArray, edge_length: float) -> xr.DataArray:
+def centred_grid(
+    porosity: xr.DataArray,
+    edge_length: float,
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> xr.DataArray:
     """The part of a porosity grid around a cube [0, edge_length]^3 at its specimen's centre.
 
-    The centre is the mean position of the grid's finite (specimen) values; the grid is
-    shifted there and cropped to the cube plus one grid spacing on each side, the
-    nodes that trilinear interpolation inside the cube needs.
+    The centre is the mean position of the grid's finite (specimen) values, moved by
+    ``offset`` (x, y, z) [m]; the grid is shifted there and cropped to the cube plus
+    one grid spacing on each side, the nodes that trilinear interpolation inside the
+    cube needs.
 
     Raises
     ------
@@ -79,7 +88,7 @@ def centred_grid(porosity: xr.DataArray, edge_length: float) -> xr.DataArray:
     for axis_index, axis in enumerate(porosity.dims):
         coordinate = porosity[axis].values
         counts = finite.sum(axis=tuple(i for i in range(3) if i != axis_index))
-        centre = float((coordinate * counts).sum() / counts.sum())
+        centre = float((coordinate * counts).sum() / counts.sum()) + offset["xyz".index(axis)]
         shifted[axis] = coordinate - (centre - 0.5 * edge_length)
     moved = porosity.assign_coords(shifted)
     crop = {}
@@ -129,7 +138,7 @@ def initial_state(
         dem.inertia[:] = np.inf
     mesh = mesh_from_tetrahedra(dem.positions, *triangulate(dem.positions))
     if porosity_grid is not None:
-        field = porosity_at_centroids(mesh, centred_grid(porosity_grid, spec.edge_length))
+        field = porosity_at_centroids(mesh, centred_grid(porosity_grid, spec.edge_length, spec.offset))
     else:
         field = np.full(mesh.n_cells, material.reference_porosity)
     if homogeneous_porosity is not None:

@@ -74,8 +74,10 @@ def case_settings(config: Mapping[str, Any], case: str) -> tuple[SpecimenSpec, H
     entry = micro["cases"][case]
     numerics = micro["numerics"]
     spec = SpecimenSpec(
-        edge_length=micro["specimen_size_m"], n_points=micro["n_points"], layout=micro["layout"],
+        edge_length=entry.get("specimen_size_m", micro["specimen_size_m"]),
+        n_points=entry.get("n_points", micro["n_points"]), layout=micro["layout"],
         jitter=micro["jitter"], confinement=entry["confinement_pa"], seed=micro["seed"],
+        offset=tuple(entry["offset_m"]),
     )
     settings = HydrationSettings(
         initial_time_step=numerics["initial_time_step_s"],

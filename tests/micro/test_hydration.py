@@ -105,6 +105,29 @@ def test_grid_not_covering_the_specimen_is_refused():
         centred_grid(_grid(np.full((4, 4, 4), 0.25), 5e-4), 4e-3)
 
 
+def test_offset_cube_reads_the_shifted_part_of_the_grid():
+    """Porosity rising 0.02 per mm along x: a cube moved by +1 mm averages 0.02 more."""
+    x = np.arange(16) * 1e-3
+    grid = _grid(np.broadcast_to(0.1 + 20.0 * x, (16, 16, 16)).copy(), 1e-3)
+    centred = centred_grid(grid, 4e-3)
+    shifted = centred_grid(grid, 4e-3, (1e-3, -2e-3, 0.5e-3))
+    inside = {axis: slice(0.0, 4e-3) for axis in "zyx"}
+    difference = shifted.sel(inside).mean() - centred.sel(inside).mean()
+    assert float(difference) == pytest.approx(0.02, rel=1e-9)
+
+
+def test_case_overrides_points_size_and_offset(micro_config):
+    config, _ = micro_config
+    study = copy.deepcopy(config)
+    study["micro"]["cases"]["sub"] = {"porosity": "ct", "n_points": 64,
+                                      "specimen_size_m": 2e-3, "offset_m": [5e-4, 0.0, 0.0]}
+    study = validate_config(study)
+    spec, _, _ = micro_run.case_settings(study, "sub")
+    assert (spec.n_points, spec.edge_length, spec.offset) == (64, 2e-3, (5e-4, 0.0, 0.0))
+    default, _, _ = micro_run.case_settings(study, "c")
+    assert (default.n_points, default.edge_length, default.offset) == (125, 4e-3, (0.0, 0.0, 0.0))
+
+
 @pytest.fixture()
 def micro_config(tmp_path):
     config = validate_config({

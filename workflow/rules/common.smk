@@ -65,6 +65,12 @@ def get_micro_porosity(wildcards):
     return f"results/porosity/{config['micro']['sample']}.nc"
 
 
+def get_micro_case_config(wildcards):
+    """The micro settings and this case's entry (a param: editing one case reruns it alone)."""
+    shared = {key: value for key, value in config["micro"].items() if key != "cases"}
+    return {**shared, "case": config["micro"]["cases"][wildcards.case]}
+
+
 def get_final_outputs():
     """Every product of the default run."""
     imaging = expand(

@@ -9,7 +9,7 @@ rule micro_case:
         figure="results/micro/{case}.png",
     params:
         code=MICRO_CODE,
-        micro=config["micro"],
+        micro=get_micro_case_config,
     conda:
         "../envs/claychain.yaml"
     log:
