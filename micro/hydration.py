@@ -390,9 +390,13 @@ def update_cracks(state: PelletState, material: ClayParameters) -> None:
 def membrane_forces(positions: FloatArray, stress: float, layer: float) -> FloatArray:
     """Inward forces of a uniform normal stress on the six faces of the point cloud [N].
 
-    Each face's load, ``stress`` times its area (from the points' bounding box), is
-    shared equally by the points within ``layer`` of that face, as a flexible membrane
-    would; points on an edge or corner take a share from each of their faces.
+    Each face's load, ``stress`` times its area, is shared equally by the points within
+    ``layer`` of that face's plane (or beyond it), as a flexible membrane would; points
+    on an edge or corner take a share from each of their faces. A face's plane is the
+    mean position of the N^(2/3) outermost points along its axis, not the outermost
+    one: a single point that a relaxation has pushed out would otherwise be the only
+    one in the layer and take the whole face load (measured: 2.1 kN on one point of a
+    3 375-point specimen at 90 MPa, which then flew off).
 
     Parameters
     ----------
@@ -404,7 +408,10 @@ def membrane_forces(positions: FloatArray, stress: float, layer: float) -> Float
         Thickness of the loaded outer layer [m].
     """
     forces = np.zeros_like(positions)
-    lower, upper = positions.min(axis=0), positions.max(axis=0)
+    n = positions.shape[0]
+    face = min(max(round(n ** (2.0 / 3.0)), 1), n)
+    lower = np.partition(positions, face - 1, axis=0)[:face].mean(axis=0)
+    upper = -np.partition(-positions, face - 1, axis=0)[:face].mean(axis=0)
     size = upper - lower
     for axis in range(3):
         area = float(np.prod(np.delete(size, axis)))

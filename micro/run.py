@@ -26,6 +26,7 @@ from shared.config import ConfigError
 from shared.dem.parameters import DEFAULT_DEM
 from shared.io import read_dataset, write_dataset
 from shared.materials import DEFAULT_CLAY
+from shared.mesh import mesh_from_tetrahedra
 from shared.progress import Progress
 from shared.provenance import config_sha256
 
@@ -186,6 +187,10 @@ def run(
                 f"case {case}, checkpoint {index} ({suction:.4g} Pa): {err}; "
                 f"the last good checkpoint is kept in {state_file}"
             ) from err
+        # the geometry as a resumed run rebuilds it from the file, so that an
+        # interrupted run continues bit for bit (update_mesh rounds differently)
+        state.mesh = mesh_from_tetrahedra(state.dem.positions, state.mesh.tetrahedra,
+                                          state.mesh.neighbours, reorient=False)
         record = measure_checkpoint(state, suction, reference_volume, DEFAULT_CLAY, settings.cracks)
         record.update(diagnostics)
         records.append(record)

@@ -34,13 +34,18 @@ def _grid(values: np.ndarray, spacing: float = 5e-4) -> xr.DataArray:
 
 
 def test_membrane_load_is_stress_times_face_area(rng):
-    points = rng.random((400, 3)) * [2e-3, 3e-3, 4e-3]
-    forces = membrane_forces(points, 5e6, layer=2e-4)
-    size = points.max(axis=0) - points.min(axis=0)
-    np.testing.assert_allclose(forces.sum(axis=0), 0.0, atol=1e-9)
-    low_x = points[:, 0] - points[:, 0].min() <= 2e-4
-    # the x component on the low-x layer is the face load, plus nothing from other faces
-    assert forces[low_x, 0].sum() == pytest.approx(5e6 * size[1] * size[2], rel=1e-12)
+    """A jittered 10^3 lattice (spacing 1 mm) plus one point pushed 3 mm out of the x- face:
+    each face carries stress times the lattice's face area, the stray point one share."""
+    axis = np.arange(10) * 1e-3
+    lattice = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
+    points = np.vstack([lattice + rng.uniform(-2e-5, 2e-5, lattice.shape), [[-3e-3, 4e-3, 4e-3]]])
+    forces = membrane_forces(points, 5e6, layer=5e-4)
+    np.testing.assert_allclose(forces.sum(axis=0), 0.0, atol=1e-6)
+    low_x = points[:, 0] < 5e-4
+    assert low_x.sum() == 101
+    # the face between the outer layers' mean planes, 9 mm wide (the jitter moves them ~1e-6 m)
+    assert forces[low_x, 0].sum() == pytest.approx(5e6 * 9e-3**2, rel=1e-3)
+    assert forces[-1, 0] == pytest.approx(forces[low_x, 0].sum() / 101, rel=1e-12)
 
 
 def test_flat_tetrahedra_are_dropped(rng):
@@ -178,16 +183,11 @@ def test_killed_run_resumes_to_the_same_result(micro_config, tmp_path, monkeypat
     monkeypatch.setattr(micro_run, "advance_to_balance", original)
     resumed = micro_run.run(config, "c", grid, tmp_path / "b.nc", tmp_path / "b.png")
     assert not (tmp_path / "b.checkpoint.npz").exists()
-    # the checkpoints before the crash come back bit for bit from the file; the ones
-    # after it are recomputed from an identical state, up to round-off that the DEM
-    # relaxation amplifies (the solver's factor history is not part of the file)
-    for name in ("flow_steps", "dem_steps", "n_remesh", "time"):
+    # the checkpoints before the crash come back from the file, the ones after it are
+    # recomputed from the saved state: bit for bit either way
+    for name in ("flow_steps", "dem_steps", "n_remesh", "time", "saturation", "eps_v",
+                 "porosity_mean", "permeability", "porosity_hist", "crack_count"):
         np.testing.assert_array_equal(resumed[name].values, reference[name].values)
-    for name in ("saturation", "eps_v", "porosity_mean", "permeability", "porosity_hist"):
-        np.testing.assert_array_equal(resumed[name].values[:2], reference[name].values[:2])
-    for name in ("saturation", "eps_v", "porosity_mean", "permeability"):
-        np.testing.assert_allclose(resumed[name].values, reference[name].values, rtol=0.02,
-                                   atol=1e-3 * float(np.abs(reference[name].values).max()))
 
 
 def test_cracks_open_in_a_heterogeneous_specimen_only():
