@@ -6,7 +6,10 @@ compares what the packing file holds with the paper: Table IV for the fractions,
 porosity ranges of Sec. III for the Table II series. Writes, in ``results/benchmarks/``:
 
 - ``deposition_validation.json``: one row per run (preset and scale), ours and paper's;
-- ``deposition_validation.md``: the table, ours vs paper, relative difference, pass/fail;
+- ``deposition_validation.md``: the table, ours vs paper, relative difference, pass/fail,
+  then the surface areas of each fraction's particle law under several truncations of its
+  basal surface law (:func:`truncation_table`; the areas are mass-weighted, so the tail
+  that the box cannot hold matters);
 - ``deposition_validation.png``: a Fig. 6a analogue, porosity vs S_part of every run;
 - ``deposition_validation/<preset>_s<scale>.nc`` and ``.png``: the packing files of
   :func:`~imaging.deposition.run.run`.
@@ -21,10 +24,11 @@ particle diameters, stays that of the preset, while the bed is narrower. The vox
 resolution is multiplied by ``sqrt(scale)`` too, to keep the voxel edge l_v (f_o and the
 chord lengths depend on it). The narrower box cannot hold the largest particles of the
 polydisperse size laws, so scaled runs of the fractions truncate the basal surface law at
-a diameter w / 2 (``basal_surface_max_m2 = pi (w / 4)^2``), the rule the 1-2 um preset
-already follows at full scale; it cuts 0.4-0.7 % of the particles of the other two
-fractions at scale 0.2. A narrower box gives noisier values and a box-limited REV edge:
-scaled rows are a check that the chain runs, the full-scale rows are the validation.
+a diameter w / 2 (``basal_surface_max_m2 = pi (w / 4)^2``) unless the preset cuts lower
+(the 1-2 um preset cuts at w / 4 of the full box); it cuts 0.4-0.7 % of the particles of
+the other two fractions at scale 0.2. A narrower box gives noisier values and a
+box-limited REV edge: scaled rows are a check that the chain runs, the full-scale rows are
+the validation.
 """
 
 from __future__ import annotations
@@ -44,6 +48,9 @@ import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
+from imaging.deposition.analysis import surface_areas  # noqa: E402
+from imaging.deposition.config import population_of, resolve  # noqa: E402
+from imaging.deposition.population import sample_semi_axes, volumes  # noqa: E402
 from imaging.deposition.run import run  # noqa: E402
 
 PRESET_DIR = Path("config/paper")
@@ -69,8 +76,12 @@ QUANTITIES = (
     ("A_T", "A_T", "m2/g", "A_T", 1.0),
     ("A_Bcont", "A_Bcont", "m2/g", "A_Bcont", 1.0),
     ("f_o", "f_o", "1", "overlap_fraction", 1.0),
-    ("w_eps", "w_eps", "um", "w_rev_porosity", 1.0e6),
-    ("w_sp", "w_s-p", "um", "w_rev_interface", 1.0e6),
+    ("z_min", "z_min", "um", "z_min", 1.0e6),
+    ("z_max", "z_max", "um", "z_max", 1.0e6),
+    ("w_eps", "w_eps (centred)", "um", "w_rev_porosity_centred", 1.0e6),
+    ("w_sp", "w_s-p (centred)", "um", "w_rev_interface_centred", 1.0e6),
+    ("w_eps_random", "w_eps (random windows)", "um", "w_rev_porosity", 1.0e6),
+    ("w_sp_random", "w_s-p (random windows)", "um", "w_rev_interface", 1.0e6),
     ("R_p", "R_p", "1", "R_p", 1.0),
     ("R_s", "R_s", "1", "R_s", 1.0),
 )
@@ -79,13 +90,16 @@ QUANTITIES = (
 TABLE_IV: dict[str, dict[str, float]] = {
     "fraction_0p1-0p2um": dict(
         porosity=0.63, S_part=0.63, S_vol=0.60, eta=0.007, beta=0.12, A_L=18.3, A_B=76.2,
-        A_T=94.5, A_Bcont=5.3, f_o=6.9e-5, w_eps=0.39, w_sp=0.66, R_p=0.494, R_s=0.481),
+        A_T=94.5, A_Bcont=5.3, f_o=6.9e-5, z_min=0.15, z_max=1.35, w_eps=0.39, w_sp=0.66,
+        R_p=0.494, R_s=0.481),
     "fraction_1-2um": dict(
         porosity=0.64, S_part=0.36, S_vol=0.34, eta=0.008, beta=0.32, A_L=2.6, A_B=10.3,
-        A_T=12.9, A_Bcont=0.66, f_o=2.3e-5, w_eps=4.2, w_sp=4.8, R_p=0.689, R_s=0.691),
+        A_T=12.9, A_Bcont=0.66, f_o=2.3e-5, z_min=1.0, z_max=7.0, w_eps=4.2, w_sp=4.8,
+        R_p=0.689, R_s=0.691),
     "fraction_10-20um": dict(
         porosity=0.70, S_part=0.10, S_vol=0.11, eta=0.011, beta=1.19, A_L=0.07, A_B=0.32,
-        A_T=0.39, A_Bcont=0.014, f_o=2.0e-6, w_eps=87.0, w_sp=112.0, R_p=0.880, R_s=0.916),
+        A_T=0.39, A_Bcont=0.014, f_o=2.0e-6, z_min=7.0, z_max=207.0, w_eps=87.0, w_sp=112.0,
+        R_p=0.880, R_s=0.916),
 }
 
 #: What the paper's text gives for the Table II series (disks, R = 0.1); it prints no
@@ -134,7 +148,8 @@ def preset_section(name: str, scale: float = 1.0) -> dict[str, Any]:
     scale : float
         Fraction of the particles in (0, 1]; the box width scales by ``sqrt(scale)``
         (constant particles per floor area) as does the voxel resolution (constant voxel
-        edge); polydisperse size laws are truncated at a diameter w / 2.
+        edge); polydisperse size laws are truncated at a diameter w / 2 (or the preset's
+        lower cut), and the linear zone is detected rather than taken from the preset.
 
     Returns
     -------
@@ -146,14 +161,20 @@ def preset_section(name: str, scale: float = 1.0) -> dict[str, Any]:
     if scale == 1.0:
         return section
     root = math.sqrt(scale)
+    # A narrower box with a more truncated size law fills a bed of another height: the
+    # preset's linear zone no longer applies, detect it.
+    section.pop("z_min_m", None)
+    section.pop("z_max_m", None)
     section["n_particles"] = max(1, round(section["n_particles"] * scale))
     section["box_width_m"] = section["box_width_m"] * root
     if "voxel_resolution" in section:
         section["voxel_resolution"] = max(16, round(section["voxel_resolution"] * root))
     if section.get("basal_surface_sigma", 0.0) > 0.0:
         # The narrower box no longer holds the tail of the size law; truncate it at a
-        # diameter w / 2, the rule the 1-2 um preset already follows at full scale.
-        section["basal_surface_max_m2"] = math.pi * (section["box_width_m"] / 4.0) ** 2
+        # diameter w / 2 unless the preset already cuts lower.
+        bound = math.pi * (section["box_width_m"] / 4.0) ** 2
+        preset = section.get("basal_surface_max_m2")
+        section["basal_surface_max_m2"] = bound if preset is None else min(bound, preset)
     return section
 
 
@@ -225,6 +246,131 @@ def validate_preset(name: str, scale: float, directory: Path) -> dict[str, Any]:
         "deposition_s": deposition,
         "particles_per_second": n_particles / deposition,
     }
+
+
+#: Truncations of a fraction's basal surface law compared by :func:`truncation_table`:
+#: (label, largest equivalent diameter as a fraction of w or None, basal surface sigma or
+#: None for the preset's). The 1-2 um preset uses w / 4; sigma 1.35 is twice Table I's
+#: diameter sigma (0.675), the value consistent with it since S ~ d^2.
+TRUNCATIONS = (
+    ("none", None, None),
+    ("d <= w", 1.0, None),
+    ("d <= w / 2", 0.5, None),
+    ("d <= w / 3", 1.0 / 3.0, None),
+    ("d <= w / 4", 0.25, None),
+    ("sigma_S = 1.35, none", None, 1.35),
+    ("sigma_S = 1.35, d <= w / 2", 0.5, 1.35),
+)
+
+
+def expected_areas(section: Mapping[str, Any]) -> tuple[float, float]:
+    """A_B and A_L [m2/g] of an untruncated population in the limit of many particles.
+
+    With independent log-normal laws of S (median m, sigma s), R (median r, sigma s_R) and
+    e = l_a / l_b, the equivalent diameter d = 2 sqrt(S / pi) is log-normal of median
+    d_m = 2 sqrt(m / pi) and sigma s / 2, and h = R d. Eqs. 8-9 tend to
+    A_B = 2 E[d^2] / (rho E[R] E[d^3]) = 2 exp(-5 s^2 / 8) / (rho r exp(s_R^2 / 2) d_m) and
+    A_L = 4 E[g] E[d^2] / (rho E[d^3]) = 4 E[g] exp(-5 s^2 / 8) / (rho d_m), with
+    g = sqrt((e + 1 / e) / 2) from the perimeter pi sqrt(2 (l_a^2 + l_b^2)) = pi d g; E[g]
+    is taken by quadrature over the axis-ratio law truncated below 1.
+    """
+    sigma = float(section.get("basal_surface_sigma", 0.0))
+    d_m = 2.0 * math.sqrt(section["basal_surface_median_m2"] / math.pi)
+    rho_g = 1000.0 * section.get("density_kg_m3", 2180.0)
+    r_mean = section["aspect_ratio_median"] * math.exp(section.get("aspect_ratio_sigma", 0.0) ** 2
+                                                        / 2.0)
+    e_median = section.get("axis_ratio_median", 1.0)
+    e_sigma = section.get("axis_ratio_sigma", 0.0)
+    if e_sigma > 0.0:
+        # ln e = ln(median) + e_sigma x, x standard normal restricted to e >= 1
+        x = np.linspace(-math.log(e_median) / e_sigma, 10.0, 20001)
+        e = e_median * np.exp(e_sigma * x)
+        weight = np.exp(-0.5 * x**2)
+        g_mean = float(np.trapezoid(np.sqrt((e + 1.0 / e) / 2.0) * weight, x)
+                       / np.trapezoid(weight, x))
+    else:
+        g_mean = math.sqrt((e_median + 1.0 / e_median) / 2.0)
+    spread = math.exp(-5.0 * sigma**2 / 8.0)
+    return 2.0 * spread / (rho_g * r_mean * d_m), 4.0 * g_mean * spread / (rho_g * d_m)
+
+
+def truncation_table(name: str, seeds: int = 5) -> list[dict[str, Any]]:
+    """Surface areas of a fraction's particle law under several truncations (no packing:
+    Eqs. 8-10 over the sampled particles, which the linear zone subsamples at random).
+
+    Parameters
+    ----------
+    name : str
+        A fraction preset.
+    seeds : int
+        Independent samples of the preset's particle count per truncation.
+
+    Returns
+    -------
+    list of dict
+        ``truncation``, ``basal_surface_sigma``, ``largest_d_um`` (None when untruncated),
+        ``cut_share`` (share of the law above the bound), ``height_um`` (height of the bed
+        these particles fill at Table IV's porosity [um]), mean and standard deviation over
+        the seeds of ``A_B``, ``A_L``, ``A_T`` [m2/g], and the closed form of
+        :func:`expected_areas` for the untruncated rows.
+    """
+    base = preset_section(name)
+    width = base["box_width_m"]
+    rows = []
+    for label, fraction, sigma in TRUNCATIONS:
+        section = {**base, "basal_surface_max_m2": None}
+        if sigma is not None:
+            section["basal_surface_sigma"] = sigma
+        largest = None if fraction is None else fraction * width
+        if largest is not None:
+            section["basal_surface_max_m2"] = math.pi * largest**2 / 4.0
+        population = population_of(resolve(section))
+        samples = [sample_semi_axes(population, section["n_particles"],
+                                    np.random.default_rng([seed, 7])) for seed in range(seeds)]
+        areas = np.array([surface_areas(semi_axes) for semi_axes in samples])
+        # bed height these particles fill at the paper's porosity: compare with z_max
+        height = np.mean([volumes(semi_axes).sum() for semi_axes in samples]) / (
+            width**2 * (1.0 - TABLE_IV[name]["porosity"]))
+        s = section["basal_surface_sigma"]
+        cut = 0.0 if largest is None else 0.5 * math.erfc(
+            math.log(math.pi * largest**2 / 4.0 / section["basal_surface_median_m2"])
+            / (s * math.sqrt(2.0)))
+        row = {"truncation": label, "basal_surface_sigma": s,
+               "largest_d_um": None if largest is None else largest * 1e6, "cut_share": cut,
+               "height_um": float(height) * 1e6}
+        for k, key in enumerate(("A_B", "A_L", "A_T")):
+            row[key] = float(areas[:, k].mean())
+            row[f"{key}_std"] = float(areas[:, k].std())
+        if largest is None:
+            a_b, a_l = expected_areas(section)
+            row.update(A_B_expected=a_b, A_L_expected=a_l, A_T_expected=a_b + a_l)
+        rows.append(row)
+    return rows
+
+
+def truncation_markdown(name: str, rows: Iterable[Mapping[str, Any]]) -> str:
+    """Markdown of :func:`truncation_table` with the paper's Table IV areas."""
+    paper = TABLE_IV[name]
+    lines = [f"## Surface areas of {name} vs truncation of the basal surface law", "",
+             "Eqs. 8-10 over sampled particle sets of the preset's size (mean +- std over "
+             "seeds); 'expected' is the closed form for the untruncated law "
+             "(`expected_areas`). The box holds no particle wider than w. Bed height: what "
+             "the particles fill at Table IV's porosity, against its z_max = "
+             f"{paper['z_max']:g} um.",
+             "", "| truncation | sigma_S | largest d [um] | share cut | bed height [um] | A_B | "
+             "A_L | A_T | A_T expected |", "|---|---|---|---|---|---|---|---|---|"]
+    for row in rows:
+        largest = "-" if row["largest_d_um"] is None else f"{row['largest_d_um']:.3g}"
+        expected = _cell(row.get("A_T_expected"))
+        lines.append(
+            f"| {row['truncation']} | {row['basal_surface_sigma']:.3g} | {largest} | "
+            f"{row['cut_share']:.2%} | {row['height_um']:.3g} | "
+            + " | ".join(f"{row[k]:.3g} +- {row[k + '_std']:.2g}" for k in ("A_B", "A_L", "A_T"))
+            + f" | {expected} |")
+    lines.append(f"| paper, Table IV | | | | | {paper['A_B']} | {paper['A_L']} | "
+                 f"{paper['A_T']} | |")
+    lines.append("")
+    return "\n".join(lines)
 
 
 def _cell(value: float | None) -> str:
@@ -345,7 +491,8 @@ def bench_deposition_validation(scale: float = 1.0, presets: Iterable[str] = PRE
     -------
     dict
         ``rows`` (every run in the JSON file, this call's and earlier ones, in table
-        order), ``passed`` (all runs of this call pass), ``total_s`` (this call) [s].
+        order), ``passed`` (all runs of this call pass), ``total_s`` (this call) [s],
+        ``truncations`` (:func:`truncation_table` of each fraction).
     """
     scale = _as_fraction(scale)
     presets = tuple(presets)
@@ -357,6 +504,9 @@ def bench_deposition_validation(scale: float = 1.0, presets: Iterable[str] = PRE
     directory.mkdir(exist_ok=True)
     json_path = OUT / f"{STEM}.json"
     start = time.perf_counter()
+    # Particle laws only (no packing): a few seconds, redone so that the table follows them.
+    truncations = {name: truncation_table(name) for name in TABLE_IV}
+    appendix = "\n".join(truncation_markdown(name, rows) for name, rows in truncations.items())
     fresh = []
     for name in presets:
         fresh.append(validate_preset(name, scale, directory))
@@ -367,8 +517,8 @@ def bench_deposition_validation(scale: float = 1.0, presets: Iterable[str] = PRE
         table = {(row["preset"], row["scale"]): row for row in previous + fresh}
         rows = sorted(table.values(), key=lambda r: (PRESETS.index(r["preset"]), r["scale"]))
         result = {"rows": rows, "passed": all(r["passed"] for r in fresh),
-                  "total_s": time.perf_counter() - start}
+                  "total_s": time.perf_counter() - start, "truncations": truncations}
         json_path.write_text(json.dumps(result, indent=2))
-        (OUT / f"{STEM}.md").write_text(markdown_table(rows))
+        (OUT / f"{STEM}.md").write_text(markdown_table(rows) + "\n" + appendix)
         porosity_order_figure(rows, OUT / f"{STEM}.png")
     return result

@@ -222,7 +222,8 @@ def gjk(ca, ra, xa, cb, rb, xb, tol_abs, tol_rel):
 
 @njit(cache=True)
 def drop_to_contact(ca, ra, xa, cb, rb, xb, max_drop, tol_gap):
-    """Vertical fall of A, in the field of the fixed B, until the gap is below tol_gap.
+    """Vertical fall of A, in the field of the fixed B, until the vertical gap is below
+    tol_gap.
 
     Returns
     -------
@@ -241,10 +242,13 @@ def drop_to_contact(ca, ra, xa, cb, rb, xb, max_drop, tol_gap):
             # touching after an exact flat-on-flat advance: keep the previous witness
             return (-1.0 if t == 0.0 else t), qx, qy, qz
         qx, qy, qz = px, py, pz
-        if lower <= tol_gap:
-            return t, qx, qy, qz
         if nz <= 1e-9:
+            # B is beside or above A across the separating plane: falling never closes it
             return INFINITE_DROP, qx, qy, qz
+        if lower <= tol_gap * nz:
+            # the vertical gap (about lower / nz near contact) is below tol_gap; a small
+            # Euclidean gap alone is a particle passing a neighbour's flank, not a contact
+            return t, qx, qy, qz
         t += lower / nz
         if t > max_drop:
             return INFINITE_DROP, qx, qy, qz

@@ -118,25 +118,28 @@ def rotation_about(axis, angle, out):
 
 
 @njit(cache=True)
-def pivot_point(center, contacts, n_contacts, choice, separation, out):
+def pivot_point(center, contacts, n_contacts, choice, separation, out, line):
     """Point about which a settled particle moves (Sec. II.A).
 
     One contact: the contact itself. Two or more: the foot of the altitude from the
     barycentre to the line through two contacts (the pair is picked by ``choice`` in
     [0, 1) when there are more than two); two contacts closer than ``separation`` [m]
-    count as one.
+    count as one. ``line`` receives the unit direction of that contact line, or zeros
+    when the pivot is a single contact.
     """
     i = min(int(choice * n_contacts), n_contacts - 1)
     out[:] = contacts[i]
+    line[:] = 0.0
     if n_contacts < 2:
         return
     j = (i + 1) % n_contacts
-    line = contacts[j] - contacts[i]
-    length2 = np.dot(line, line)
+    seg = contacts[j] - contacts[i]
+    length2 = np.dot(seg, seg)
     if length2 <= separation * separation:
         return
-    t = np.dot(center - contacts[i], line) / length2
-    out[:] = contacts[i] + t * line
+    t = np.dot(center - contacts[i], seg) / length2
+    out[:] = contacts[i] + t * seg
+    line[:] = seg / np.sqrt(length2)
 
 
 @njit(cache=True)
@@ -148,16 +151,19 @@ def _horizontal_unit(vx, vy, fallback_angle):
 
 
 @njit(cache=True)
-def trial_move(kind, amplitude, u_dir, steepest_slide, steepest_swivel, center, rot, pivot,
-               new_center, new_rot, work):
+def trial_move(kind, amplitude, u_dir, steepest_slide, steepest_swivel, contact_line, center,
+               rot, pivot, line, new_center, new_rot, work):
     """Apply one random move; the barycentre is then put back at its former altitude.
 
     Slide: horizontal translation by ``amplitude`` [m]. Swivel: rotation by
-    ``amplitude`` [rad] about a horizontal axis through the pivot. With
-    ``steepest_slide`` the slide goes away from the pivot, with ``steepest_swivel`` the
-    swivel axis is the one along which the barycentre descends fastest (steepest
-    descent); otherwise the direction or axis is drawn from ``u_dir``. Rotate: in-plane rotation by +-``amplitude`` [rad] about the
-    particle normal (sign from ``u_dir``).
+    ``amplitude`` [rad] about an axis through the pivot. With ``steepest_slide`` the
+    slide goes away from the pivot, with ``steepest_swivel`` the swivel axis is the
+    horizontal one along which the barycentre descends fastest (steepest descent);
+    otherwise the direction or axis is drawn from ``u_dir``. With ``contact_line`` and a
+    pivot on the line through two contacts (``line`` non-zero), the swivel turns about
+    that line instead, in the sense that lowers the barycentre: the one rotation that
+    keeps both contacts. Rotate: in-plane rotation by +-``amplitude`` [rad] about the particle
+    normal (sign from ``u_dir``).
     """
     new_center[:] = center
     new_rot[:, :] = rot
@@ -170,10 +176,15 @@ def trial_move(kind, amplitude, u_dir, steepest_slide, steepest_swivel, center, 
         new_center[1] += amplitude * uy
         return
     axis = np.empty(3)
+    angle = amplitude
     if kind == SWIVEL:
         ux, uy = _horizontal_unit(-ry, rx, 2.0 * np.pi * u_dir)
         axis[0], axis[1], axis[2] = ux, uy, 0.0
-        angle = amplitude
+        if contact_line and line[0] * line[0] + line[1] * line[1] > 0.0:
+            # the barycentre moves along line x (center - pivot); its z rate must be < 0
+            rate = line[0] * (center[1] - pivot[1]) - line[1] * (center[0] - pivot[0])
+            if rate != 0.0:
+                axis[:] = line if rate < 0.0 else -line
     else:
         axis[:] = rot[:, 2]
         angle = amplitude if u_dir < 0.5 else -amplitude
@@ -195,12 +206,14 @@ def settle(center, rot, axes, uniforms, amplitudes, reduction, n_cycles, n_kinds
     ``uniforms`` (n_cycles * attempts, 4) in [0, 1) choose the kind of move, its
     amplitude, its direction and the contact pair; ``amplitudes`` = (slide [m],
     swivel [rad], rotate [rad]) are multiplied by ``reduction`` after each cycle;
-    ``steepest`` = (slide, swivel) flags of the direction rule of :func:`trial_move`.
+    ``steepest`` = (slide, swivel, contact line) flags of the direction rules of
+    :func:`trial_move`.
     Returns the number of accepted moves.
     """
     contacts = np.empty((MAX_CONTACTS, 3))
     trial_contacts = np.empty((MAX_CONTACTS, 3))
     pivot = np.empty(3)
+    line = np.empty(3)
     new_center = np.empty(3)
     new_rot = np.empty((3, 3))
     work = np.empty((3, 3))
@@ -215,9 +228,11 @@ def settle(center, rot, axes, uniforms, amplitudes, reduction, n_cycles, n_kinds
         if attempt > 0 and attempt % per_cycle == 0:
             amp *= reduction
         kind = min(int(uniforms[attempt, 0] * n_kinds), n_kinds - 1)
-        pivot_point(center, contacts, n_contacts, uniforms[attempt, 3], geometry[1], pivot)
+        pivot_point(center, contacts, n_contacts, uniforms[attempt, 3], geometry[1], pivot,
+                    line)
         trial_move(kind, uniforms[attempt, 1] * amp[kind], uniforms[attempt, 2], steepest[0],
-                   steepest[1], center, rot, pivot, new_center, new_rot, work)
+                   steepest[1], steepest[2], center, rot, pivot, line, new_center, new_rot,
+                   work)
         new_center[0] %= geometry[0]
         new_center[1] %= geometry[0]
         drop, n_trial = fall(new_center, new_rot, axes, centers, rots, all_axes, exts, fine,

@@ -25,6 +25,9 @@ attempts_per_cycle          800            attempts per cycle
 amplitude_reduction         0.5            amplitude factor between cycles
 slide_direction             "steepest"     "steepest": away from the contact; "random"
 swivel_axis                 "steepest"     "steepest": fastest descent; "random" (horiz.)
+two_contact_swivel          "line"         two contacts: swivel about the line through them
+                                           ("line") or about the steepest horizontal axis
+                                           through the foot of the altitude ("point")
 seed                        0              seed of the numpy Generator
 voxel_resolution            256            voxels across w (image of the linear zone)
 profile_bin_width_m         null           slice thickness dz [m]; null: d / 2
@@ -74,6 +77,7 @@ DEFAULTS: dict[str, Any] = {
     "amplitude_reduction": 0.5,
     "slide_direction": "steepest",
     "swivel_axis": "steepest",
+    "two_contact_swivel": "line",
     "seed": 0,
     "voxel_resolution": 256,
     "profile_bin_width_m": None,
@@ -163,6 +167,9 @@ def resolve(section: Mapping[str, Any] | None) -> dict[str, Any]:
     for key in ("slide_direction", "swivel_axis"):
         if out[key] not in ("steepest", "random"):
             raise ValueError(f"{key}: must be 'steepest' or 'random', got {out[key]!r}")
+    if out["two_contact_swivel"] not in ("line", "point"):
+        raise ValueError("two_contact_swivel: must be 'line' or 'point', "
+                         f"got {out['two_contact_swivel']!r}")
     population = population_of(out)
     semi_major = population.median_semi_major_axis
     if out["box_width_m"] <= 2.0 * semi_major:
@@ -211,5 +218,6 @@ def parameters_of(section: Mapping[str, Any]) -> DepositionParameters:
         amplitude_reduction=float(section["amplitude_reduction"]),
         steepest_slide=section["slide_direction"] == "steepest",
         steepest_swivel=section["swivel_axis"] == "steepest",
+        contact_line_swivel=section["two_contact_swivel"] == "line",
         log_interval=float(section["log_interval_s"]),
     )

@@ -81,11 +81,39 @@ def _measure_variables(measures: PackingMeasures) -> dict[str, xr.Variable]:
     return out
 
 
+#: Relative tolerance of both REV criteria: the paper's +-1 % (Sec. V C).
+REV_TOLERANCE = 0.01
+#: Window edges of the centred-window criterion, up to the whole image.
+REV_CENTRED_SIZES = 32
+_NOT_REACHED = ("NaN: no window smaller than the image satisfies the criterion, so the REV "
+                "is not reached inside the image")
+
+
+def _centred_rev(edges: np.ndarray, deviation: np.ndarray, whole: bool) -> float:
+    """Smallest window edge [m] from which the centred window stays within the tolerance of
+    the whole image for every larger window; NaN when only the whole image does (it agrees
+    with itself by construction, so reaching the REV there says nothing)."""
+    from imaging.rev import rev_size
+
+    if whole:
+        edges, deviation = edges[:-1], deviation[:-1]
+    if edges.size == 0:
+        return float("nan")
+    return rev_size(edges, deviation, REV_TOLERANCE)
+
+
 def _image_analysis_variables(
     image: VoxelImage, rng: np.random.Generator
 ) -> tuple[dict[str, xr.Variable], dict[str, xr.Variable]]:
     """REV (imaging.rev) and chord-length (imaging.chords) analyses of the pore image,
-    as (data variables, coordinates); empty when those modules are missing."""
+    as (data variables, coordinates); empty when those modules are missing.
+
+    Two REV criteria are stored: the spread of random windows (relative standard deviation
+    below 1 %, windows up to half the image so that they can differ) and the paper's
+    centred window (Sec. V C: a window centred in the image, grown in all directions, whose
+    porosity or interface density stays within 1 % of the whole image's for all larger
+    windows, windows up to the whole image).
+    """
     try:
         from imaging.chords import chord_lengths
         from imaging.rev import rev_analysis
@@ -96,24 +124,56 @@ def _image_analysis_variables(
     if min(pore.shape) < 8:
         LOGGER.warning("REV and chord analyses skipped: image %s too thin", pore.shape)
         return {}, {}
-    rev = rev_analysis(pore.astype(np.float32), image.voxel_size, rng, binary=pore)
+    field = pore.astype(np.float32)
+    rev = rev_analysis(field, image.voxel_size, rng, binary=pore, tolerance=REV_TOLERANCE)
+    # One position per edge: only the centred window is used from this second pass (its
+    # random-window spread, 0 / 0 in small all-solid windows, is discarded).
+    with np.errstate(invalid="ignore", divide="ignore"):
+        centred = rev_analysis(field, image.voxel_size, rng, binary=pore,
+                               tolerance=REV_TOLERANCE, n_sizes=REV_CENTRED_SIZES,
+                               n_positions=1, max_window_fraction=1.0)
+    whole = bool(np.all(np.asarray(pore.shape) == centred.window[-1]))
+    edges_c = centred.window * image.voxel_size
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dev_porosity = np.abs(centred.porosity_centered / centred.porosity_total - 1.0)
+        dev_interface = np.abs(centred.interface_centered / centred.interface_total - 1.0)
     chords = chord_lengths(pore, image.voxel_size)
     cd = ("direction", "chord_length")
-    return {
+    random_note = ("NaN: the relative standard deviation over random windows exceeds the "
+                   "tolerance at the largest window (half the image)")
+    out = {
         "rev_porosity_std": _var(("window",), rev.porosity_std, "1",
                                  "std of porosity over random windows"),
         "rev_interface_std": _var(("window",), rev.interface_std, "m-1",
                                   "std of interface density over random windows"),
-        "w_rev_porosity": _var((), rev.w_rev_porosity, "m", "REV edge for porosity"),
-        "w_rev_interface": _var((), rev.w_rev_interface, "m", "REV edge for interface density"),
+        "w_rev_porosity": _var((), rev.w_rev_porosity, "m",
+                               "REV edge for porosity, random-window criterion"),
+        "w_rev_interface": _var((), rev.w_rev_interface, "m",
+                                "REV edge for interface density, random-window criterion"),
+        "rev_porosity_centred": _var(("window_centred",), centred.porosity_centered, "1",
+                                     "porosity of the centred window"),
+        "rev_interface_centred": _var(("window_centred",), centred.interface_centered, "m-1",
+                                      "interface density of the centred window"),
+        "w_rev_porosity_centred": _var((), _centred_rev(edges_c, dev_porosity, whole), "m",
+                                       "REV edge for porosity, centred-window criterion"),
+        "w_rev_interface_centred": _var((), _centred_rev(edges_c, dev_interface, whole), "m",
+                                        "REV edge for interface density, centred-window "
+                                        "criterion"),
         "chord_pore": _var(cd, chords.f_pore, "m-1", "pore chord length distribution"),
         "chord_solid": _var(cd, chords.f_solid, "m-1", "solid chord length distribution"),
         "mean_chord_pore": _var(("direction",), chords.mean_pore, "m", "mean pore chord"),
         "mean_chord_solid": _var(("direction",), chords.mean_solid, "m", "mean solid chord"),
         "R_p": _var((), chords.R_p, "1", "pore chord anisotropy l_z / l_xy"),
         "R_s": _var((), chords.R_s, "1", "solid chord anisotropy l_z / l_xy"),
-    }, {
+    }
+    for name in ("w_rev_porosity", "w_rev_interface"):
+        out[name].attrs.update(tolerance=REV_TOLERANCE, missing_value_meaning=random_note)
+    for name in ("w_rev_porosity_centred", "w_rev_interface_centred"):
+        out[name].attrs.update(tolerance=REV_TOLERANCE, missing_value_meaning=_NOT_REACHED)
+    return out, {
         "window": _var(("window",), rev.window * image.voxel_size, "m", "REV window edge"),
+        "window_centred": _var(("window_centred",), edges_c, "m",
+                               "edge of the centred REV window"),
         "chord_length": _var(("chord_length",), chords.length, "m", "chord length"),
         "direction": xr.Variable(("direction",), list(chords.direction)),
     }

@@ -72,6 +72,24 @@ def test_overlapping_start_and_passing_particles() -> None:
     assert beside == contact.INFINITE_DROP
 
 
+def test_a_particle_grazing_a_flank_is_not_in_contact() -> None:
+    """Two upright disks (normals along x) face to face, 1e-8 apart: the Euclidean gap is
+    far below the contact tolerance, but a vertical fall never closes it (the paper's
+    contact is a vertical distance), so A slides past B; with a disk under B's flank
+    reaching out below A (top face at z = 0.05), A lands on its rim after 1 - 0.5 - 0.05."""
+    upright = rotation_matrices([[np.pi / 2, np.pi / 2, 0.0]])[0]
+    assert np.allclose(np.abs(upright[:, 2]), [1.0, 0.0, 0.0])
+    axes = np.array([0.5, 0.5, 0.05])
+    a = np.array([0.1 + 1e-8, 0.0, 1.0])
+    b = np.array([0.0, 0.0, 0.5])
+    assert contact.gjk(a, upright, axes, b, upright, axes, 1e-12, 1e-9)[0] < 1e-6
+    passing = contact.drop_to_contact(a, upright, axes, b, upright, axes, 10.0, 1e-6)[0]
+    assert passing == contact.INFINITE_DROP
+    floor_disk = np.array([0.4, 0.0, 0.0])
+    landing = contact.drop_to_contact(a, upright, axes, floor_disk, np.eye(3), axes, 10.0, 1e-9)
+    assert landing[0] == pytest.approx(1.0 - 0.5 - 0.05, abs=1e-8)
+
+
 def test_support_and_bounding_boxes_against_sampled_surfaces() -> None:
     rng = np.random.default_rng(8)
     rot = rotation_matrices(rng.uniform([0, 0, 0], [2 * np.pi, np.pi / 2, 2 * np.pi], (5, 3)))

@@ -16,6 +16,7 @@ from imaging.deposition import (
     porosity_profile,
     zone_porosity,
 )
+from imaging.deposition import _settle_kernels
 from imaging.deposition.analysis import profile_edges
 from imaging.deposition.voxels import overlap_fraction, voxelize
 
@@ -128,3 +129,34 @@ def test_freedom_and_entry_angle_order_the_porosity() -> None:
     dense, ordered = porosity_and_order(0.0, 5e-6, np.radians(80))
     assert loose > dense + 0.05
     assert ordered > disordered + 0.1
+
+
+def test_two_contact_swivel_turns_about_the_contact_line() -> None:
+    """With two contacts the swivel is a rotation about the line through them: points of
+    that line stay fixed, the barycentre circles the foot of its altitude on the line and
+    descends; without the rule the axis is the steepest horizontal one through that foot."""
+    center = np.array([0.3, 0.2, 0.5])
+    contacts = np.zeros((8, 3))
+    contacts[0] = [0.0, -1.0, 0.0]
+    contacts[1] = [0.0, 1.0, 0.4]             # an inclined contact line in the x = 0 plane
+    pivot, line = np.empty(3), np.empty(3)
+    _settle_kernels.pivot_point(center, contacts, 2, 0.0, 1e-9, pivot, line)
+    direction = (contacts[1] - contacts[0]) / np.linalg.norm(contacts[1] - contacts[0])
+    assert np.allclose(np.abs(line @ direction), 1.0)
+    assert abs((center - pivot) @ direction) < 1e-12          # foot of the altitude
+    rot = np.eye(3)
+    new_center, new_rot, work = np.empty(3), np.empty((3, 3)), np.empty((3, 3))
+    for contact_line in (True, False):
+        _settle_kernels.trial_move(_settle_kernels.SWIVEL, 0.3, 0.0, True, True, contact_line,
+                                   center, rot, pivot, line, new_center, new_rot, work)
+        lever_h = (center - pivot)[:2]
+        steepest = np.array([-lever_h[1], lever_h[0], 0.0]) / np.hypot(*lever_h)
+        axis = direction if contact_line else steepest
+        assert np.allclose(np.abs(work @ axis), np.abs(axis))   # the axis is kept
+        lever = work @ (center - pivot)
+        assert lever[2] < (center - pivot)[2]                   # the barycentre descends
+        assert np.allclose(new_center[:2], pivot[:2] + lever[:2])
+        assert new_center[2] == center[2]                       # refall from the old altitude
+        for p in contacts[:2]:
+            kept = np.allclose(work @ (p - pivot) + pivot, p)
+            assert kept == contact_line

@@ -12,7 +12,7 @@ import yaml
 
 from imaging.deposition.config import population_of, resolve
 from imaging.deposition.population import sample_semi_axes
-from imaging.deposition.run import run
+from imaging.deposition.run import _centred_rev, run
 from shared.io import read_dataset
 
 PRESETS = sorted((Path(__file__).parents[3] / "config" / "paper").glob("packing_*.yaml"))
@@ -40,6 +40,27 @@ def test_run_writes_the_contract(tmp_path: Path, caplog: pytest.LogCaptureFixtur
     assert 0.2 < float(back["porosity"]) < 0.9
     solid_fraction = float(back["solid"].mean())
     assert solid_fraction == pytest.approx(1 - float(back["porosity"]), abs=0.1)
+    for name in ("w_rev_porosity_centred", "w_rev_interface_centred"):
+        assert "not reached" in back[name].attrs["missing_value_meaning"]
+        width = float(back[name])
+        assert np.isnan(width) or 0.0 < width < float(back["window_centred"][-1])
+    # the largest centred window, recomputed from the stored image
+    solid = back["solid"].values
+    k = round(float(back["window_centred"][-1] / back["voxel_size"]))
+    lo = [(n - k) // 2 for n in solid.shape]
+    window = solid[lo[0]:lo[0] + k, lo[1]:lo[1] + k, lo[2]:lo[2] + k]
+    assert k == min(solid.shape)
+    assert float(back["rev_porosity_centred"][-1]) == pytest.approx(1.0 - window.mean(), rel=1e-6)
+
+
+def test_centred_rev_ignores_the_whole_image() -> None:
+    """The centred-window REV is the smallest edge from which every larger window is within
+    the tolerance; the whole image matches itself, so it alone does not count."""
+    edges = np.array([1.0, 2.0, 4.0, 8.0])
+    assert _centred_rev(edges, np.array([0.5, 0.005, 0.002, 0.0]), whole=True) == 2.0
+    assert _centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), whole=True) != 8.0
+    assert np.isnan(_centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), whole=True))
+    assert _centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), whole=False) == 8.0
 
 
 @pytest.mark.parametrize(
@@ -52,6 +73,7 @@ def test_run_writes_the_contract(tmp_path: Path, caplog: pytest.LogCaptureFixtur
         ("theta_initial_deg", 95.0),
         ("theta_initial_mode", "sideways"),
         ("swivel_axis", "sideways"),
+        ("two_contact_swivel", "hinge"),
         ("amplitude_reduction", 0.0),
         ("n_particle", 10),
         ("seed", -1),
