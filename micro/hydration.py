@@ -211,8 +211,8 @@ def _limit_speed(dem: DEMState, max_speed: float) -> None:
 
 
 def _in_contact(dem: DEMState, normal_forces: FloatArray) -> npt.NDArray[np.bool_]:
-    """Points that carry at least one compressive contact force."""
-    pairs = dem.contacts.pairs[normal_forces > 0.0]
+    """Points that carry a compressive contact force or hold an intact bond."""
+    pairs = np.vstack([dem.contacts.pairs[normal_forces > 0.0], dem.bonds[~dem.bond_broken]])
     return np.bincount(pairs.ravel(), minlength=dem.n_points) > 0
 
 
@@ -231,9 +231,11 @@ def relax(
     radii from their current values to ``target_radii``, over the first
     ``settings.ramp_steps`` steps: a swelling increment applied at once stores elastic
     energy that the explicit dynamics releases as a burst that can scatter the points.
-    A point that has lost every contact is a detached fragment: the pore-fluid and
-    membrane loads, computed for the cells it closed at the start, no longer act on it
-    (held, they would push it away without bound, as the model has no cohesion).
+    A point that has lost every contact and every intact bond is a detached fragment:
+    the pore-fluid and membrane loads, computed for the cells it closed at the start,
+    no longer act on it (held, they would push it away without bound), and it is
+    stopped, since damping proportional to force does not slow a point that no force
+    acts on.
 
     Returns
     -------
@@ -259,6 +261,9 @@ def relax(
         _limit_speed(dem, settings.max_step_fraction * float(dem.reference_radii.min()) / time_step)
         if count % settings.check_interval == 0:
             attached = _in_contact(dem, report.normal_forces)
+            # Cundall damping acts on forces: a detached point would coast at its last
+            # speed for ever and carry the specimen's extent away with it
+            dem.velocities[~attached] = 0.0
             unbalanced = unbalanced_force(report.forces, report.normal_forces, dem.fixed)
             if weight == 1.0 and unbalanced < settings.unbalanced_force_tolerance:
                 return count, unbalanced
