@@ -113,12 +113,12 @@ def pair_values(
     keyed_pairs
         (k, 2) pairs i < j, sorted lexicographically (e.g. ``DEMState.bonds``).
     values
-        (k,) value of each keyed pair.
+        (k, ...) value of each keyed pair (a scalar or an array per pair).
     n_points
         Number of points (key i n + j).
     """
     values = np.asarray(values, dtype=np.float64)
-    result = np.zeros(pairs.shape[0])
+    result = np.zeros((pairs.shape[0],) + values.shape[1:])
     if keyed_pairs.shape[0] == 0 or pairs.shape[0] == 0:
         return result
     n = np.int64(n_points)
@@ -168,14 +168,7 @@ def update_contacts(
     pairs = detect_contacts(
         state.positions, state.radii, parameters.interaction_radius_factor, contacts.skin
     )
-    n = np.int64(state.n_points)
-    old_keys = contacts.pairs[:, 0] * n + contacts.pairs[:, 1]
-    new_keys = pairs[:, 0] * n + pairs[:, 1]
-    shear = np.zeros((pairs.shape[0], 3))
-    if old_keys.size:
-        where = np.minimum(np.searchsorted(old_keys, new_keys), old_keys.size - 1)
-        kept = old_keys[where] == new_keys
-        shear[kept] = contacts.shear_forces[where[kept]]
+    shear = pair_values(pairs, contacts.pairs, contacts.shear_forces, state.n_points)
     contacts.pairs = pairs
     contacts.shear_forces = shear
     contacts.reference_overlaps = pair_values(pairs, state.bonds, state.bond_overlaps, state.n_points)
