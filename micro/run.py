@@ -3,7 +3,9 @@
 A case is a specimen (CT-informed or homogeneous porosity), a crack model switch and a
 confinement. After each checkpoint the whole state goes to a checkpoint file beside the
 output, so that a killed run resumes at its last checkpoint; the file is removed when
-the case finishes. The result is ``results/micro/<case>.nc`` (DESIGN §2) and a figure.
+the case finishes. The result is ``results/micro/<case>.nc`` (DESIGN §2) and a figure;
+with ``micro.vtk_snapshots``, also ParaView snapshots in ``results/micro/<case>_vtk/``
+(:mod:`micro.vtk`).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from micro import figures
+from micro import figures, vtk
 from micro.checkpoint import load_checkpoint, save_checkpoint
 from micro.hydration import DivergenceError, FlowSystem, HydrationSettings, advance_to_balance
 from micro.pellet import POROSITY_BINS, SpecimenSpec, initial_state, measure_checkpoint
@@ -165,7 +167,13 @@ def run(
         bond_tensile_strength=config["micro"]["bond_tensile_strength_pa"],
     )
     resumed = load_checkpoint(state_file, digest, DEFAULT_CLAY)
+    # optional ParaView snapshots, a side product beside the netCDF (not a rule output)
+    vtk_dir = None
+    if config["micro"].get("vtk_snapshots", False):
+        vtk_dir = output.with_name(f"{output.stem}_vtk")
     if resumed is None:
+        if vtk_dir is not None:
+            vtk.clear_snapshots(vtk_dir, output.stem)
         state = initial_state(spec, grid if heterogeneous else None,
                               None if heterogeneous else _specimen_mean(spec, grid),
                               DEFAULT_CLAY, parameters)
@@ -195,6 +203,8 @@ def run(
         record.update(diagnostics)
         records.append(record)
         save_checkpoint(state_file, digest, state, system, records, reference_volume)
+        if vtk_dir is not None:
+            vtk.write_checkpoint_snapshot(vtk_dir, output.stem, index, state)
         log.info("%s: s = %.3g Pa, S = %.3f, eps_v = %.4f, cracks %d, k_w,x = %.3g m2, "
                  "k_g,x = %.3g m2, balanced %d", case, suction, record["saturation"],
                  record["eps_v"], record["crack_count"], record["permeability"][0, 0],

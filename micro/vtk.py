@@ -1,0 +1,225 @@
+"""VTK snapshots of the pellet state for ParaView (optional, ``micro.vtk_snapshots``).
+
+One snapshot is an unstructured grid (``.vtu``, written by meshio) of the DEM points and
+the Delaunay tetrahedra of the finite-volume mesh, with
+
+- cell data per tetrahedron: ``pressure_Pa`` (water pressure, negative under suction),
+  ``suction_Pa`` (max(-p, 0), the suction the swelling and crack laws use),
+  ``saturation`` [1] and ``porosity`` [1];
+- point data per DEM point: ``radius_m`` (current, swollen interaction radius) and
+  ``suction_Pa`` (volume-weighted mean of the incident cells,
+  :func:`micro.forces.point_suction`, the suction that swells the point);
+- cracks (open bonds on mesh edges, :class:`micro.cracks.CrackNetwork`) as a second cell
+  block of ``line`` cells between the bond's two points, with ``crack_aperture_m`` [m]
+  and ``crack_imbibed`` (1 water-filled, 0 gas-filled). VTK cell data covers every
+  block, so the tetrahedra carry ``crack_aperture_m`` = NaN and ``crack_imbibed`` = -1,
+  and the lines carry NaN in the four tetrahedron fields; in ParaView, *Threshold* on
+  ``crack_aperture_m`` shows the cracks alone.
+
+meshio 5.3's vtu writer drops field data, so the checkpoint's boundary suction is not in
+the file: time step i of the collection is ``suction(checkpoint=i)`` of the netCDF.
+
+A ``.pvd`` collection (a few lines of XML; meshio writes no collections) lists the
+snapshots of a run with the checkpoint index as time step, so that ParaView opens the
+series as one time-dependent data set. Every file is written to a temporary name in
+its directory and renamed.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+import xml.etree.ElementTree as ET
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import meshio
+import numpy as np
+import numpy.typing as npt
+
+from micro.forces import point_suction
+from micro.hydration import PelletState
+
+__all__ = ["snapshot_mesh", "write_snapshot", "write_collection", "write_checkpoint_snapshot",
+           "clear_snapshots", "snapshot_name"]
+
+FloatArray = npt.NDArray[np.float64]
+
+_SNAPSHOT = re.compile(r"^checkpoint_(\d+)\.vtu$")
+
+
+def snapshot_name(index: int) -> str:
+    """File name of the snapshot of checkpoint ``index``: ``checkpoint_<index:02d>.vtu``."""
+    return f"checkpoint_{index:02d}.vtu"
+
+
+def snapshot_mesh(state: PelletState, cracks: bool = True) -> meshio.Mesh:
+    """The pellet state as a meshio mesh (no file I/O).
+
+    Parameters
+    ----------
+    state
+        Pellet state; ``state.mesh`` must be the mesh of ``state.dem.positions``.
+    cracks
+        Whether to add the open cracks of ``state.cracks`` (if any) as ``line`` cells.
+
+    Returns
+    -------
+    meshio.Mesh
+        Points: DEM point positions (n_points, 3) [m]. Cell blocks: ``tetra``
+        (state.mesh.tetrahedra), then ``line`` (crack point pairs) if there are cracks.
+        Data and units as in the module docstring.
+
+    Raises
+    ------
+    ValueError
+        If the mesh's vertex count or a cell array's length does not match the state.
+    """
+    positions = np.ascontiguousarray(state.dem.positions, dtype=np.float64)
+    mesh = state.mesh
+    n_cells = mesh.n_cells
+    if mesh.points.shape != positions.shape:
+        raise ValueError(f"the mesh has {mesh.points.shape[0]} vertices, the DEM "
+                         f"{positions.shape[0]} points")
+    cell_fields = {
+        "pressure_Pa": np.asarray(state.pressure, dtype=np.float64),
+        "suction_Pa": np.maximum(-np.asarray(state.pressure, dtype=np.float64), 0.0),
+        "saturation": np.asarray(state.saturation, dtype=np.float64),
+        "porosity": np.asarray(state.porosity, dtype=np.float64),
+    }
+    for name, values in cell_fields.items():
+        if values.shape != (n_cells,):
+            raise ValueError(f"{name}: {values.shape[0]} values for {n_cells} cells")
+    point_data = {
+        "radius_m": np.asarray(state.dem.radii, dtype=np.float64),
+        "suction_Pa": point_suction(mesh.tetrahedra, mesh.volumes, cell_fields["suction_Pa"],
+                                    positions.shape[0]),
+    }
+    network = state.cracks if cracks else None
+    n_lines = 0 if network is None else int(network.pairs.shape[0])
+    cells: list[tuple[str, npt.NDArray[np.int64]]] = [
+        ("tetra", np.ascontiguousarray(mesh.tetrahedra, dtype=np.int64))
+    ]
+    cell_data: dict[str, list[npt.NDArray]] = {
+        name: [values] for name, values in cell_fields.items()
+    }
+    cell_data["crack_aperture_m"] = [np.full(n_cells, np.nan)]
+    cell_data["crack_imbibed"] = [np.full(n_cells, -1, dtype=np.int8)]
+    if n_lines:
+        cells.append(("line", np.ascontiguousarray(network.pairs, dtype=np.int64)))
+        for name in cell_fields:
+            cell_data[name].append(np.full(n_lines, np.nan))
+        cell_data["crack_aperture_m"].append(np.asarray(network.apertures, dtype=np.float64))
+        cell_data["crack_imbibed"].append(np.asarray(network.imbibed, dtype=np.int8))
+    return meshio.Mesh(positions, cells, point_data=point_data, cell_data=cell_data)
+
+
+def _atomic(path: Path, write: Callable[[str], None]) -> Path:
+    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(handle)
+    try:
+        write(tmp_name)
+        os.replace(tmp_name, path)
+    except BaseException:
+        Path(tmp_name).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def write_snapshot(path: str | Path, state: PelletState, cracks: bool = True) -> Path:
+    """Write one snapshot of the pellet state to a ``.vtu`` file, atomically.
+
+    Parameters
+    ----------
+    path
+        Output file (``.vtu``); its directory is created if missing.
+    state, cracks
+        As in :func:`snapshot_mesh`.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    grid = snapshot_mesh(state, cracks)
+    # binary, zlib-compressed appended data (meshio's default for vtu)
+    return _atomic(Path(path), lambda tmp: meshio.write(tmp, grid, file_format="vtu"))
+
+
+def write_collection(path: str | Path, entries: Sequence[tuple[float, str]]) -> Path:
+    """Write a ParaView ``.pvd`` collection of snapshots, atomically.
+
+    Parameters
+    ----------
+    path
+        Output ``.pvd`` file.
+    entries
+        (time step, file name relative to the ``.pvd``'s directory) of each snapshot,
+        in increasing time step.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    root = ET.Element("VTKFile", type="Collection", version="0.1", byte_order="LittleEndian")
+    collection = ET.SubElement(root, "Collection")
+    for timestep, name in entries:
+        ET.SubElement(collection, "DataSet", timestep=repr(float(timestep)), group="",
+                      part="0", file=str(name))
+    ET.indent(root)
+    tree = ET.ElementTree(root)
+    return _atomic(Path(path), lambda tmp: tree.write(tmp, encoding="utf-8",
+                                                      xml_declaration=True))
+
+
+def _snapshots(directory: Path) -> list[tuple[int, str]]:
+    """(index, file name) of the snapshots in a directory, by index."""
+    if not directory.is_dir():
+        return []
+    found = [(int(m.group(1)), p.name) for p in directory.iterdir()
+             if (m := _SNAPSHOT.match(p.name))]
+    return sorted(found)
+
+
+def write_checkpoint_snapshot(
+    directory: str | Path, name: str, index: int, state: PelletState
+) -> Path:
+    """Snapshot of checkpoint ``index`` and the run's collection ``<name>.pvd``.
+
+    The collection lists every ``checkpoint_*.vtu`` up to ``index`` in ``directory``
+    (a resumed run keeps the snapshots written before it was killed), time step =
+    checkpoint index.
+
+    Parameters
+    ----------
+    directory
+        Snapshot directory, e.g. ``results/micro/<case>_vtk``.
+    name
+        Stem of the collection file (the case).
+    index
+        Checkpoint index.
+    state
+        Pellet state after the checkpoint was measured (cracks up to date).
+
+    Returns
+    -------
+    Path
+        The snapshot written.
+    """
+    directory = Path(directory)
+    written = write_snapshot(directory / snapshot_name(index), state)
+    entries = [(i, file) for i, file in _snapshots(directory) if i <= index]
+    write_collection(directory / f"{name}.pvd", entries)
+    return written
+
+
+def clear_snapshots(directory: str | Path, name: str) -> None:
+    """Remove the snapshots and collection of an earlier run (a fresh run starts clean)."""
+    directory = Path(directory)
+    for _, file in _snapshots(directory):
+        (directory / file).unlink(missing_ok=True)
+    (directory / f"{name}.pvd").unlink(missing_ok=True)
