@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
+from numba import njit, prange
 
 from shared.mesh import Mesh
 
@@ -73,8 +73,9 @@ def _triangle_weights(positions, radii, triangles):
 
 
 @njit(cache=True)
-def _facet_forces(positions, radii, triangles, reference_normals, weights, jumps, forces):
-    """Scatter jump A n over the vertices of each triangle, by the sector weights.
+def _scatter_facet_forces(positions, radii, triangles, reference_normals, weights, jumps,
+                          first, last, forces):
+    """Scatter jump A n of triangles first..last-1 over their vertices, by sector weights.
 
     The area vector comes from the current positions, oriented like the mesh normal.
     With an empty ``weights`` the sector weights theta_k r_k^2 / sum are computed here
@@ -84,7 +85,7 @@ def _facet_forces(positions, radii, triangles, reference_normals, weights, jumps
     weight array is written or read.
     """
     inline = weights.shape[0] == 0
-    for f in range(triangles.shape[0]):
+    for f in range(first, last):
         a, b, c = triangles[f, 0], triangles[f, 1], triangles[f, 2]
         ux = positions[b, 0] - positions[a, 0]
         uy = positions[b, 1] - positions[a, 1]
@@ -116,6 +117,25 @@ def _facet_forces(positions, radii, triangles, reference_normals, weights, jumps
             forces[triangles[f, k], 0] += scale * ax
             forces[triangles[f, k], 1] += scale * ay
             forces[triangles[f, k], 2] += scale * az
+
+
+# Fixed number of triangle blocks scattered in parallel, each into its own force array,
+# summed in block order: the forces do not depend on the thread count.
+_FORCE_BLOCKS = 4
+
+
+@njit(cache=True, parallel=True)
+def _facet_forces(positions, radii, triangles, reference_normals, weights, jumps, forces):
+    """Add the forces of all triangles to ``forces`` (see :func:`_scatter_facet_forces`)."""
+    n = triangles.shape[0]
+    partial = np.zeros((_FORCE_BLOCKS, forces.shape[0], 3))
+    for block in prange(_FORCE_BLOCKS):
+        _scatter_facet_forces(
+            positions, radii, triangles, reference_normals, weights, jumps,
+            block * n // _FORCE_BLOCKS, (block + 1) * n // _FORCE_BLOCKS, partial[block],
+        )
+    for block in range(_FORCE_BLOCKS):
+        forces += partial[block]
 
 
 @dataclass(frozen=True)

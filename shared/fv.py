@@ -484,7 +484,10 @@ def _solve_increment(
         raise ValueError("pressure or imposed pressure on Dirichlet cells is not finite")
     rhs = facet_divergence(mesh, conductance, start)[pattern.free_cells]
     matrix = assemble_matrix(mesh, pattern, conductance, storage)
-    increment = solver.solve(matrix, rhs, force_refactor=force_refactor, ordered=True)
+    increment = solver.solve(
+        matrix, rhs, force_refactor=force_refactor, ordered=True,
+        offset=start[pattern.free_cells],
+    )
     start[pattern.free_cells] += increment
     return start
 

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 import xarray as xr
-from numba import njit
+from numba import njit, prange
 from scipy.interpolate import RegularGridInterpolator
 from scipy.spatial import ConvexHull, Delaunay, QhullError, cKDTree
 
@@ -141,7 +141,7 @@ class Mesh:
         return int(self.facet_cells.shape[0])
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _cell_geometry(
     points: FloatArray, tetrahedra: IntArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -150,18 +150,16 @@ def _cell_geometry(
     signed = np.empty(n)
     centroids = np.empty((n, 3))
     circumcentres = np.empty((n, 3))
-    edge = np.empty((3, 3))
-    for c in range(n):
-        o = tetrahedra[c, 0]
-        for k in range(3):
-            for d in range(3):
-                edge[k, d] = points[tetrahedra[c, k + 1], d] - points[o, d]
-        ux, uy, uz = edge[0, 0], edge[0, 1], edge[0, 2]
-        vx, vy, vz = edge[1, 0], edge[1, 1], edge[1, 2]
-        wx, wy, wz = edge[2, 0], edge[2, 1], edge[2, 2]
+    for c in prange(n):
+        o, p, q, r = tetrahedra[c, 0], tetrahedra[c, 1], tetrahedra[c, 2], tetrahedra[c, 3]
+        ox, oy, oz = points[o, 0], points[o, 1], points[o, 2]
+        ux, uy, uz = points[p, 0] - ox, points[p, 1] - oy, points[p, 2] - oz
+        vx, vy, vz = points[q, 0] - ox, points[q, 1] - oy, points[q, 2] - oz
+        wx, wy, wz = points[r, 0] - ox, points[r, 1] - oy, points[r, 2] - oz
         vw = (vy * wz - vz * wy, vz * wx - vx * wz, vx * wy - vy * wx)
         wu = (wy * uz - wz * uy, wz * ux - wx * uz, wx * uy - wy * ux)
         uv = (uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx)
+        edges = ((ux, vx, wx), (uy, vy, wy), (uz, vz, wz))
         triple = ux * vw[0] + uy * vw[1] + uz * vw[2]
         signed[c] = triple / 6.0
         # A flat cell has no circumcentre; the caller rejects it.
@@ -171,7 +169,7 @@ def _cell_geometry(
         ww = wx * wx + wy * wy + wz * wz
         for d in range(3):
             base = points[o, d]
-            centroids[c, d] = base + 0.25 * (edge[0, d] + edge[1, d] + edge[2, d])
+            centroids[c, d] = base + 0.25 * (edges[d][0] + edges[d][1] + edges[d][2])
             circumcentres[c, d] = base + (uu * vw[d] + vv * wu[d] + ww * uv[d]) * inverse
     return signed, centroids, circumcentres
 
@@ -218,7 +216,7 @@ def _facet_topology(
     return facet_cells, facet_vertices, hull_cells, hull_vertices
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _triangle_geometry(
     points: FloatArray, vertices: IntArray, cells: IntArray, centroids: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -231,7 +229,7 @@ def _triangle_geometry(
     areas = np.empty(n)
     normals = np.empty((n, 3))
     centres = np.empty((n, 3))
-    for f in range(n):
+    for f in prange(n):
         a, b, c = vertices[f, 0], vertices[f, 1], vertices[f, 2]
         ux = points[b, 0] - points[a, 0]
         uy = points[b, 1] - points[a, 1]
@@ -256,7 +254,7 @@ def _triangle_geometry(
     return areas, normals, centres
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _dual_lengths(
     centroids: FloatArray,
     circumcentres: FloatArray,
@@ -268,7 +266,7 @@ def _dual_lengths(
     n = facet_cells.shape[0]
     lengths = np.empty(n)
     fallback = np.zeros(n, dtype=np.bool_)
-    for f in range(n):
+    for f in prange(n):
         i, j = facet_cells[f, 0], facet_cells[f, 1]
         dual = 0.0
         squared = 0.0

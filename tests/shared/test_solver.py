@@ -238,3 +238,35 @@ def test_solver_buys_at_once_while_one_step_of_drift_costs_more_than_a_factor(
     probes = [k for k, rent in enumerate(rents) if rent >= 3]
     assert probes == [1, 3, 6, 11]
     assert all(count == 1 for count in bought)
+
+
+def test_solver_judges_an_increment_by_the_system_of_the_whole_unknown(
+    rng: np.random.Generator,
+) -> None:
+    """An increment x of a known y0 meets the backward error of A (y0 + x) = b + A y0.
+
+    The bound is checked here with scipy on the full system, independently of the
+    solver's own bookkeeping; judged against the increment alone, the same solve needs
+    more CG iterations (the bound then scales with ||x||, 1e3 times smaller).
+    """
+    n = 150
+    matrix = laplacian_system(n, rng)
+    drifted = drift_conductances(matrix, 0.3, rng)
+    offset = rng.uniform(-5e7, -4e7, n)
+    increment_rhs = 1e-3 * drifted @ rng.uniform(-5e4, 5e4, n)
+    iterations = {}
+    for judged in ("whole", "increment"):
+        solver = CholeskySolver(residual_tolerance=1e-8, max_iterations=50)
+        solver.solve(lower_of(matrix), np.ones(n))
+        before = solver.stats.iterations
+        solution = solver.solve(
+            lower_of(drifted), increment_rhs, offset=offset if judged == "whole" else None
+        )
+        iterations[judged] = solver.stats.iterations - before
+        if judged == "whole":
+            whole = offset + solution
+            full_rhs = increment_rhs + drifted @ offset
+            residual = np.abs(full_rhs - drifted @ whole)
+            scale = np.abs(drifted.diagonal()) * np.abs(whole).max() + np.abs(full_rhs)
+            assert np.max(residual / scale) <= 1e-8
+    assert 0 < iterations["whole"] < iterations["increment"]

@@ -5,9 +5,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
 import _logging  # noqa: E402
+import numba  # noqa: E402
 
 from micro import run  # noqa: E402
 
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
+# the parallel mesh and force kernels use the job's threads, not every core per job
+numba.set_num_threads(sm.threads)
 run.run(sm.config, sm.wildcards.case, sm.input.porosity, sm.output.result, sm.output.figure, rule=sm.rule)
