@@ -36,7 +36,7 @@ import numpy.typing as npt
 from shared.materials import DEFAULT_CLAY, ClayParameters
 
 __all__ = ["CrackNetwork", "CrackConductivity", "bond_apertures", "crack_network",
-           "crack_conductivity"]
+           "crack_conductivity", "capillary_release_forces"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -340,3 +340,61 @@ def crack_conductivity(
         facet[~imbibed], geometric[~imbibed] / material.gas_viscosity, n_facets
     )
     return CrackConductivity(water_scale, water_added, gas_scale, gas_added)
+
+
+def capillary_release_forces(
+    network: CrackNetwork,
+    pressure: npt.ArrayLike,
+    saturation: npt.ArrayLike,
+    facet_cells: npt.ArrayLike,
+    n_points: int,
+) -> FloatArray:
+    """Forces that remove the capillary pull across gas-filled cracks (Eq. 3.35) [N].
+
+    A gas-filled crack no longer holds water between its faces, so the pull chi p
+    of the pore water across it is removed: point a gets n_ab a_c p S and point b
+    the opposite, n_ab the unit vector from a to b, a_c the crack area and p, S the
+    crack's water pressure and saturation, the means over its patches of the two
+    incident cells' means. Under suction (p < 0) this pushes a and b apart. Eq. 3.35
+    prints the factor as (p_i + p_j)(s_i - s_j) / 2, which vanishes for equal
+    saturations and is not a pressure; the text beneath it says both are means of the
+    two cells, which is the reading used here. Imbibed cracks keep their water and
+    its pull: no force.
+
+    Parameters
+    ----------
+    network
+        Cracks from :func:`crack_network` on the current mesh.
+    pressure
+        (n_cells,) water pressure per cell [Pa], negative under suction.
+    saturation
+        (n_cells,) water saturation per cell [1].
+    facet_cells
+        (n_facets, 2) cells on either side of each internal facet (``Mesh.facet_cells``).
+    n_points
+        Number of DEM points.
+
+    Returns
+    -------
+    ndarray, shape (n_points, 3)
+        Force per point [N]; the forces of each crack sum to zero.
+    """
+    forces = np.zeros((n_points, 3))
+    gas = ~network.imbibed
+    if not np.any(gas):
+        return forces
+    pressure = np.asarray(pressure, dtype=np.float64)
+    saturation = np.asarray(saturation, dtype=np.float64)
+    cells = np.asarray(facet_cells, dtype=np.int64)[network.patch_facets]
+    n_cracks = network.pairs.shape[0]
+    patches = np.maximum(np.bincount(network.patch_cracks, minlength=n_cracks), 1)
+
+    def crack_mean(values: FloatArray) -> FloatArray:
+        patch = 0.5 * values[cells].sum(axis=1)
+        return np.bincount(network.patch_cracks, weights=patch, minlength=n_cracks) / patches
+
+    magnitude = network.areas * crack_mean(pressure) * crack_mean(saturation)
+    on_a = network.normals[gas] * magnitude[gas, None]
+    np.add.at(forces, network.pairs[gas, 0], on_a)
+    np.add.at(forces, network.pairs[gas, 1], -on_a)
+    return forces

@@ -30,7 +30,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from micro.cracks import CrackNetwork, crack_conductivity, crack_network
+from micro.cracks import (
+    CrackNetwork, capillary_release_forces, crack_conductivity, crack_network,
+)
 from micro.forces import hydromechanical_forces, point_suction
 from shared.dem.integrator import stable_time_step, step, unbalanced_force
 from shared.dem.parameters import DEFAULT_DEM, DEMParameters
@@ -427,7 +429,9 @@ def membrane_forces(positions: FloatArray, stress: float, layer: float) -> Float
     return forces
 
 
-def swell(state: PelletState, material: ClayParameters) -> tuple[FloatArray, FloatArray]:
+def swell(
+    state: PelletState, material: ClayParameters, cracks: bool = False
+) -> tuple[FloatArray, FloatArray]:
     """Swollen point radii from the suction of their cells, and the hydro-mechanical forces.
 
     The exterior chi p on each hull triangle is taken equal to that of the boundary
@@ -435,7 +439,9 @@ def swell(state: PelletState, material: ClayParameters) -> tuple[FloatArray, Flo
     pull of the boundary suction on the hull (Bishop stress S_b s_b, Yade's hull
     forces with air outside) is applied instead as a uniform membrane stress on the
     outer layer of points. On a jittered cloud the hull has few large triangles, and
-    hull forces would concentrate the whole face load on a handful of points.
+    hull forces would concentrate the whole face load on a handful of points. With
+    ``cracks``, the capillary pull across the gas-filled cracks of ``state.cracks`` is
+    removed (Eq. 3.35, :func:`micro.cracks.capillary_release_forces`).
     """
     mesh = state.mesh
     suction = point_suction(mesh.tetrahedra, mesh.volumes, np.maximum(-state.pressure, 0.0),
@@ -449,6 +455,9 @@ def swell(state: PelletState, material: ClayParameters) -> tuple[FloatArray, Flo
     boundary_stress = -float((bishop[boundary] * weights).sum() / weights.sum())
     layer = float(state.dem.reference_radii.mean())
     forces = facets + membrane_forces(state.dem.positions, max(boundary_stress, 0.0), layer)
+    if cracks and state.cracks is not None:
+        forces += capillary_release_forces(state.cracks, state.pressure, state.saturation,
+                                           mesh.facet_cells, state.dem.n_points)
     return radii, forces
 
 
@@ -531,7 +540,7 @@ def advance_to_balance(
     flow_steps = 0
     for flow_steps in range(1, settings.max_flow_steps + 1):
         time_step = _flow_step(state, system, boundary_suction, time_step, settings, material)
-        radii, forces = swell(state, material)
+        radii, forces = swell(state, material, settings.cracks)
         taken, unbalanced = relax(state.dem, state.walls, forces, settings, parameters,
                                   state.hydraulic_forces, radii)
         state.hydraulic_forces = forces

@@ -12,7 +12,9 @@ centroids are R cos(30 deg) / 2 from the axis (six patches of half-area
 import numpy as np
 import pytest
 
-from micro.cracks import bond_apertures, crack_conductivity, crack_network
+from micro.cracks import (
+    bond_apertures, capillary_release_forces, crack_conductivity, crack_network,
+)
 from micro.fabric import crack_fabric, fabric_tensor
 from shared.materials import DEFAULT_CLAY
 from shared.mesh import build_mesh
@@ -82,6 +84,29 @@ def test_crack_area_and_volume(ring):
     assert network.areas[0] == pytest.approx(area, rel=1e-9)
     assert network.volumes[0] == pytest.approx(area * APERTURE, rel=1e-9)
     np.testing.assert_allclose(network.patch_widths, RING, rtol=1e-9)
+
+
+def test_gas_filled_crack_releases_its_capillary_pull(ring):
+    """Eq. 3.35: a and b pushed apart by a_c p S along the bond, nothing if imbibed.
+
+    The six cells carry different pressures and saturations; the crack's p and S are
+    the means over its six patches of the two incident cells' means, i.e. (every cell
+    being on two of the six facets) the plain cell means.
+    """
+    points, mesh = ring
+    rng = np.random.default_rng(3)
+    pressure = -rng.uniform(1e5, 2e5, mesh.n_cells)
+    saturation = rng.uniform(0.3, 0.6, mesh.n_cells)
+    network = _network(ring, suction=1e5)  # gas-filled
+    forces = capillary_release_forces(network, pressure, saturation, mesh.facet_cells, 8)
+    centroid_radius = RING * np.cos(np.pi / 6) / 2
+    area = 6 * 0.5 * centroid_radius**2 * np.sin(np.pi / 3)
+    push = area * pressure.mean() * saturation.mean()  # negative: a is pushed to -x
+    np.testing.assert_allclose(forces[0], [push, 0.0, 0.0], atol=1e-12 * abs(push))
+    np.testing.assert_allclose(forces[1], [-push, 0.0, 0.0], atol=1e-12 * abs(push))
+    np.testing.assert_array_equal(forces[2:], 0.0)
+    imbibed = _network(ring, suction=1e3)
+    assert not capillary_release_forces(imbibed, pressure, saturation, mesh.facet_cells, 8).any()
 
 
 def test_closed_bond_is_no_crack(ring):
