@@ -457,7 +457,7 @@ def swell(
     forces = facets + membrane_forces(state.dem.positions, max(boundary_stress, 0.0), layer)
     if cracks and state.cracks is not None:
         forces += capillary_release_forces(state.cracks, state.pressure, state.saturation,
-                                           mesh.facet_cells, state.dem.n_points)
+                                           mesh.facet_cells, radii)
     return radii, forces
 
 

@@ -9,6 +9,8 @@ centroids are R cos(30 deg) / 2 from the axis (six patches of half-area
 (R cos 30 / 2)^2 sin(60) / 2).
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -77,6 +79,17 @@ def test_gas_filled_crack_blocks_water_and_carries_gas(ring):
     )
 
 
+def test_cubic_law_aperture_is_capped_at_the_crack_width(ring):
+    """A bond opened wider than the crack's width b across a facet conducts as w = b."""
+    _, mesh = ring
+    network = _network(ring, suction=1e5)
+    wide = dataclasses.replace(network, apertures=np.array([2.5 * RING]))
+    change = crack_conductivity(wide, mesh.facet_lengths)
+    np.testing.assert_allclose(
+        change.gas_added, RING**3 / (12.0 * 1.8e-5) * RING / DUAL_LENGTH, rtol=1e-9
+    )
+
+
 def test_crack_area_and_volume(ring):
     network = _network(ring, suction=1e3)
     centroid_radius = RING * np.cos(np.pi / 6) / 2
@@ -87,7 +100,9 @@ def test_crack_area_and_volume(ring):
 
 
 def test_gas_filled_crack_releases_its_capillary_pull(ring):
-    """Eq. 3.35: a and b pushed apart by a_c p S along the bond, nothing if imbibed.
+    """Eq. 3.35: a and b pushed apart by a p S along the bond, nothing if imbibed.
+
+    a is the crack area a_c, or the bond section pi r^2 if smaller.
 
     The six cells carry different pressures and saturations; the crack's p and S are
     the means over its six patches of the two incident cells' means, i.e. (every cell
@@ -98,15 +113,19 @@ def test_gas_filled_crack_releases_its_capillary_pull(ring):
     pressure = -rng.uniform(1e5, 2e5, mesh.n_cells)
     saturation = rng.uniform(0.3, 0.6, mesh.n_cells)
     network = _network(ring, suction=1e5)  # gas-filled
-    forces = capillary_release_forces(network, pressure, saturation, mesh.facet_cells, 8)
     centroid_radius = RING * np.cos(np.pi / 6) / 2
     area = 6 * 0.5 * centroid_radius**2 * np.sin(np.pi / 3)
-    push = area * pressure.mean() * saturation.mean()  # negative: a is pushed to -x
-    np.testing.assert_allclose(forces[0], [push, 0.0, 0.0], atol=1e-12 * abs(push))
-    np.testing.assert_allclose(forces[1], [-push, 0.0, 0.0], atol=1e-12 * abs(push))
-    np.testing.assert_array_equal(forces[2:], 0.0)
+    # a_c = 1.9e-8 m2 lies between the sections of these radii (3.1e-8, 2.8e-9 m2)
+    for radius, released in ((RADIUS, area), (0.3 * RADIUS, np.pi * (0.3 * RADIUS) ** 2)):
+        radii = np.full(8, radius)
+        forces = capillary_release_forces(network, pressure, saturation, mesh.facet_cells, radii)
+        push = released * pressure.mean() * saturation.mean()  # negative: a is pushed to -x
+        np.testing.assert_allclose(forces[0], [push, 0.0, 0.0], atol=1e-12 * abs(push))
+        np.testing.assert_allclose(forces[1], [-push, 0.0, 0.0], atol=1e-12 * abs(push))
+        np.testing.assert_array_equal(forces[2:], 0.0)
     imbibed = _network(ring, suction=1e3)
-    assert not capillary_release_forces(imbibed, pressure, saturation, mesh.facet_cells, 8).any()
+    forces = capillary_release_forces(imbibed, pressure, saturation, mesh.facet_cells, radii)
+    assert not forces.any()
 
 
 def test_closed_bond_is_no_crack(ring):
