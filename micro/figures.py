@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
@@ -62,11 +63,15 @@ def case_figure(ds: xr.Dataset, case: str, path: str | Path) -> Path:
 def comparison_figure(cases: Mapping[str, xr.Dataset], path: str | Path) -> Path:
     """Water and gas permeability (x axis) vs saturation across cases (Figs. 3.11, 3.13)."""
     fig, axes = new_figure(1, 2, width=5.0)
+    # tab20 keeps up to twenty cases (default + convergence + scale presets) apart
+    colours = plt.get_cmap("tab10" if len(cases) <= 10 else "tab20").colors
     for ax, phase in zip(axes[0], ("water", "gas")):
-        for name, ds in cases.items():
+        for index, (name, ds) in enumerate(cases.items()):
             k = ds["permeability"].sel(phase=phase).mean("axis").values
-            ax.plot(ds["saturation"].values, np.where(k > 0, k, np.nan), marker="o", ms=3, label=name)
+            ax.plot(ds["saturation"].values, np.where(k > 0, k, np.nan), marker="o", ms=3,
+                    label=name, color=colours[index % len(colours)])
         ax.set(yscale="log", xlabel="saturation [-]", ylabel="mean permeability [m2]",
                title=f"{phase} permeability, all cases")
-        ax.legend(fontsize="small")
+    fig.legend(*axes[0][0].get_legend_handles_labels(), loc="outside right upper",
+               fontsize="small")
     return save_figure(fig, path)
