@@ -120,14 +120,21 @@ def _scatter_facet_forces(positions, radii, triangles, reference_normals, weight
 
 
 # Fixed number of triangle blocks scattered in parallel, each into its own force array,
-# summed in block order: the forces do not depend on the thread count.
+# summed in block order: the forces do not depend on the thread count. Fewer triangles
+# than _PARALLEL_TRIANGLES (the hull's) are scattered serially: for them the block
+# arrays and the thread start cost more than the scatter.
 _FORCE_BLOCKS = 4
+_PARALLEL_TRIANGLES = 20000
 
 
 @njit(cache=True, parallel=True)
 def _facet_forces(positions, radii, triangles, reference_normals, weights, jumps, forces):
     """Add the forces of all triangles to ``forces`` (see :func:`_scatter_facet_forces`)."""
     n = triangles.shape[0]
+    if n < _PARALLEL_TRIANGLES:
+        _scatter_facet_forces(positions, radii, triangles, reference_normals, weights, jumps,
+                              0, n, forces)
+        return
     partial = np.zeros((_FORCE_BLOCKS, forces.shape[0], 3))
     for block in prange(_FORCE_BLOCKS):
         _scatter_facet_forces(
