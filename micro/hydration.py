@@ -56,7 +56,7 @@ from shared.mesh import (
     update_mesh,
 )
 from shared.retention import saturation as retention_saturation
-from shared.solver import CholeskySolver
+from shared.solver import CholeskySolver, SolverError
 from shared.swelling import swollen_radius, volumetric_strain
 
 __all__ = ["HydrationSettings", "PelletState", "DivergenceError", "relax", "advance_to_balance"]
@@ -481,6 +481,7 @@ def _flow_step(
     float
         The time step taken [s].
     """
+    _check_finite(state, "the last update")
     imposed = np.full(state.mesh.n_cells, -boundary_suction)
     state.saturation[system.dirichlet] = retention_saturation(
         boundary_suction, state.porosity[system.dirichlet], material
@@ -491,9 +492,12 @@ def _flow_step(
     low = min(boundary_suction, float(old_suction.min())) - slack
     high = max(boundary_suction, float(old_suction.max())) + slack
     while time_step >= settings.initial_time_step * 1e-6:
-        result = transient_step(state.mesh, system.pattern, system.solver, state.pressure,
-                                state.saturation, state.porosity, conductance, imposed,
-                                time_step, material)
+        try:
+            result = transient_step(state.mesh, system.pattern, system.solver, state.pressure,
+                                    state.saturation, state.porosity, conductance, imposed,
+                                    time_step, material)
+        except SolverError as err:
+            raise DivergenceError(f"flow solve failed at t = {state.time:.3g} s: {err}") from err
         new_suction = -result.pressure
         if not np.all(np.isfinite(new_suction)):
             raise DivergenceError(f"non-finite pressure at t = {state.time:.3g} s")

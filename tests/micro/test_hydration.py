@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from micro import hydration
 from micro import run as micro_run
 from micro.checkpoint import load_checkpoint, save_checkpoint
 from micro.hydration import (
@@ -99,6 +100,21 @@ def test_suction_front_moves_inwards_and_balances():
     # stress-free cloud, so the water volume itself may fall)
     assert state.mean_saturation() > saturation
     assert state.dem.radii.min() > state.dem.reference_radii.min()  # and the points swelled
+
+
+def test_a_non_finite_field_or_solve_stops_hydration_with_a_divergence_error(monkeypatch):
+    """A NaN field or a failed solve ends in a DivergenceError naming it (run() then keeps
+    the last good checkpoint, ``test_killed_run_resumes_to_the_same_result``)."""
+    state = initial_state(SMALL, None)
+    system = FlowSystem.for_mesh(state.mesh)
+    state.porosity[state.mesh.n_cells // 2] = np.nan
+    with pytest.raises(DivergenceError, match="porosity"):
+        advance_to_balance(state, system, 60e6, HydrationSettings())
+    state = initial_state(SMALL, None)
+    # a solve whose matrix is indefinite, as a negative conductance would make it
+    monkeypatch.setattr(hydration, "conductances", lambda *args: -np.ones(state.mesh.n_facets))
+    with pytest.raises(DivergenceError, match="flow solve failed"):
+        advance_to_balance(state, FlowSystem.for_mesh(state.mesh), 60e6, HydrationSettings())
 
 
 def test_grid_not_covering_the_specimen_is_refused():
