@@ -154,7 +154,10 @@ def resolve(section: Mapping[str, Any] | None) -> dict[str, Any]:
     ------
     ValueError
         Naming the offending key: unknown key, wrong sign or range, l_a < l_b, a box
-        narrower than the median particle, or zone bounds in the wrong order.
+        narrower than the median particle or than the largest particle when the laws bound
+        it (see :func:`_largest_semi_major_axis`), or zone bounds in the wrong order. Other
+        size laws are checked against the sampled particles by
+        :func:`imaging.deposition.run.run`.
     """
     section = dict(section or {})
     unknown = sorted(set(section) - set(DEFAULTS))
@@ -176,6 +179,12 @@ def resolve(section: Mapping[str, Any] | None) -> dict[str, Any]:
         raise ValueError(
             f"box_width_m: {out['box_width_m']!r} m is not wider than the median particle "
             f"(2 l_a = {2.0 * semi_major:.3g} m)")
+    largest = _largest_semi_major_axis(out)
+    if largest is not None and out["box_width_m"] <= 2.0 * largest:
+        raise ValueError(
+            f"box_width_m: {out['box_width_m']!r} m is not wider than the largest particle the "
+            f"size law allows (2 l_a = {2.0 * largest:.3g} m); widen it or lower "
+            "basal_surface_max_m2")
     thickness = population.aspect_ratio_median * population.median_diameter
     if out["contact_distance_m"] >= 0.5 * thickness:
         raise ValueError(
@@ -188,6 +197,24 @@ def resolve(section: Mapping[str, Any] | None) -> dict[str, Any]:
     if z_min is not None and z_max is not None and z_min >= z_max:
         raise ValueError("z_min_m: must be below z_max_m")
     return out
+
+
+def _largest_semi_major_axis(section: Mapping[str, Any]) -> float | None:
+    """Largest l_a [m] the size laws allow, or None when they do not bound it.
+
+    l_a = sqrt(S e / pi) with S the basal surface and e = l_a / l_b: bounded when S is
+    (sigma 0, or ``basal_surface_max_m2`` set) and e is fixed (``axis_ratio_sigma`` 0; the
+    law of e has no upper cut).
+    """
+    if section["axis_ratio_sigma"] > 0.0:
+        return None
+    if section["basal_surface_sigma"] > 0.0:
+        surface = section["basal_surface_max_m2"]
+        if surface is None:
+            return None
+    else:
+        surface = section["basal_surface_median_m2"]
+    return math.sqrt(surface * section["axis_ratio_median"] / math.pi)
 
 
 def population_of(section: Mapping[str, Any]) -> Population:

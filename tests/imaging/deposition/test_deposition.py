@@ -16,7 +16,7 @@ from imaging.deposition import (
     porosity_profile,
     zone_porosity,
 )
-from imaging.deposition import _settle_kernels
+from imaging.deposition import _contact_kernels, _settle_kernels
 from imaging.deposition.analysis import profile_edges
 from imaging.deposition.voxels import overlap_fraction, voxelize
 
@@ -74,6 +74,43 @@ def test_no_interpenetration_in_a_polydisperse_bed(polydisperse_bed: Packing) ->
     bad, pairs = _overlapping_points(polydisperse_bed)
     assert pairs > 60
     assert bad == 0
+
+
+def _support_gaps(bed: Packing) -> np.ndarray:
+    """Per particle, the smallest Euclidean distance [m] to the floor or to a particle placed
+    before it (periodic images included), by the GJK distance of the contact kernels."""
+    w = bed.box_width
+    rot, axes, centers = bed.rotations, bed.semi_axes, bed.centers
+    radius = np.hypot(axes[:, 0], axes[:, 2])
+    floor = centers[:, 2] - (np.sqrt((axes[:, 0] * rot[:, 2, 0]) ** 2
+                                     + (axes[:, 1] * rot[:, 2, 1]) ** 2)
+                             + axes[:, 2] * np.abs(rot[:, 2, 2]))
+    gaps = floor.copy()
+    tolerance = 1e-3 * bed.contact_distance
+    for i in range(1, len(centers)):
+        for j in range(i):
+            for sx in (-w, 0.0, w):
+                for sy in (-w, 0.0, w):
+                    other = centers[j] + np.array([sx, sy, 0.0])
+                    if np.linalg.norm(other - centers[i]) > radius[i] + radius[j] + gaps[i]:
+                        continue
+                    distance = _contact_kernels.gjk(centers[i], rot[i], axes[i], other, rot[j],
+                                                    axes[j], tolerance, 0.0)[0]
+                    gaps[i] = min(gaps[i], distance)
+    return gaps
+
+
+@pytest.mark.parametrize("fixture", ["elliptic_bed", "polydisperse_bed"])
+def test_every_particle_rests_on_a_support(fixture: str, request: pytest.FixtureRequest) -> None:
+    """Contact accuracy of the exact (GJK) alternative to the paper's scan: a fall stops at
+    a vertical gap of d_cont / 2 (GJK bounds converged to 0.2 of that gap; the Euclidean gap
+    is at most the vertical one), so every particle lies within 0.6 d_cont of the floor or
+    of an earlier particle (worst measured 0.52 and 0.54 d_cont in these beds), and none
+    touches or overlaps one (distance > 0)."""
+    bed = request.getfixturevalue(fixture)
+    gaps = _support_gaps(bed) / bed.contact_distance
+    assert gaps.max() <= 0.6
+    assert gaps.min() > 0.0
 
 
 def test_bed_stays_in_the_box_and_lands_on_the_floor(elliptic_bed: Packing) -> None:

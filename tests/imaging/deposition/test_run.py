@@ -78,11 +78,44 @@ def test_centred_rev_ignores_the_whole_image() -> None:
         ("n_particle", 10),
         ("seed", -1),
         ("contact_distance_m", 1e-7),
+        ("axis_ratio_sigma", -0.1),
+        ("aspect_ratio_sigma", -0.1),
+        ("theta_initial_deg", -5.0),
     ],
 )
 def test_invalid_config_names_the_key(key: str, value: object) -> None:
     with pytest.raises(ValueError, match=key):
         resolve({key: value})
+
+
+@pytest.mark.parametrize(
+    "section",
+    [
+        # log-normal basal surface capped at d = 3 um: the largest particle is known
+        {"box_width_m": 2.9e-6, "basal_surface_sigma": 0.5,
+         "basal_surface_max_m2": np.pi / 4 * 9e-12},
+        # capped surface and l_a / l_b = 2: 2 l_a = 2 sqrt(2) um
+        {"box_width_m": 2.8e-6, "basal_surface_sigma": 0.5, "axis_ratio_median": 2.0,
+         "basal_surface_max_m2": np.pi / 4 * 4e-12},
+    ],
+)
+def test_box_narrower_than_the_largest_possible_particle_fails_at_validation(
+    section: dict
+) -> None:
+    """(Monodisperse beds: the largest particle is the median one, checked first.)"""
+    resolve({**section, "box_width_m": 3.0 * section["box_width_m"]})
+    with pytest.raises(ValueError, match="box_width_m.*largest"):
+        resolve(section)
+
+
+def test_unbounded_laws_are_left_to_the_sampled_check() -> None:
+    """Without a cap (or with a spread axis ratio) the largest particle is not known before
+    sampling: resolve accepts the box, run checks the sampled particles."""
+    resolve({"box_width_m": 2.9e-6, "basal_surface_sigma": 0.5})
+    resolve({"box_width_m": 2.9e-6, "basal_surface_sigma": 0.5, "axis_ratio_sigma": 0.3,
+             "basal_surface_max_m2": np.pi / 4 * 9e-12})
+    resolve({"box_width_m": 3.1e-6, "basal_surface_sigma": 0.5,
+             "basal_surface_max_m2": np.pi / 4 * 9e-12})
 
 
 def test_box_narrower_than_the_largest_sampled_particle(tmp_path: Path) -> None:
