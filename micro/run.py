@@ -156,7 +156,8 @@ def run(
         If the coupled solution diverges; the last good checkpoint stays on disk.
     """
     spec, settings, heterogeneous = case_settings(config, case)
-    section = {"micro": dict(config["micro"]), "case": case}
+    # the studies aggregate finished cases: they are not part of a case's configuration
+    section = {"micro": {k: v for k, v in config["micro"].items() if k != "studies"}, "case": case}
     checkpoints = np.asarray(config["micro"]["checkpoints_suction_pa"], dtype=float)
     output = Path(output)
     state_file = output.with_suffix(".checkpoint.npz")

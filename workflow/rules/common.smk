@@ -2,6 +2,12 @@
 import sys
 
 from imaging.deposition.config import resolve as resolve_packing
+from micro.studies import (
+    case_edge_length,
+    check_studies,
+    convergence_cases,
+    scale_cases,
+)
 from shared.config import ConfigError, load_schema, validate_config
 from shared.provenance import code_sha256
 
@@ -27,6 +33,10 @@ if config["micro"]["sample"] not in config["samples"]:
         f"claychain: invalid configuration: config key 'micro.sample': "
         f"{config['micro']['sample']!r} is not a sample"
     )
+try:
+    check_studies(config)
+except ConfigError as err:
+    sys.exit(f"claychain: invalid configuration: {err}")
 
 
 wildcard_constraints:
@@ -67,8 +77,51 @@ def get_micro_porosity(wildcards):
 
 def get_micro_case_config(wildcards):
     """The micro settings and this case's entry (a param: editing one case reruns it alone)."""
-    shared = {key: value for key, value in config["micro"].items() if key != "cases"}
+    # the studies only aggregate finished cases: declaring one reruns no case
+    shared = {
+        key: value
+        for key, value in config["micro"].items()
+        if key not in ("cases", "studies")
+    }
     return {**shared, "case": config["micro"]["cases"][wildcards.case]}
+
+
+def get_convergence_cases(wildcards):
+    """The outputs of the convergence study's cases (micro.studies.convergence)."""
+    cases = convergence_cases(config)
+    if not cases:
+        raise ValueError(
+            "claychain: no convergence study: micro.studies.convergence is empty"
+        )
+    return expand("results/micro/{case}.nc", case=cases)
+
+
+def get_scale_cases(wildcards):
+    """The outputs of the scale study's reference and realizations (micro.studies.scale)."""
+    cases = scale_cases(config)
+    if not cases:
+        raise ValueError(
+            "claychain: no scale study: micro.studies.scale.cases is empty"
+        )
+    return expand("results/micro/{case}.nc", case=cases)
+
+
+def get_scale_edge_lengths(wildcards):
+    """Cube edge [m] of each case of the scale study (a param: its edits rerun the study)."""
+    return {case: case_edge_length(config, case) for case in scale_cases(config)}
+
+
+def get_study_outputs():
+    """The study products of the declared studies (none by default)."""
+    outputs = []
+    if convergence_cases(config):
+        outputs += [
+            "results/studies/convergence.nc",
+            "results/studies/convergence.png",
+        ]
+    if scale_cases(config):
+        outputs += ["results/studies/scale.nc", "results/studies/scale.png"]
+    return outputs
 
 
 def get_final_outputs():
@@ -87,7 +140,8 @@ def get_final_outputs():
         ["results/packing/{packing}.nc", "results/packing/{packing}.png"],
         packing=PACKINGS,
     )
-    return imaging + micro + ["results/micro/comparison.png"] + packing
+    studies = get_study_outputs()
+    return imaging + micro + ["results/micro/comparison.png"] + studies + packing
 
 
 # The sources each stage's rules run; their hash is a param so that edits rerun the rules.
@@ -99,6 +153,14 @@ IMAGING_CODE = code_hash(
     "shared/config.py",
 )
 MICRO_CODE = code_hash("micro", "shared")
+STUDIES_CODE = code_hash(
+    "micro/studies.py",
+    "micro/figures.py",
+    "shared/io.py",
+    "shared/provenance.py",
+    "shared/figures.py",
+    "shared/config.py",
+)
 PACKING_CODE = code_hash(
     "imaging", "shared/io.py", "shared/provenance.py", "shared/figures.py"
 )

@@ -35,3 +35,42 @@ rule micro_compare:
         "results/benchmarks/micro_compare/all.tsv"
     script:
         "../scripts/micro_compare.py"
+
+
+rule micro_convergence:
+    input:
+        get_convergence_cases,
+    output:
+        result="results/studies/convergence.nc",
+        figure="results/studies/convergence.png",
+    params:
+        code=STUDIES_CODE,
+        cases=config["micro"]["studies"]["convergence"],
+    conda:
+        "../envs/claychain.yaml"
+    log:
+        "results/logs/micro_convergence/all.log",
+    benchmark:
+        "results/benchmarks/micro_convergence/all.tsv"
+    script:
+        "../scripts/micro_convergence.py"
+
+
+rule micro_scale:
+    input:
+        get_scale_cases,
+    output:
+        result="results/studies/scale.nc",
+        figure="results/studies/scale.png",
+    params:
+        code=STUDIES_CODE,
+        scale=config["micro"]["studies"]["scale"],
+        edge_lengths=get_scale_edge_lengths,
+    conda:
+        "../envs/claychain.yaml"
+    log:
+        "results/logs/micro_scale/all.log",
+    benchmark:
+        "results/benchmarks/micro_scale/all.tsv"
+    script:
+        "../scripts/micro_scale.py"
