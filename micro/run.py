@@ -23,7 +23,7 @@ import xarray as xr
 from micro import figures, vtk
 from micro.checkpoint import load_checkpoint, save_checkpoint
 from micro.hydration import DivergenceError, FlowSystem, HydrationSettings, advance_to_balance
-from micro.pellet import POROSITY_BINS, SpecimenSpec, initial_state, measure_checkpoint
+from micro.pellet import POROSITY_BINS, SpecimenSpec, initial_state, measure_checkpoint, settle
 from shared.config import ConfigError
 from shared.dem.parameters import DEFAULT_DEM
 from shared.io import read_dataset, write_dataset
@@ -175,10 +175,13 @@ def run(
     if resumed is None:
         if vtk_dir is not None:
             vtk.clear_snapshots(vtk_dir, output.stem)
-        state = initial_state(spec, grid if heterogeneous else None,
-                              None if heterogeneous else _specimen_mean(spec, grid),
-                              DEFAULT_CLAY, parameters)
-        system = FlowSystem.for_mesh(state.mesh)
+        source = grid if heterogeneous else None
+        mean = None if heterogeneous else _specimen_mean(spec, grid)
+        state = initial_state(spec, source, mean, DEFAULT_CLAY, parameters)
+        system, settled = settle(state, FlowSystem.for_mesh(state.mesh), spec, source, mean,
+                                 settings, DEFAULT_CLAY, parameters)
+        log.info("%s: settled at the initial suction in %d DEM steps (unbalanced force %.3g)",
+                 case, settled["dem_steps"], settled["unbalanced_force"])
         records: list[dict[str, Any]] = []
         reference_volume = float(state.mesh.volumes.sum())
     else:

@@ -54,6 +54,7 @@ __all__ = [
     "mean_spacing",
     "convex_hull_volume",
     "porosity_at_centroids",
+    "porosity_at_points",
     "point_average",
 ]
 
@@ -623,24 +624,32 @@ def convex_hull_volume(points: npt.ArrayLike) -> float:
 def porosity_at_centroids(mesh: Mesh, porosity: xr.DataArray) -> FloatArray:
     """Trilinear interpolation of a porosity grid at the cell centroids.
 
+    See :func:`porosity_at_points`, at ``mesh.centroids``.
+    """
+    return porosity_at_points(mesh.centroids, porosity)
+
+
+def porosity_at_points(points: npt.ArrayLike, porosity: xr.DataArray) -> FloatArray:
+    """Trilinear interpolation of a porosity grid at given points.
+
     Parameters
     ----------
-    mesh
-        The mesh.
+    points
+        (n, 3) query points x, y, z [m].
     porosity
         Grid ``porosity(z, y, x)`` [1] with strictly monotonic coordinates ``z, y, x``
         in m, values in (0, 1).
 
     Returns
     -------
-    ndarray, shape (n_cells,)
-        Porosity per cell [1].
+    ndarray, shape (n,)
+        Porosity at each point [1].
 
     Raises
     ------
     ValueError
         If the grid is not (z, y, x), holds NaN or values outside (0, 1), or does not
-        cover every centroid.
+        cover every point.
     """
     if tuple(porosity.dims) != ("z", "y", "x"):
         raise ValueError(f"porosity grid must have dims ('z', 'y', 'x'), got {porosity.dims}")
@@ -652,14 +661,14 @@ def porosity_at_centroids(mesh: Mesh, porosity: xr.DataArray) -> FloatArray:
             f"porosity grid values must lie in (0, 1); range [{values.min()}, {values.max()}]"
         )
     axes = tuple(np.asarray(porosity[name].values, dtype=np.float64) for name in ("z", "y", "x"))
-    query = mesh.centroids[:, ::-1]
+    query = np.asarray(points, dtype=np.float64)[:, ::-1]
     for k, name in enumerate(("z", "y", "x")):
         low, high = min(axes[k][0], axes[k][-1]), max(axes[k][0], axes[k][-1])
         outside = (query[:, k] < low) | (query[:, k] > high)
         if np.any(outside):
             raise ValueError(
                 f"porosity grid does not cover the mesh along {name}: grid [{low}, {high}] m, "
-                f"centroids [{query[:, k].min()}, {query[:, k].max()}] m "
+                f"cells [{query[:, k].min()}, {query[:, k].max()}] m "
                 f"({int(outside.sum())} cells outside)"
             )
     interpolator = RegularGridInterpolator(axes, values, method="linear", bounds_error=True)

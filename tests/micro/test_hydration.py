@@ -21,7 +21,7 @@ from micro.hydration import (
     triangulate,
     update_geometry,
 )
-from micro.pellet import SpecimenSpec, centred_grid, initial_state
+from micro.pellet import SpecimenSpec, centred_grid, initial_state, settle
 from shared.config import ConfigError, validate_config
 from shared.dem.parameters import DEFAULT_DEM
 from shared.mesh import mesh_from_tetrahedra
@@ -135,6 +135,26 @@ def test_offset_cube_reads_the_shifted_part_of_the_grid():
     inside = {axis: slice(0.0, 4e-3) for axis in "zyx"}
     difference = shifted.sel(inside).mean() - centred.sel(inside).mean()
     assert float(difference) == pytest.approx(0.02, rel=1e-9)
+
+
+def test_the_settled_specimen_has_the_scanned_porosity_where_its_material_was_built():
+    """settle(): balance at s0 compacts the stress-free cloud; the cells then take the grid
+    porosity at their vertices' as-built mean (here 0.21 + 20 x, linear, so trilinear
+    interpolation is exact), with solid volume (1 - porosity) V and S(s0)."""
+    x = np.arange(16) * 1e-3
+    grid = _grid(np.broadcast_to(0.1 + 20.0 * x, (16, 16, 16)).copy(), 1e-3)
+    state = initial_state(SMALL, grid)
+    built = state.dem.positions.copy()
+    built_volume = state.mesh.volumes.sum()
+    system, report = settle(state, FlowSystem.for_mesh(state.mesh), SMALL, grid)
+    assert report["balanced"] == 1.0
+    assert state.mesh.volumes.sum() < 0.97 * built_volume  # S s0 compacted the cloud
+    expected = 0.21 + 20.0 * built[state.mesh.tetrahedra].mean(axis=1)[:, 0]
+    np.testing.assert_allclose(state.porosity, expected, rtol=1e-12)
+    np.testing.assert_allclose(state.solid_volume, (1.0 - expected) * state.mesh.volumes,
+                               rtol=1e-12)
+    np.testing.assert_allclose(state.pressure, -132e6)
+    assert system.pattern.n_free > 0
 
 
 def test_case_overrides_points_size_and_offset(micro_config):
