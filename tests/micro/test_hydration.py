@@ -24,6 +24,7 @@ from micro.hydration import (
 from micro.pellet import SpecimenSpec, centred_grid, initial_state, settle
 from shared.config import ConfigError, validate_config
 from shared.dem.parameters import DEFAULT_DEM
+from shared.dem.state import new_state
 from shared.mesh import mesh_from_tetrahedra
 
 SMALL = SpecimenSpec(edge_length=4e-3, n_points=125, seed=3)
@@ -47,6 +48,17 @@ def test_membrane_load_is_stress_times_face_area(rng):
     # the face between the outer layers' mean planes, 9 mm wide (the jitter moves them ~1e-6 m)
     assert forces[low_x, 0].sum() == pytest.approx(5e6 * 9e-3**2, rel=1e-3)
     assert forces[-1, 0] == pytest.approx(forces[low_x, 0].sum() / 101, rel=1e-12)
+
+
+def test_a_fragment_that_left_the_specimen_is_not_its_main_body():
+    """Three bonded points, two bonded points far away and a lone one: the main body is
+    the three (the pair still touches a neighbour, but not the specimen)."""
+    positions = np.array([[0, 0, 0], [1.8, 0, 0], [0, 1.8, 0],
+                          [10, 0, 0], [11.8, 0, 0], [20, 20, 20]], dtype=float) * 1e-4
+    dem = new_state(positions, np.full(6, 1e-4), stress_free_bonds=True)
+    assert dem.bonds.shape[0] == 3  # 0-1, 0-2 and 3-4
+    body = hydration._main_body(dem, np.zeros(dem.contacts.pairs.shape[0]))
+    np.testing.assert_array_equal(body, [True, True, True, False, False, False])
 
 
 def test_flat_tetrahedra_are_dropped(rng):
