@@ -22,7 +22,16 @@ Compared (ratio = ours / Yade's):
 * the water permeability along x of the homogeneous specimen (porosity phi_0) after
   Yade's equilibration, at the equilibrium saturation S(s_0) and fully saturated,
   both by the wall-flux method (REFERENCE_NOTES section 10), ours on Yade's
-  equilibrated point positions with :func:`micro.permeability.permeability_tensor_axes`.
+  equilibrated point positions with :func:`micro.permeability.permeability_tensor_axes`;
+* the water permeability curve k_x(S) on the same frozen positions: at each suction of
+  :data:`CURVE_SUCTIONS_PA` (0: full saturation) every cell of both codes gets the van
+  Genuchten saturation S(s, phi_0) of :func:`shared.retention.saturation` and the x
+  walls pressures -s -+ dP/2 (dP = 10 % of s), k_x by the wall-flux method; ours also
+  with Yade's default conductance clamp (``clampKValues``, off in the Yade run)
+  emulated, g clipped to [1e-4, 1e2] x mean(g). Yade's bulk value is its wall flux
+  over its interior gradient, corrected for where that gradient is sampled and
+  taken per the cross-section the flux crosses (:func:`_curve_table`). Written with
+  a figure (k against S, both codes) to ``results/benchmarks/yade_compare_<N>.png``.
 
 Timings are wall-clock on a shared machine, medians and fastest of repeated calls on
 both sides, recorded with the load average, never asserted. Run
@@ -46,18 +55,20 @@ from collections import deque
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
+from scipy.spatial import Delaunay
 
 from benchmarks.dem import bench_dem
 from benchmarks.flow import bench_flow
-from micro.permeability import permeability_tensor_axes
+from micro.permeability import measure_permeability, permeability_tensor_axes
 from shared.dem import DEFAULT_DEM
 from shared.dem.points import cube_points
-from shared.fv import transfer_cell_state
+from shared.fv import facet_conductance, transfer_cell_state
 from shared.materials import DEFAULT_CLAY
-from shared.mesh import build_mesh
+from shared.mesh import Mesh, build_mesh
 from shared.retention import saturation
 
-__all__ = ["bench_yade_compare"]
+__all__ = ["bench_yade_compare", "plot_curve", "yade_gradient_factor"]
 
 YADE_SCRIPT = Path(__file__).with_name("yade") / "partialsat_cube.py"
 OUT = Path("results/benchmarks")
@@ -69,6 +80,13 @@ RADIUS_FACTOR = 1.02
 # limit, which a steep friction angle approaches.
 FRICTION_ANGLE_DEG = 80.0
 FLOW_REPEATS = 3
+# Suctions of the permeability curve [Pa]: the initial suction of Table 3.1 down to
+# near saturation; 0 stands for full saturation.
+CURVE_SUCTIONS_PA = (132e6, 60e6, 20e6, 5e6, 1e6, 0.3e6, 0.1e6, 0.0)
+# Yade's default conductance clamp (FlowEngine minKdivKmean, maxKdivKmean).
+CLAMP = (1e-4, 1e2)
+# Pressure drop of the permeability measurements, as a fraction of the suction.
+DROP_FRACTION = 0.1
 # Yade's warning for a boundary cell whose volume minus its solid parts is negative.
 NEGATIVE_VOLUME = "negative volume for an ordinary pore"
 
@@ -85,7 +103,7 @@ def _run_settings(n_points: int) -> dict:
         "equilibration_chunk": 200,
         "max_equilibration_iterations": max(400, int(6e6 / n_points)),
         "unbalanced_force_threshold": 0.05,
-        "drop_fraction": 0.1,
+        "drop_fraction": DROP_FRACTION,
         "warmup_iterations": 3,
         "coupled_iterations": max(20, int(3e5 / n_points)),
         "remesh_steps": 4,
@@ -146,6 +164,16 @@ def _run_yade(settings_path: Path, timeout: float) -> tuple[int, int, str]:
     return status, warnings, "".join(tail)
 
 
+def _curve_points() -> list[dict[str, float]]:
+    """Suction and van Genuchten saturation S(s, phi_0) of each curve point."""
+    material = DEFAULT_CLAY
+    suctions = np.array(CURVE_SUCTIONS_PA)
+    values = saturation(suctions, material.reference_porosity, material)
+    return [
+        {"suction_pa": float(s), "saturation": float(w)} for s, w in zip(suctions, values)
+    ]
+
+
 def _run_yade_side(
     positions: np.ndarray, radii: np.ndarray, folder: Path, timeout: float
 ) -> tuple[dict, np.ndarray]:
@@ -159,6 +187,7 @@ def _run_yade_side(
         "clay": dataclasses.asdict(DEFAULT_CLAY),
         "dem": dict(dataclasses.asdict(DEFAULT_DEM), friction_angle_deg=FRICTION_ANGLE_DEG),
         "run": _run_settings(positions.shape[0]),
+        "curve": _curve_points(),
     }
     settings_path = folder / "settings.json"
     settings_path.write_text(json.dumps(settings, indent=1))
@@ -190,7 +219,80 @@ def _our_permeability(positions: np.ndarray) -> dict:
             "saturation": float(water[0]),
         }
     result["n_cells"] = mesh.n_cells
+    result["curve"] = _our_curve(mesh, porosity)
     return result
+
+
+def _our_curve(mesh: Mesh, porosity: np.ndarray) -> list[dict[str, float]]:
+    """Water k_x at each curve point, as computed and with Yade's clamp emulated [m2].
+
+    The wall pressures follow the Yade side (:func:`_curve_points`): -s -+ dP/2 with
+    dP = 10 % of s, and for full saturation the drop of s_0 (a steady solve does not
+    depend on the mean pressure).
+    """
+    material = DEFAULT_CLAY
+    rows = []
+    for point in _curve_points():
+        suction = point["suction_pa"]
+        water = np.full(mesh.n_cells, point["saturation"])
+        conductance = facet_conductance(mesh, water, porosity, "water", material)
+        mean = float(conductance.mean())
+        clamped = np.clip(conductance, CLAMP[0] * mean, CLAMP[1] * mean)
+        drop = DROP_FRACTION * (suction if suction > 0.0 else material.initial_suction)
+        values = {
+            name: measure_permeability(
+                mesh, g, material.water_viscosity, 0,
+                mean_pressure=-suction if suction > 0.0 else drop, pressure_drop=drop,
+            )
+            for name, g in (("k_x_m2", conductance), ("k_x_clamped_m2", clamped))
+        }
+        rows.append(dict(point, **values, clamped_fraction=float(np.mean(clamped != conductance))))
+    return rows
+
+
+def yade_gradient_factor(
+    positions: np.ndarray, fraction: float = 0.4, samples: int = 5
+) -> dict[str, float]:
+    """Bias of the Yade script's interior pressure gradient on these points [1].
+
+    ``interior_gradient`` of the Yade script samples ``getPorePressure`` on a
+    ``samples`` x ``samples`` grid of the inner half of two planes at x = centre -+
+    ``fraction`` L / 2 of the centres' box. That call returns the pressure of the
+    cell containing the point, which sits at the cell's dual point, not at the
+    point; with equal radii Yade's regular triangulation is the Delaunay one, so
+    for a linear field p = p_0 + g x the script measures g f with
+    f = (mean dual x on the upper plane - mean on the lower) / (fraction L), and its
+    interior permeability is the flux-based one divided by f.
+
+    Returns
+    -------
+    dict
+        ``factor`` f and the mean offsets of the sampled duals from each plane
+        ``offset_lower_m``, ``offset_upper_m`` [m].
+    """
+    triangulation = Delaunay(positions)
+    low, high = positions.min(axis=0), positions.max(axis=0)
+    centre, size = 0.5 * (low + high), high - low
+    offsets = (np.arange(samples) / (samples - 1) - 0.5) * 0.5
+    means = []
+    for side in (-0.5, 0.5):
+        x = centre[0] + side * fraction * size[0]
+        points = np.array([
+            (x, centre[1] + u * size[1], centre[2] + w * size[2])
+            for u in offsets for w in offsets
+        ])
+        corners = positions[triangulation.simplices[triangulation.find_simplex(points)]]
+        edges = corners[:, 1:] - corners[:, :1]
+        duals = corners[:, 0] + np.linalg.solve(
+            edges, 0.5 * (edges**2).sum(axis=-1)[..., None]
+        )[..., 0]
+        means.append((float(duals[:, 0].mean()), x))
+    (lower, x_lower), (upper, x_upper) = means
+    return {
+        "factor": float((upper - lower) / (fraction * size[0])),
+        "offset_lower_m": lower - x_lower,
+        "offset_upper_m": upper - x_upper,
+    }
 
 
 def _remesh_extras_s(positions: np.ndarray, radii: np.ndarray) -> dict:
@@ -255,7 +357,9 @@ def _our_timings(n_points: int, positions: np.ndarray, radii: np.ndarray) -> dic
     }
 
 
-def bench_yade_compare(n_points: int = 1500, timeout: float = 3600.0) -> dict:
+def bench_yade_compare(
+    n_points: int = 1500, timeout: float = 3600.0, figure: bool = True
+) -> dict:
     """Time both codes on the same cube and compare their water permeability along x.
 
     Parameters
@@ -264,6 +368,9 @@ def bench_yade_compare(n_points: int = 1500, timeout: float = 3600.0) -> dict:
         Requested number of points (the grid has round(n^(1/3))^3).
     timeout
         Seconds allowed for the Yade run before it is killed.
+    figure
+        Write the permeability curves to ``results/benchmarks/yade_compare_<N>.png``
+        (N as requested).
 
     Returns
     -------
@@ -276,7 +383,8 @@ def bench_yade_compare(n_points: int = 1500, timeout: float = 3600.0) -> dict:
         fastest runs; ``coupled_iteration_drifting``, our median away from hydraulic
         balance), ``remesh``, and ``k_x_equilibrium``,
         ``k_x_saturated``, each against Yade's k_x per the spheres' box, per the
-        centres' box, and from its interior gradient.
+        centres' box, and from its interior gradient; ``curve``: one row per point of
+        :data:`CURVE_SUCTIONS_PA` (see :func:`_curve_table`).
     """
     if shutil.which("yade") is None:
         return {"skipped": "yade not installed"}
@@ -288,6 +396,8 @@ def bench_yade_compare(n_points: int = 1500, timeout: float = 3600.0) -> dict:
         yade, equilibrated = _run_yade_side(positions, radii, Path(folder), timeout)
     ours = _our_timings(n_points, positions, radii)
     ours["permeability"] = _our_permeability(equilibrated)
+    gradient = yade_gradient_factor(equilibrated)
+    ours["permeability"]["yade_gradient_factor"] = gradient
     ratios = {
         "coupled_iteration": ours["coupled_iteration_s"] / yade["coupled"]["per_iteration_s"],
         "coupled_iteration_min": ours["coupled_iteration_min_s"]
@@ -303,14 +413,111 @@ def bench_yade_compare(n_points: int = 1500, timeout: float = 3600.0) -> dict:
             "centre_box": k_ours / theirs["centre_box"]["k_x_m2"],
             "interior": k_ours / theirs["k_x_interior_m2"],
         }
-    return {
+    result = {
         "n_points": int(positions.shape[0]),
         # Wall-clock ratios on a shared machine: the load says how much to trust them.
         "load_average_1min": {"start": load_start, "end": os.getloadavg()[0]},
         "yade": yade,
         "ours": ours,
         "ratios": ratios,
+        "curve": _curve_table(
+            yade["permeability_curve"], ours["permeability"]["curve"], gradient["factor"]
+        ),
     }
+    if figure:
+        plot_curve(result, OUT / f"yade_compare_{n_points}.png")
+    return result
+
+
+def _curve_table(
+    theirs: list[dict], ours: list[dict], gradient_factor: float
+) -> list[dict[str, float]]:
+    """One row per curve point: suction, S, k of both codes and their ratios.
+
+    Yade's wall flux Q crosses the whole meshed cross-section, whose flow
+    boundaries sit on the spheres' box (``boundaryUseMaxMin``), and its interior
+    gradient is read at cell duals (:func:`yade_gradient_factor`); so
+    ``k_yade_m2`` = Q mu / (A_spheres g f) is the script's interior value times f
+    A_centres / A_spheres: its bulk permeability, free of the wall cells'
+    resistance. Also given: ``k_yade_interior_m2`` (the script's value, per
+    centres' box, uncorrected), ``k_yade_centre_box_m2`` and ``k_yade_sphere_box_m2``
+    (Q over the wall pressure drop, wall cells included), ``k_ours_clamped_m2``
+    (ours with Yade's default clamp). Ratios are ours / the Yade value named.
+    """
+    rows = []
+    for yade, mine in zip(theirs, ours, strict=True):
+        area_ratio = yade["centre_box"]["area_m2"] / yade["sphere_box"]["area_m2"]
+        k_yade = yade["k_x_interior_m2"] * gradient_factor * area_ratio
+        k_ours = mine["k_x_m2"]
+        rows.append({
+            "suction_pa": mine["suction_pa"],
+            "saturation": mine["saturation"],
+            "k_yade_m2": k_yade,
+            "k_yade_interior_m2": yade["k_x_interior_m2"],
+            "k_yade_centre_box_m2": yade["centre_box"]["k_x_m2"],
+            "k_yade_sphere_box_m2": yade["sphere_box"]["k_x_m2"],
+            "k_ours_m2": k_ours,
+            "k_ours_clamped_m2": mine["k_x_clamped_m2"],
+            "ratio": k_ours / k_yade,
+            "ratio_interior": k_ours / yade["k_x_interior_m2"],
+            "ratio_centre_box": k_ours / yade["centre_box"]["k_x_m2"],
+            "ratio_sphere_box": k_ours / yade["sphere_box"]["k_x_m2"],
+            "ratio_clamped": mine["k_x_clamped_m2"] / k_yade,
+        })
+    return rows
+
+
+def plot_curve(result: dict, path: Path) -> None:
+    """Figure of k_x against S for both codes (log k), k_0 Se^n, and their ratios."""
+    rows = result["curve"]
+    water = np.array([r["saturation"] for r in rows])
+    figure = Figure(figsize=(6.5, 6.4))
+    axes, lower = figure.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": (3, 1)})
+    series = (
+        ("k_yade_m2", "o-", "Yade, bulk (interior gradient, corrected)"),
+        ("k_yade_interior_m2", "^-.", "Yade, interior gradient as sampled"),
+        ("k_yade_centre_box_m2", "v:", "Yade, wall drop (centres' box)"),
+        ("k_ours_m2", "s--", "ours, wall flux"),
+        ("k_ours_clamped_m2", "x", "ours, Yade's clamp emulated"),
+    )
+    for key, style, label in series:
+        axes.semilogy(water, [r[key] for r in rows], style, label=label)
+    material = DEFAULT_CLAY
+    grid = np.linspace(water.min(), water.max(), 100)
+    effective = (grid - material.residual_saturation) / (
+        material.saturated_saturation - material.residual_saturation
+    )
+    axes.semilogy(
+        grid,
+        material.intrinsic_permeability_reference
+        * effective ** material.relative_permeability_exponent,
+        "k:", lw=0.8, label="k_0 Se^n (input)",
+    )
+    for row in rows:
+        text = "sat." if row["suction_pa"] == 0 else f"{row['suction_pa'] / 1e6:g} MPa"
+        axes.annotate(text, (row["saturation"], row["k_yade_m2"]), fontsize=6,
+                      textcoords="offset points", xytext=(3, -9))
+    for key, style, label in (
+        ("ratio", "o-", "ours / Yade bulk"),
+        ("ratio_interior", "^-.", "ours / Yade interior as sampled"),
+        ("ratio_centre_box", "v:", "ours / Yade wall drop (centres' box)"),
+    ):
+        lower.plot(water, [r[key] for r in rows], style, label=label)
+    lower.set_xlabel("water saturation S [1]")
+    lower.set_ylabel("k ratio [1]")
+    lower.grid(True, alpha=0.3)
+    lower.legend(fontsize=7)
+    axes.set_ylabel("water permeability k_x [m2]")
+    axes.set_title(
+        f"Homogeneous cube, {result['n_points']} points, phi_0 = "
+        f"{material.reference_porosity:g}, frozen Yade-equilibrated positions",
+        fontsize=9,
+    )
+    axes.grid(True, which="both", alpha=0.3)
+    axes.legend(fontsize=7)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -327,6 +534,14 @@ def main(argv: list[str] | None = None) -> None:
         OUT.mkdir(parents=True, exist_ok=True)
         (OUT / f"yade_compare_{size}.json").write_text(json.dumps(result, indent=1))
         print(json.dumps({"n_points": result["n_points"], "ratios": result["ratios"]}))
+        for row in result["curve"]:
+            print(
+                f"s = {row['suction_pa']:9.3g} Pa  S = {row['saturation']:.4f}  "
+                f"k_yade = {row['k_yade_m2']:.4g}  k_ours = {row['k_ours_m2']:.4g}  "
+                f"ratio = {row['ratio']:.4f}  (interior {row['ratio_interior']:.4f}, "
+                f"centre box {row['ratio_centre_box']:.4f}, "
+                f"clamped {row['ratio_clamped']:.4f})"
+            )
 
 
 if __name__ == "__main__":
