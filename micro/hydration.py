@@ -33,7 +33,11 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from micro.cracks import (
-    CrackNetwork, capillary_release_forces, crack_conductivity, crack_network,
+    CrackNetwork,
+    capillary_release_forces,
+    centroid_distances,
+    crack_conductivity,
+    crack_network,
 )
 from micro.forces import hydromechanical_forces, point_suction
 from shared.dem.integrator import stable_time_step, step, unbalanced_force
@@ -400,7 +404,8 @@ def conductances(
     base = facet_conductance(state.mesh, state.saturation, state.porosity, phase, material)
     if not cracks or state.cracks is None or state.cracks.bonds.size == 0:
         return base
-    change = crack_conductivity(state.cracks, state.mesh.facet_lengths, material)
+    lengths = centroid_distances(state.mesh.facet_cells, state.mesh.centroids)
+    change = crack_conductivity(state.cracks, lengths, material)
     if phase == "water":
         return change.water_scale * base + change.water_added
     return change.gas_scale * base + change.gas_added

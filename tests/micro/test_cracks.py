@@ -6,7 +6,8 @@ The test crack: bond a-b along x, six points on a ring of radius R in the plane 
 crack over the width b = R, between cells whose circumcentres are rho = (R^2 - d^2) /
 (sqrt(3) R) from the axis and 60 degrees apart (dual length l = rho), and whose
 centroids are R cos(30 deg) / 2 from the axis (six patches of half-area
-(R cos 30 / 2)^2 sin(60) / 2).
+(R cos 30 / 2)^2 sin(60) / 2), 60 degrees apart too: the crack's flow length between
+two cells, the centroid distance, is R cos(30 deg) / 2 as well.
 """
 
 import dataclasses
@@ -15,7 +16,11 @@ import numpy as np
 import pytest
 
 from micro.cracks import (
-    bond_apertures, capillary_release_forces, crack_conductivity, crack_network,
+    bond_apertures,
+    capillary_release_forces,
+    centroid_distances,
+    crack_conductivity,
+    crack_network,
 )
 from micro.fabric import crack_fabric, fabric_tensor
 from shared.materials import DEFAULT_CLAY
@@ -25,6 +30,7 @@ HALF_GAP, RING = 1e-4, 2e-4
 RADIUS = 0.99e-4  # aperture w = 2 (HALF_GAP - RADIUS) = 2 um
 APERTURE = 2e-6
 DUAL_LENGTH = (RING**2 - HALF_GAP**2) / (np.sqrt(3.0) * RING)
+CENTROID_DISTANCE = RING * np.cos(np.pi / 6) / 2
 
 
 @pytest.fixture(scope="module")
@@ -59,8 +65,10 @@ def test_imbibed_crack_adds_cubic_law_water_conductivity(ring):
     np.testing.assert_array_equal(network.pairs, [[0, 1]])  # (2, 3) is no mesh edge
     assert network.imbibed[0]
     assert network.entry_suctions[0] == pytest.approx(0.0728 / APERTURE, rel=1e-9)
-    change = crack_conductivity(network, mesh.facet_lengths)
-    cubic = APERTURE**3 / (12.0 * 1e-3) * RING / DUAL_LENGTH
+    lengths = centroid_distances(mesh.facet_cells, mesh.centroids)
+    np.testing.assert_allclose(lengths, CENTROID_DISTANCE, rtol=1e-12)
+    change = crack_conductivity(network, lengths)
+    cubic = APERTURE**3 / (12.0 * 1e-3) * RING / CENTROID_DISTANCE
     np.testing.assert_allclose(change.water_added, cubic, rtol=1e-9)
     np.testing.assert_array_equal(change.water_scale, 1.0)
     np.testing.assert_array_equal(change.gas_scale, 1e-3)
@@ -71,11 +79,11 @@ def test_gas_filled_crack_blocks_water_and_carries_gas(ring):
     _, mesh = ring
     network = _network(ring, suction=1e5)  # above gamma / w
     assert not network.imbibed[0]
-    change = crack_conductivity(network, mesh.facet_lengths)
+    change = crack_conductivity(network, centroid_distances(mesh.facet_cells, mesh.centroids))
     np.testing.assert_array_equal(change.water_scale, DEFAULT_CLAY.crack_roughness_factor)
     np.testing.assert_array_equal(change.water_added, 0.0)
     np.testing.assert_allclose(
-        change.gas_added, APERTURE**3 / (12.0 * 1.8e-5) * RING / DUAL_LENGTH, rtol=1e-9
+        change.gas_added, APERTURE**3 / (12.0 * 1.8e-5) * RING / CENTROID_DISTANCE, rtol=1e-9
     )
 
 
@@ -84,9 +92,9 @@ def test_cubic_law_aperture_is_capped_at_the_crack_width(ring):
     _, mesh = ring
     network = _network(ring, suction=1e5)
     wide = dataclasses.replace(network, apertures=np.array([2.5 * RING]))
-    change = crack_conductivity(wide, mesh.facet_lengths)
+    change = crack_conductivity(wide, centroid_distances(mesh.facet_cells, mesh.centroids))
     np.testing.assert_allclose(
-        change.gas_added, RING**3 / (12.0 * 1.8e-5) * RING / DUAL_LENGTH, rtol=1e-9
+        change.gas_added, RING**3 / (12.0 * 1.8e-5) * RING / CENTROID_DISTANCE, rtol=1e-9
     )
 
 
@@ -131,7 +139,7 @@ def test_gas_filled_crack_releases_its_capillary_pull(ring):
 def test_closed_bond_is_no_crack(ring):
     network = _network(ring, suction=1e3, radius=1.0001e-4)
     assert network.pairs.shape == (0, 2)
-    change = crack_conductivity(network, ring[1].facet_lengths)
+    change = crack_conductivity(network, ring[1].facet_lengths)  # any lengths: no crack
     np.testing.assert_array_equal(change.water_scale, 1.0)
     assert change.water_added.dtype == np.float64 and not change.water_added.any()
 

@@ -102,13 +102,30 @@ def test_mesh_boundary_layer_touches_its_wall(rng: np.random.Generator) -> None:
     low = boundary_cell_mask(mesh, ["x-"])
     high = boundary_cell_mask(mesh, ["x+"])
     assert low.sum() > per_side**2 and high.sum() > per_side**2
-    # Only hull slivers can span the box from one wall to the opposite one.
-    assert np.all(np.isin(np.flatnonzero(low & high), mesh.boundary_cells))
+    # No cell, not even a hull sliver, spans the box from one wall to the opposite one.
+    assert not np.any(low & high)
     nearest = mesh.points[mesh.tetrahedra[low], 0].min(axis=1) - mesh.bounds[0, 0]
     hull_cells = np.isin(np.flatnonzero(low), mesh.boundary_cells[mesh.boundary_walls == 0])
     assert np.all((nearest <= layer + 1e-15) | hull_cells)
+    assert np.all(mesh.centroids[low, 0] - mesh.bounds[0, 0] <= 2 * layer * (1 + 1e-12))
     everywhere = boundary_cell_mask(mesh, list(WALLS))
     assert everywhere.sum() < mesh.n_cells
+
+
+def test_mesh_boundary_layers_leave_out_slivers_along_a_concave_edge() -> None:
+    """A dented edge (along z) is filled by a hull sliver spanning 0.8 of the box in z;
+    it touches both z walls with a vertex but belongs to neither layer."""
+    n = 6
+    rng = np.random.default_rng(1)
+    grid = np.stack(np.meshgrid(*[np.arange(n)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    points = (grid + 0.5 + rng.uniform(-0.2, 0.2, (n**3, 3))) / n
+    edge = (points[:, 0] > 1 - 1 / n) & (points[:, 1] < 1 / n)
+    points[edge, :2] += np.array([-0.6, 0.6]) / n
+    mesh = build_mesh(points)
+    spans = np.ptp(mesh.points[mesh.tetrahedra, 2], axis=1) > 0.75
+    assert np.any(spans)  # the sliver is there
+    low, high = boundary_cell_mask(mesh, ["z-"]), boundary_cell_mask(mesh, ["z+"])
+    assert not np.any(low & high) and not np.any((low | high) & spans)
 
 
 def test_mesh_rejects_coplanar_points() -> None:
