@@ -58,6 +58,7 @@ from shared.mesh import (
     Mesh,
     boundary_cell_mask,
     delaunay_tetrahedra,
+    face_planes,
     mesh_from_tetrahedra,
     update_mesh,
 )
@@ -427,11 +428,8 @@ def membrane_forces(positions: FloatArray, stress: float, layer: float) -> Float
 
     Each face's load, ``stress`` times its area, is shared equally by the points within
     ``layer`` of that face's plane (or beyond it), as a flexible membrane would; points
-    on an edge or corner take a share from each of their faces. A face's plane is the
-    mean position of the N^(2/3) outermost points along its axis, not the outermost
-    one: a single point that a relaxation has pushed out would otherwise be the only
-    one in the layer and take the whole face load (measured: 2.1 kN on one point of a
-    3 375-point specimen at 90 MPa, which then flew off).
+    on an edge or corner take a share from each of their faces. The planes are
+    :func:`shared.mesh.face_planes`, robust to a point pushed out of a face.
 
     Parameters
     ----------
@@ -443,10 +441,7 @@ def membrane_forces(positions: FloatArray, stress: float, layer: float) -> Float
         Thickness of the loaded outer layer [m].
     """
     forces = np.zeros_like(positions)
-    n = positions.shape[0]
-    face = min(max(round(n ** (2.0 / 3.0)), 1), n)
-    lower = np.partition(positions, face - 1, axis=0)[:face].mean(axis=0)
-    upper = -np.partition(-positions, face - 1, axis=0)[:face].mean(axis=0)
+    lower, upper = face_planes(positions)
     size = upper - lower
     for axis in range(3):
         area = float(np.prod(np.delete(size, axis)))

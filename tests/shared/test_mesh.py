@@ -104,10 +104,12 @@ def test_mesh_boundary_layer_touches_its_wall(rng: np.random.Generator) -> None:
     assert low.sum() > per_side**2 and high.sum() > per_side**2
     # No cell, not even a hull sliver, spans the box from one wall to the opposite one.
     assert not np.any(low & high)
-    nearest = mesh.points[mesh.tetrahedra[low], 0].min(axis=1) - mesh.bounds[0, 0]
+    # distances from the face plane: the mean x of the 36 points with the smallest x
+    plane = np.sort(mesh.points[:, 0])[: per_side**2].mean()
+    nearest = mesh.points[mesh.tetrahedra[low], 0].min(axis=1) - plane
     hull_cells = np.isin(np.flatnonzero(low), mesh.boundary_cells[mesh.boundary_walls == 0])
     assert np.all((nearest <= layer + 1e-15) | hull_cells)
-    assert np.all(mesh.centroids[low, 0] - mesh.bounds[0, 0] <= 2 * layer * (1 + 1e-12))
+    assert np.all(mesh.centroids[low, 0] - plane <= 2 * layer * (1 + 1e-12))
     everywhere = boundary_cell_mask(mesh, list(WALLS))
     assert everywhere.sum() < mesh.n_cells
 
@@ -126,6 +128,17 @@ def test_mesh_boundary_layers_leave_out_slivers_along_a_concave_edge() -> None:
     assert np.any(spans)  # the sliver is there
     low, high = boundary_cell_mask(mesh, ["z-"]), boundary_cell_mask(mesh, ["z+"])
     assert not np.any(low & high) and not np.any((low | high) & spans)
+
+
+def test_mesh_boundary_layer_survives_a_point_pushed_out_of_its_face(
+    rng: np.random.Generator,
+) -> None:
+    """One point 2 spacings out of the y+ face: the layer still holds the face's cells."""
+    per_side = 6
+    points = jittered_grid(per_side, rng)
+    points[np.argmax(points[:, 1]), 1] += 2.0 / per_side
+    mesh = build_mesh(points)
+    assert boundary_cell_mask(mesh, ["y+"]).sum() > per_side**2
 
 
 def test_mesh_rejects_coplanar_points() -> None:
