@@ -481,9 +481,9 @@ def _solve_increment(
 
     ``judge_whole``: the solver's tolerance applies to the system of the whole pressure
     (a time step, whose increment is small next to the pressure); otherwise to the
-    increment's own (a steady solve from a guess, where the departure from the guess
-    is what is measured: judged by the whole pressure, the residuals allowed in the
-    rows of open gas cracks add up to a few % of the clay's flux at 8 000 points).
+    increment's own (a steady solve from a guess: the flux a permeability measurement
+    takes is made of the departure from the guessed linear profile, so that departure
+    is what must be accurate).
     """
     if np.shape(imposed_pressure) != (mesh.n_cells,):
         raise ValueError(f"imposed_pressure must have shape ({mesh.n_cells},)")
