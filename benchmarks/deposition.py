@@ -51,6 +51,7 @@ from imaging.deposition.analysis import (  # noqa: E402
     profile_edges,
     zone_porosity,
 )
+from shared.figures import save_figure  # noqa: E402
 
 DIAMETER = 1.0e-6
 OUT = Path("results/benchmarks")
@@ -242,9 +243,7 @@ def cost_figure(result: Mapping[str, Any], path: Path) -> Path:
     right.set_title("stored packing files (settle_time)", fontsize=9)
     right.legend(fontsize=6)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=120)
 
 
 # --- reduced-N sweeps of the paper's Figs. 4, 6a and 7 -------------------------------------
@@ -360,9 +359,7 @@ def axis_ratio_figure(result: Mapping[str, Any], path: Path) -> Path:
                  f"w = {result['box_width_m'] / DIAMETER:.2f} d", fontsize=9)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=120)
 
 
 def freedom_cases() -> list[tuple[float, bool, float, float]]:
@@ -430,6 +427,4 @@ def freedom_figure(result: Mapping[str, Any], path: Path) -> Path:
                     f"w = {result['box_width_m'] / DIAMETER:.2f} d", fontsize=9)
     right.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=120)

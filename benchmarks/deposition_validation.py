@@ -58,6 +58,7 @@ from imaging.deposition.analysis import surface_areas  # noqa: E402
 from imaging.deposition.config import population_of, resolve  # noqa: E402
 from imaging.deposition.population import sample_semi_axes, volumes  # noqa: E402
 from imaging.deposition.run import run  # noqa: E402
+from shared.figures import save_figure  # noqa: E402
 
 PRESET_DIR = Path("config/paper")
 OUT = Path("results/benchmarks")
@@ -578,9 +579,7 @@ def porosity_order_figure(rows: Iterable[Mapping[str, Any]], path: Path,
     ax.set_xlim(-0.5, 1.0)
     ax.legend(fontsize=7, loc="lower left")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=120)
 
 
 def bench_deposition_validation(scale: float = 1.0, presets: Iterable[str] = PRESETS) -> dict:
