@@ -25,14 +25,14 @@ from micro.checkpoint import load_checkpoint, save_checkpoint
 from micro.hydration import DivergenceError, FlowSystem, HydrationSettings, advance_to_balance
 from micro.pellet import POROSITY_BINS, SpecimenSpec, initial_state, measure_checkpoint, settle
 from shared.config import ConfigError
-from shared.dem.parameters import DEFAULT_DEM
+from shared.dem.parameters import DEFAULT_DEM, DEMParameters
 from shared.io import read_dataset, write_dataset
 from shared.materials import DEFAULT_CLAY
 from shared.mesh import mesh_from_tetrahedra
 from shared.progress import Progress
 from shared.provenance import config_sha256
 
-__all__ = ["run", "case_settings"]
+__all__ = ["run", "case_settings", "case_dem_parameters"]
 
 log = logging.getLogger("micro")
 
@@ -92,6 +92,17 @@ def case_settings(config: Mapping[str, Any], case: str) -> tuple[SpecimenSpec, H
         cracks=entry["cracks"],
     )
     return spec, settings, entry["porosity"] == "ct"
+
+
+def case_dem_parameters(config: Mapping[str, Any], case: str) -> DEMParameters:
+    """DEM parameters of a case: wall speed limit and bond strength (the case's own, if set)."""
+    micro = config["micro"]
+    strength = micro["cases"][case].get("bond_tensile_strength_pa",
+                                        micro["bond_tensile_strength_pa"])
+    return dataclasses.replace(
+        DEFAULT_DEM, wall_max_velocity=micro["numerics"]["wall_max_velocity_m_s"],
+        bond_tensile_strength=strength,
+    )
 
 
 def _dataset(records: list[dict[str, Any]], checkpoints: np.ndarray) -> xr.Dataset:
@@ -163,10 +174,7 @@ def run(
     state_file = output.with_suffix(".checkpoint.npz")
     digest = config_sha256(section)
     grid = read_dataset(porosity_input, ["porosity"])["porosity"]
-    parameters = dataclasses.replace(
-        DEFAULT_DEM, wall_max_velocity=config["micro"]["numerics"]["wall_max_velocity_m_s"],
-        bond_tensile_strength=config["micro"]["bond_tensile_strength_pa"],
-    )
+    parameters = case_dem_parameters(config, case)
     resumed = load_checkpoint(state_file, digest, DEFAULT_CLAY)
     # optional ParaView snapshots, a side product beside the netCDF (not a rule output)
     vtk_dir = None

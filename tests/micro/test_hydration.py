@@ -169,16 +169,20 @@ def test_the_settled_specimen_has_the_scanned_porosity_where_its_material_was_bu
     assert system.pattern.n_free > 0
 
 
-def test_case_overrides_points_size_and_offset(micro_config):
+def test_case_overrides_points_size_offset_and_bond_strength(micro_config):
     config, _ = micro_config
     study = copy.deepcopy(config)
     study["micro"]["cases"]["sub"] = {"porosity": "ct", "n_points": 64,
-                                      "specimen_size_m": 2e-3, "offset_m": [5e-4, 0.0, 0.0]}
+                                      "specimen_size_m": 2e-3, "offset_m": [5e-4, 0.0, 0.0],
+                                      "bond_tensile_strength_pa": 2e6}
     study = validate_config(study)
     spec, _, _ = micro_run.case_settings(study, "sub")
     assert (spec.n_points, spec.edge_length, spec.offset) == (64, 2e-3, (5e-4, 0.0, 0.0))
+    assert micro_run.case_dem_parameters(study, "sub").bond_tensile_strength == 2e6
     default, _, _ = micro_run.case_settings(study, "c")
     assert (default.n_points, default.edge_length, default.offset) == (125, 4e-3, (0.0, 0.0, 0.0))
+    assert (micro_run.case_dem_parameters(study, "c").bond_tensile_strength
+            == study["micro"]["bond_tensile_strength_pa"] == 2e7)
 
 
 @pytest.fixture()
