@@ -53,7 +53,7 @@ _SCALARS = {
     "dem_steps": ("1", "DEM relaxation steps taken to reach the checkpoint"),
     "unbalanced_force": ("1", "unbalanced-force ratio at the end of the checkpoint"),
     "suction_misfit": ("1", "largest relative departure of a cell's suction from the boundary's"),
-    "balanced": ("1", "1 if hydraulic balance was reached, else 0"),
+    "balanced": ("1", "1 if hydraulic and mechanical balance were reached, else 0"),
 }
 
 
@@ -89,6 +89,7 @@ def case_settings(config: Mapping[str, Any], case: str) -> tuple[SpecimenSpec, H
         hydraulic_tolerance=numerics["hydraulic_tolerance"],
         unbalanced_force_tolerance=numerics["unbalanced_force_tolerance"],
         max_relaxation_steps=numerics["max_relaxation_steps"],
+        final_relaxations=numerics["final_relaxations"],
         cracks=entry["cracks"],
     )
     return spec, settings, entry["porosity"] == "ct"
