@@ -120,7 +120,7 @@ class HydrationSettings:
     hydraulic_tolerance: float = 0.02
     unbalanced_force_tolerance: float = 0.01
     max_relaxation_steps: int = 3000
-    final_relaxations: int = 5
+    final_relaxations: int = 0
     check_interval: int = 10
     ramp_steps: int = 200
     damping: float = 0.7
