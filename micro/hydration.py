@@ -427,32 +427,48 @@ def update_cracks(state: PelletState, material: ClayParameters) -> None:
     )
 
 
-def membrane_forces(positions: FloatArray, stress: float, layer: float) -> FloatArray:
-    """Inward forces of a uniform normal stress on the six faces of the point cloud [N].
+def hull_face_loads(mesh: Mesh, bishop_pressure: FloatArray) -> FloatArray:
+    """Resultant of the pore-fluid pull on the hull, per face of the specimen [N], (6, 3).
 
-    Each face's load, ``stress`` times its area, is shared equally by the points within
-    ``layer`` of that face's plane (or beyond it), as a flexible membrane would; points
-    on an edge or corner take a share from each of their faces. The planes are
-    :func:`shared.mesh.face_planes`, robust to a point pushed out of a face.
+    Each hull triangle carries chi p A n (chi p = S p of the cell it closes, air outside,
+    n outward; chi p < 0 pulls inward), summed over the triangles of each face
+    (:attr:`shared.mesh.Mesh.boundary_walls`, order of :data:`shared.mesh.WALLS`). The
+    six sum to -(resultant of the internal facet forces) exactly, so the specimen as a
+    whole carries no net force whatever the saturation field.
+    """
+    loads = bishop_pressure[mesh.boundary_cells, None] * mesh.boundary_areas[:, None] \
+        * mesh.boundary_normals
+    return np.stack([loads[mesh.boundary_walls == wall].sum(axis=0) for wall in range(6)])
+
+
+def membrane_forces(positions: FloatArray, face_loads: FloatArray, layer: float) -> FloatArray:
+    """Forces of six face loads shared by the outer points, as a membrane would [N].
+
+    Each face's load (a vector) is shared equally by the points within ``layer`` of
+    that face's plane (or beyond it); points on an edge or corner take a share from
+    each of their faces. The planes are :func:`shared.mesh.face_planes`, robust to a
+    point pushed out of a face.
 
     Parameters
     ----------
     positions
         (n, 3) point centres [m].
-    stress
-        Compressive normal stress [Pa].
+    face_loads
+        (6, 3) load of each face [N], order of :data:`shared.mesh.WALLS` (x-, x+, y-,
+        ...), e.g. :func:`hull_face_loads`.
     layer
         Thickness of the loaded outer layer [m].
     """
     forces = np.zeros_like(positions)
     lower, upper = face_planes(positions)
-    size = upper - lower
-    for axis in range(3):
-        area = float(np.prod(np.delete(size, axis)))
-        for side, (plane, sign) in enumerate(((lower[axis], 1.0), (upper[axis], -1.0))):
-            distance = positions[:, axis] - plane if side == 0 else plane - positions[:, axis]
-            loaded = distance <= layer
-            forces[loaded, axis] += sign * stress * area / loaded.sum()
+    for wall in range(6):
+        axis, side = divmod(wall, 2)
+        if side == 0:
+            distance = positions[:, axis] - lower[axis]
+        else:
+            distance = upper[axis] - positions[:, axis]
+        loaded = distance <= layer
+        forces[loaded] += face_loads[wall] / loaded.sum()
     return forces
 
 
@@ -463,10 +479,15 @@ def swell(
 
     The exterior chi p on each hull triangle is taken equal to that of the boundary
     cell it closes, so the facet forces carry only the jumps of S p between cells; the
-    pull of the boundary suction on the hull (Bishop stress S_b s_b, Yade's hull
-    forces with air outside) is applied instead as a uniform membrane stress on the
-    outer layer of points. On a jittered cloud the hull has few large triangles, and
-    hull forces would concentrate the whole face load on a handful of points. With
+    pull of the pore fluid on the hull (Yade's hull forces with air outside) is applied
+    instead face by face, each face's resultant shared by its outer layer of points
+    (:func:`hull_face_loads`, :func:`membrane_forces`). On a jittered cloud the hull
+    has few large triangles, and hull forces would concentrate the whole face load on a
+    handful of points. A uniform stress (the area-weighted mean S p of the hull) on
+    every face, as before, left the specimen with a net force wherever S p varies over
+    the hull (78 N against a mean point load of 25 N on a 125-point specimen with a
+    porosity gradient): it never came to rest (unbalanced force stuck at 0.035, 5e-7
+    with the face resultants), and weakly bonded specimens crept apart. With
     ``cracks``, the capillary pull across the gas-filled cracks of ``state.cracks`` is
     removed (Eq. 3.35, :func:`micro.cracks.capillary_release_forces`).
     """
@@ -477,11 +498,8 @@ def swell(
     bishop = state.saturation * state.pressure
     facets = hydromechanical_forces(mesh, state.dem.positions, radii, state.pressure,
                                     state.saturation, exterior_pressure=bishop[mesh.boundary_cells])
-    boundary = mesh.boundary_cells
-    weights = mesh.boundary_areas
-    boundary_stress = -float((bishop[boundary] * weights).sum() / weights.sum())
     layer = float(state.dem.reference_radii.mean())
-    forces = facets + membrane_forces(state.dem.positions, max(boundary_stress, 0.0), layer)
+    forces = facets + membrane_forces(state.dem.positions, hull_face_loads(mesh, bishop), layer)
     if cracks and state.cracks is not None:
         forces += capillary_release_forces(state.cracks, state.pressure, state.saturation,
                                            mesh.facet_cells, radii)
