@@ -605,8 +605,7 @@ def advance_to_balance(
             break
         time_step *= settings.time_step_growth
     hydraulic = misfit < settings.hydraulic_tolerance
-    # the checkpoint is measured at rest: relax on under the last loads if the last
-    # relaxation ran out of steps (a creeping assembly may never come to rest)
+    # optionally relax on under the last loads if the last relaxation ran out of steps
     for _ in range(settings.final_relaxations if hydraulic else 0):
         if unbalanced < settings.unbalanced_force_tolerance:
             break
