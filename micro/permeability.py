@@ -270,11 +270,11 @@ def _refined_rates(
     free = pattern.free_cells
     extended = pressure.astype(np.longdouble)
     entering = leaving = float("nan")
+    inflow, _ = _extended_divergence(mesh.facet_cells, conductance, extended)
     for _ in range(_REFINEMENTS):
-        inflow, flux = _extended_divergence(mesh.facet_cells, conductance, extended)
         correction = solver.solve(matrix, np.asarray(inflow[free], dtype=np.float64), ordered=True)
         extended[free] += correction.astype(np.longdouble)
-        _, flux = _extended_divergence(mesh.facet_cells, conductance, extended)
+        inflow, flux = _extended_divergence(mesh.facet_cells, conductance, extended)
         entering, leaving = _wall_rates(mesh, flux, inlet, outlet)
         if _balanced(entering, leaving, tolerance):
             break
