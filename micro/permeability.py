@@ -115,14 +115,17 @@ def _cut_flux(mesh: Mesh, flux: FloatArray, region: npt.NDArray[np.bool_]) -> fl
 
 
 def _extended_divergence(
-    facet_cells: npt.NDArray[np.int64], conductance: FloatArray, pressure: npt.NDArray
+    mesh: Mesh, conductance: FloatArray, pressure: npt.NDArray[np.longdouble]
 ) -> tuple[npt.NDArray, npt.NDArray]:
-    """Net inflow per cell and flux i -> j per facet, in extended precision [m3/s]."""
-    extended = conductance.astype(np.longdouble)
-    flux = extended * (pressure[facet_cells[:, 0]] - pressure[facet_cells[:, 1]])
+    """Net inflow per cell and flux i -> j per facet, in extended precision [m3/s].
+
+    :func:`shared.fv.facet_flux` keeps the ``longdouble`` of the pressure;
+    :func:`shared.fv.facet_divergence` is a float64 kernel, hence ``np.add.at`` here.
+    """
+    flux = facet_flux(mesh, conductance, pressure)
     inflow = np.zeros(pressure.shape[0], dtype=np.longdouble)
-    np.add.at(inflow, facet_cells[:, 0], -flux)
-    np.add.at(inflow, facet_cells[:, 1], flux)
+    np.add.at(inflow, mesh.facet_cells[:, 0], -flux)
+    np.add.at(inflow, mesh.facet_cells[:, 1], flux)
     return inflow, flux
 
 
@@ -270,11 +273,11 @@ def _refined_rates(
     free = pattern.free_cells
     extended = pressure.astype(np.longdouble)
     entering = leaving = float("nan")
-    inflow, _ = _extended_divergence(mesh.facet_cells, conductance, extended)
+    inflow, _ = _extended_divergence(mesh, conductance, extended)
     for _ in range(_REFINEMENTS):
         correction = solver.solve(matrix, np.asarray(inflow[free], dtype=np.float64), ordered=True)
         extended[free] += correction.astype(np.longdouble)
-        inflow, flux = _extended_divergence(mesh.facet_cells, conductance, extended)
+        inflow, flux = _extended_divergence(mesh, conductance, extended)
         entering, leaving = _wall_rates(mesh, flux, inlet, outlet)
         if _balanced(entering, leaving, tolerance):
             break
