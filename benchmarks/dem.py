@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from micro.forces import hydromechanical_forces, point_suction, sector_weights
+from benchmarks.parameters import DEM
 from shared.dem import (
-    DEFAULT_DEM,
     contact_forces,
     cube_points,
     detect_contacts,
@@ -92,13 +92,13 @@ def bench_dem(
     """
     rng = np.random.default_rng(seed)
     positions, radii = cube_points(n_points, rng, jitter=0.2, radius_factor=1.02)
-    state = new_state(positions, radii)
+    state = new_state(positions, radii, DEM)
     walls = walls_around(state.positions, state.radii, 1e6)
     # the coupled run's time step (Appendix .2): points creep, the Verlet list holds
-    time_step = DEFAULT_DEM.time_step
+    time_step = DEM.time_step
     forces = np.zeros((state.n_points, 3))
     torques = np.zeros((state.n_points, 3))
-    factor = DEFAULT_DEM.interaction_radius_factor
+    factor = DEM.interaction_radius_factor
     skin = state.contacts.skin
 
     def detect() -> object:
@@ -107,25 +107,25 @@ def bench_dem(
     def hertz() -> object:
         forces[:] = 0.0
         torques[:] = 0.0
-        return contact_forces(state, time_step, DEFAULT_DEM, forces, torques)
+        return contact_forces(state, time_step, DEM, forces, torques)
 
     def wall() -> object:
-        return wall_forces(state, walls, forces)
+        return wall_forces(state, walls, forces, DEM)
 
     def advance() -> None:
-        integrate(state, forces, torques, time_step, DEFAULT_DEM.damping)
+        integrate(state, forces, torques, time_step, DEM.damping)
 
     rebuilds: list[bool] = []
 
     def whole() -> object:
-        report = step(state, time_step, walls=walls)
+        report = step(state, time_step, DEM, walls=walls)
         rebuilds.append(report.contacts_rebuilt)
         return report
 
     record: dict = {
         "n_points": state.n_points,
         "n_contacts": int(state.contacts.pairs.shape[0]),
-        "stable_time_step_s": stable_time_step(state, walls=walls),
+        "stable_time_step_s": stable_time_step(state, DEM, walls=walls),
     }
     for name, function in (
         ("contacts", detect),

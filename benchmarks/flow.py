@@ -33,10 +33,10 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from benchmarks.dem import _timings_ms
+from benchmarks.parameters import CLAY, DEM, SETTINGS
 from micro.hydration import FlowSystem, PelletState, swell, update_geometry
-from shared.dem import DEFAULT_DEM, cube_points, new_state, step
+from shared.dem import cube_points, new_state, step
 from shared.fv import assemble_matrix, facet_conductance, flow_pattern, transient_step
-from shared.materials import DEFAULT_CLAY
 from shared.mesh import (
     WALLS,
     Mesh,
@@ -85,7 +85,7 @@ def _unsaturated_state(
     """Porosity [1], pressure [Pa] and saturation [1] of a clay at 40-60 MPa suction."""
     porosity = rng.uniform(0.2, 0.3, n_cells)
     pressure = -rng.uniform(40e6, 60e6, n_cells)
-    return porosity, pressure, saturation(-pressure, porosity, DEFAULT_CLAY)
+    return porosity, pressure, saturation(-pressure, porosity, CLAY)
 
 
 def bench_flow(
@@ -125,7 +125,7 @@ def bench_flow(
         applications, CG iterations and backward error of one reuse step (from the
         factor of the undrifted matrix, ``residual_tolerance`` of the solver).
     """
-    material = DEFAULT_CLAY
+    material = CLAY
     rng = np.random.default_rng(1)
     points = jittered_cube(n_points)
     triangulation = delaunay_tetrahedra(points)
@@ -339,10 +339,10 @@ def bench_coupled_step(
         included) and ``coupled_step_reused_ms`` / ``_min_ms`` (median and fastest
         over the steps that reused the factor, None if none did).
     """
-    material = DEFAULT_CLAY
+    material = CLAY
     rng = np.random.default_rng(seed)
     positions, radii = cube_points(n_points, rng, jitter=0.2, radius_factor=radius_factor)
-    dem = new_state(positions, radii)
+    dem = new_state(positions, radii, DEM)
     mesh = build_mesh(dem.positions)
     porosity = rng.uniform(0.2, 0.3, mesh.n_cells)
     # Uniform 50 MPa suction wetted from a 40 MPa boundary: a smooth hydration front.
@@ -359,16 +359,16 @@ def bench_coupled_step(
         return system
 
     system = flow_system(mesh)
-    time_step = DEFAULT_DEM.time_step
-    flow_time_step = 20.0  # HydrationSettings.initial_time_step [s]
+    time_step = DEM.time_step
+    flow_time_step = SETTINGS.initial_time_step
     loads = np.zeros_like(dem.positions)
-    # HydrationSettings: porosity clamp [1] and relaxation damping [1].
-    bounds, damping = (0.01, 0.95), 0.7
+    bounds, damping = SETTINGS.porosity_bounds, SETTINGS.damping
 
     accuracy: dict[str, list[float]] = {"error": [], "change": []}
 
     def flow_step() -> None:
-        conductance = facet_conductance(state.mesh, state.saturation, state.porosity)
+        conductance = facet_conductance(state.mesh, state.saturation, state.porosity, "water",
+                                        material)
         imposed = np.full(state.mesh.n_cells, -40e6)
         result = transient_step(
             state.mesh, system.pattern, system.solver, state.pressure, state.saturation,
@@ -386,7 +386,7 @@ def bench_coupled_step(
     phases = {
         "flow_step": flow_step,
         "hydro_forces": lambda: swell(state, material),
-        "dem_step": lambda: step(dem, time_step, DEFAULT_DEM, loads, None, damping),
+        "dem_step": lambda: step(dem, time_step, DEM, loads, None, damping),
         "geometry_update": lambda: update_geometry(state, bounds, material),
     }
     times: dict[str, list[float]] = {name: [] for name in phases}

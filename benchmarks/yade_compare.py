@@ -6,8 +6,8 @@ timings of that module are taken on these very points. The Yade side is
 ``benchmarks/yade/partialsat_cube.py``, run headless in a subprocess of its own
 session (killed as a group when it ends or times out, which also frees the ports 9000
 and 21000 it listens on while it runs); its material, DEM and run parameters come from
-the settings JSON written here from :data:`shared.materials.DEFAULT_CLAY` and
-:data:`shared.dem.DEFAULT_DEM`.
+the settings JSON written here from the default configuration's parameters
+(:mod:`benchmarks.parameters`).
 
 Compared (ratio = ours / Yade's):
 
@@ -60,11 +60,10 @@ from scipy.spatial import Delaunay
 
 from benchmarks.dem import bench_dem
 from benchmarks.flow import bench_flow
+from benchmarks.parameters import CLAY, DEM
 from micro.permeability import measure_permeability, permeability_tensor_axes
-from shared.dem import DEFAULT_DEM
 from shared.dem.points import cube_points
 from shared.fv import facet_conductance, transfer_cell_state
-from shared.materials import DEFAULT_CLAY
 from shared.mesh import Mesh, build_mesh
 from shared.retention import saturation
 
@@ -166,7 +165,7 @@ def _run_yade(settings_path: Path, timeout: float) -> tuple[int, int, str]:
 
 def _curve_points() -> list[dict[str, float]]:
     """Suction and van Genuchten saturation S(s, phi_0) of each curve point."""
-    material = DEFAULT_CLAY
+    material = CLAY
     suctions = np.array(CURVE_SUCTIONS_PA)
     values = saturation(suctions, material.reference_porosity, material)
     return [
@@ -184,8 +183,8 @@ def _run_yade_side(
         "points_path": str(points_path),
         "output_path": str(folder / "yade.json"),
         "positions_out": str(folder / "positions.txt"),
-        "clay": dataclasses.asdict(DEFAULT_CLAY),
-        "dem": dict(dataclasses.asdict(DEFAULT_DEM), friction_angle_deg=FRICTION_ANGLE_DEG),
+        "clay": dataclasses.asdict(CLAY),
+        "dem": dict(dataclasses.asdict(DEM), friction_angle_deg=FRICTION_ANGLE_DEG),
         "run": _run_settings(positions.shape[0]),
         "curve": _curve_points(),
     }
@@ -201,7 +200,7 @@ def _run_yade_side(
 
 def _our_permeability(positions: np.ndarray) -> dict:
     """Water k_x of the homogeneous frozen specimen at S(s_0) and at S = 1 [m2]."""
-    material = DEFAULT_CLAY
+    material = CLAY
     mesh = build_mesh(positions)
     porosity = np.full(mesh.n_cells, material.reference_porosity)
     states = {
@@ -230,7 +229,7 @@ def _our_curve(mesh: Mesh, porosity: np.ndarray) -> list[dict[str, float]]:
     dP = 10 % of s, and for full saturation the drop of s_0 (a steady solve does not
     depend on the mean pressure).
     """
-    material = DEFAULT_CLAY
+    material = CLAY
     rows = []
     for point in _curve_points():
         suction = point["suction_pa"]
@@ -297,7 +296,7 @@ def yade_gradient_factor(
 
 def _remesh_extras_s(positions: np.ndarray, radii: np.ndarray) -> dict:
     """Remesh cost outside ``bench_flow``: the cell-state transfer."""
-    material = DEFAULT_CLAY
+    material = CLAY
     old = build_mesh(positions)
     moved = positions + np.random.default_rng(1).uniform(-1e-3, 1e-3, positions.shape) * (
         radii[:, None]
@@ -482,7 +481,7 @@ def plot_curve(result: dict, path: Path) -> None:
     )
     for key, style, label in series:
         axes.semilogy(water, [r[key] for r in rows], style, label=label)
-    material = DEFAULT_CLAY
+    material = CLAY
     grid = np.linspace(water.min(), water.max(), 100)
     effective = (grid - material.residual_saturation) / (
         material.saturated_saturation - material.residual_saturation

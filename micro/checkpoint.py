@@ -17,7 +17,7 @@ import numpy as np
 from micro.hydration import FlowSystem, PelletState, update_cracks
 from shared.dem.state import ContactList, DEMState
 from shared.dem.walls import Walls
-from shared.materials import DEFAULT_CLAY, ClayParameters
+from shared.materials import ClayParameters
 from shared.mesh import mesh_from_tetrahedra
 
 __all__ = ["save_checkpoint", "load_checkpoint"]
@@ -60,7 +60,7 @@ def save_checkpoint(
 
 
 def load_checkpoint(
-    path: Path, digest: str, material: ClayParameters = DEFAULT_CLAY
+    path: Path, digest: str, material: ClayParameters
 ) -> tuple[PelletState, FlowSystem, list[dict[str, Any]], float] | None:
     """The saved state, flow system, records and reference volume, or None if absent or stale.
 

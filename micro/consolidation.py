@@ -64,7 +64,7 @@ import scipy.sparse as sp
 from shared.dem.contacts import update_contacts
 from shared.dem.hertz import contact_forces
 from shared.dem.integrator import StepReport, integrate
-from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.parameters import DEMParameters
 from shared.dem.state import DEMState
 from shared.dem.walls import Walls, servo_walls, wall_forces
 from shared.fv import FlowPattern, assemble_matrix, flow_pattern
@@ -278,7 +278,7 @@ def coupled_steps(
     state: DEMState,
     flow: SaturatedFlow,
     n_steps: int,
-    parameters: DEMParameters = DEFAULT_DEM,
+    parameters: DEMParameters,
     walls: Walls | None = None,
     external_forces: FloatArray | None = None,
 ) -> StepReport:

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from shared.materials import DEFAULT_CLAY, ClayParameters
+from shared.materials import ClayParameters
 
 __all__ = ["CrackNetwork", "CrackConductivity", "bond_apertures", "crack_network",
            "crack_conductivity", "centroid_distances", "capillary_release_forces"]
@@ -202,7 +202,7 @@ def crack_network(
     facet_cells: npt.ArrayLike,
     cell_centres: npt.ArrayLike,
     cell_suction: npt.ArrayLike,
-    material: ClayParameters = DEFAULT_CLAY,
+    material: ClayParameters,
     min_aperture: float = 0.0,
     *,
     reference_overlaps: npt.ArrayLike | None = None,
@@ -314,7 +314,7 @@ def _sum_per_facet(facet: IntArray, values: FloatArray, n_facets: int) -> FloatA
 def crack_conductivity(
     network: CrackNetwork,
     flow_lengths: npt.ArrayLike,
-    material: ClayParameters = DEFAULT_CLAY,
+    material: ClayParameters,
 ) -> CrackConductivity:
     """Per-facet conductivity changes of the cracks, for the water and the gas solves.
 

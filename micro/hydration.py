@@ -41,7 +41,7 @@ from micro.cracks import (
 )
 from micro.forces import hydromechanical_forces, point_suction
 from shared.dem.integrator import stable_time_step, step, unbalanced_force
-from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.parameters import DEMParameters
 from shared.dem.state import DEMState
 from shared.dem.walls import Walls
 from shared.fv import (
@@ -52,7 +52,7 @@ from shared.fv import (
     transfer_cell_state,
     transient_step,
 )
-from shared.materials import DEFAULT_CLAY, ClayParameters
+from shared.materials import ClayParameters
 from shared.mesh import (
     WALLS,
     Mesh,
@@ -114,19 +114,19 @@ class HydrationSettings:
         Whether the crack model modifies conductances.
     """
 
-    initial_time_step: float = 20.0
-    time_step_growth: float = 1.6
-    max_flow_steps: int = 40
-    hydraulic_tolerance: float = 0.02
-    unbalanced_force_tolerance: float = 0.01
-    max_relaxation_steps: int = 3000
-    final_relaxations: int = 0
-    check_interval: int = 10
-    ramp_steps: int = 200
-    damping: float = 0.7
-    max_step_fraction: float = 0.005
-    porosity_bounds: tuple[float, float] = (0.01, 0.95)
-    cracks: bool = True
+    initial_time_step: float
+    time_step_growth: float
+    max_flow_steps: int
+    hydraulic_tolerance: float
+    unbalanced_force_tolerance: float
+    max_relaxation_steps: int
+    final_relaxations: int
+    check_interval: int
+    ramp_steps: int
+    damping: float
+    max_step_fraction: float
+    porosity_bounds: tuple[float, float]
+    cracks: bool
 
 
 @dataclass
@@ -190,7 +190,7 @@ def _check_finite(state: PelletState, where: str) -> None:
 
 
 def loaded_time_step(
-    state: DEMState, forces: FloatArray, parameters: DEMParameters = DEFAULT_DEM
+    state: DEMState, forces: FloatArray, parameters: DEMParameters
 ) -> float:
     """Stable time step of a contact carrying the largest point force [s].
 
@@ -248,7 +248,7 @@ def relax(
     walls: Walls | None,
     external_forces: FloatArray,
     settings: HydrationSettings,
-    parameters: DEMParameters = DEFAULT_DEM,
+    parameters: DEMParameters,
     previous_forces: FloatArray | None = None,
     target_radii: FloatArray | None = None,
 ) -> tuple[int, float]:
@@ -335,7 +335,7 @@ def triangulate(
 def update_geometry(
     state: PelletState,
     porosity_bounds: tuple[float, float],
-    material: ClayParameters = DEFAULT_CLAY,
+    material: ClayParameters,
 ) -> bool:
     """Recompute cell geometry and porosity from the moved points; remesh if needed.
 
@@ -562,8 +562,8 @@ def advance_to_balance(
     system: FlowSystem,
     boundary_suction: float,
     settings: HydrationSettings,
-    material: ClayParameters = DEFAULT_CLAY,
-    parameters: DEMParameters = DEFAULT_DEM,
+    material: ClayParameters,
+    parameters: DEMParameters,
 ) -> tuple[FlowSystem, dict[str, float]]:
     """Impose a boundary suction and advance the coupled model to hydraulic balance.
 

@@ -19,11 +19,11 @@ from micro.hydration import (
     update_cracks,
 )
 from micro.permeability import permeability_tensor_axes
-from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.parameters import DEMParameters
 from shared.dem.points import cube_points
 from shared.dem.state import new_state
 from shared.dem.walls import walls_around
-from shared.materials import DEFAULT_CLAY, ClayParameters
+from shared.materials import ClayParameters
 from shared.mesh import mesh_from_tetrahedra, porosity_at_points
 from shared.retention import saturation as retention_saturation
 
@@ -121,9 +121,9 @@ def centred_grid(
 def initial_state(
     spec: SpecimenSpec,
     porosity_grid: xr.DataArray | None,
-    homogeneous_porosity: float | None = None,
-    material: ClayParameters = DEFAULT_CLAY,
-    parameters: DEMParameters = DEFAULT_DEM,
+    homogeneous_porosity: float | None,
+    material: ClayParameters,
+    parameters: DEMParameters,
 ) -> PelletState:
     """Points, mesh, porosity (CT grid or homogeneous) and retention state at s0.
 
@@ -150,7 +150,7 @@ def initial_state(
     suction = material.initial_suction
     walls = None
     if spec.confinement > 0.0:
-        walls = walls_around(dem.positions, dem.radii, spec.confinement, parameters=parameters)
+        walls = walls_around(dem.positions, dem.radii, spec.confinement)
     return PelletState(
         dem=dem,
         mesh=mesh,
@@ -183,10 +183,10 @@ def settle(
     system: FlowSystem,
     spec: SpecimenSpec,
     porosity_grid: xr.DataArray | None,
-    homogeneous_porosity: float | None = None,
-    settings: HydrationSettings = HydrationSettings(),
-    material: ClayParameters = DEFAULT_CLAY,
-    parameters: DEMParameters = DEFAULT_DEM,
+    homogeneous_porosity: float | None,
+    settings: HydrationSettings,
+    material: ClayParameters,
+    parameters: DEMParameters,
 ) -> tuple[FlowSystem, dict[str, float]]:
     """Settle the as-built cloud under the initial suction, then give it the CT porosity.
 
@@ -236,7 +236,7 @@ def measure_checkpoint(
     state: PelletState,
     suction: float,
     reference_volume: float,
-    material: ClayParameters = DEFAULT_CLAY,
+    material: ClayParameters,
     cracks: bool = True,
 ) -> dict[str, object]:
     """Everything recorded at a checkpoint (DESIGN §2, ``results/micro``).

@@ -65,7 +65,7 @@ from shared.fv import (
     flow_pattern,
     steady_pressure,
 )
-from shared.materials import DEFAULT_CLAY, ClayParameters
+from shared.materials import ClayParameters
 from shared.mesh import WALLS, Mesh, boundary_cell_mask
 from shared.permeability import Phase, phase_viscosity
 from shared.solver import CholeskySolver
@@ -289,7 +289,7 @@ def permeability_tensor_axes(
     saturation: FloatArray,
     porosity: FloatArray,
     suction: float,
-    material: ClayParameters = DEFAULT_CLAY,
+    material: ClayParameters,
     *,
     conductances: Mapping[str, FloatArray] | None = None,
     method: Method = "wall_flux",

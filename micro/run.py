@@ -25,14 +25,14 @@ from micro.checkpoint import load_checkpoint, save_checkpoint
 from micro.hydration import DivergenceError, FlowSystem, HydrationSettings, advance_to_balance
 from micro.pellet import POROSITY_BINS, SpecimenSpec, initial_state, measure_checkpoint, settle
 from shared.config import ConfigError
-from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.parameters import DEMParameters, dem_parameters
 from shared.io import read_dataset, write_dataset
-from shared.materials import DEFAULT_CLAY
+from shared.materials import ClayParameters, clay_parameters
 from shared.mesh import mesh_from_tetrahedra
 from shared.progress import Progress
 from shared.provenance import config_sha256
 
-__all__ = ["run", "case_settings", "case_dem_parameters"]
+__all__ = ["run", "case_settings", "hydration_settings", "case_material", "case_parameters"]
 
 log = logging.getLogger("micro")
 
@@ -63,26 +63,25 @@ def case_settings(config: Mapping[str, Any], case: str) -> tuple[SpecimenSpec, H
     Raises
     ------
     ConfigError
-        If the case is unknown or the checkpoints do not decrease in suction.
+        If the case is unknown.
     """
     micro = config["micro"]
     if case not in micro["cases"]:
         raise ConfigError(f"config key 'micro.cases.{case}': no such case")
-    checkpoints = np.asarray(micro["checkpoints_suction_pa"], dtype=float)
-    if np.any(np.diff(checkpoints) >= 0):
-        raise ConfigError(
-            "config key 'micro.checkpoints_suction_pa': suctions must strictly decrease, "
-            f"got {checkpoints.tolist()}"
-        )
     entry = micro["cases"][case]
-    numerics = micro["numerics"]
     spec = SpecimenSpec(
         edge_length=entry.get("specimen_size_m", micro["specimen_size_m"]),
         n_points=entry.get("n_points", micro["n_points"]), layout=micro["layout"],
         jitter=micro["jitter"], confinement=entry["confinement_pa"], seed=micro["seed"],
         offset=tuple(entry["offset_m"]),
     )
-    settings = HydrationSettings(
+    settings = hydration_settings(micro["numerics"], entry["cracks"])
+    return spec, settings, entry["porosity"] == "ct"
+
+
+def hydration_settings(numerics: Mapping[str, Any], cracks: bool) -> HydrationSettings:
+    """The staggered scheme's settings from a validated ``micro.numerics`` section."""
+    return HydrationSettings(
         initial_time_step=numerics["initial_time_step_s"],
         time_step_growth=numerics["time_step_growth"],
         max_flow_steps=numerics["max_flow_steps"],
@@ -90,20 +89,24 @@ def case_settings(config: Mapping[str, Any], case: str) -> tuple[SpecimenSpec, H
         unbalanced_force_tolerance=numerics["unbalanced_force_tolerance"],
         max_relaxation_steps=numerics["max_relaxation_steps"],
         final_relaxations=numerics["final_relaxations"],
-        cracks=entry["cracks"],
+        check_interval=numerics["check_interval"],
+        ramp_steps=numerics["ramp_steps"],
+        damping=numerics["relaxation_damping"],
+        max_step_fraction=numerics["max_step_fraction"],
+        porosity_bounds=tuple(numerics["porosity_bounds"]),
+        cracks=cracks,
     )
-    return spec, settings, entry["porosity"] == "ct"
 
 
-def case_dem_parameters(config: Mapping[str, Any], case: str) -> DEMParameters:
-    """DEM parameters of a case: wall speed limit and bond strength (the case's own, if set)."""
-    micro = config["micro"]
-    strength = micro["cases"][case].get("bond_tensile_strength_pa",
-                                        micro["bond_tensile_strength_pa"])
-    return dataclasses.replace(
-        DEFAULT_DEM, wall_max_velocity=micro["numerics"]["wall_max_velocity_m_s"],
-        bond_tensile_strength=strength,
-    )
+def case_material(config: Mapping[str, Any], case: str) -> dict[str, Any]:
+    """``materials.pellet`` with this case's own values (``micro.cases.<case>.materials``)."""
+    return {**config["materials"]["pellet"], **config["micro"]["cases"][case]["materials"]}
+
+
+def case_parameters(config: Mapping[str, Any], case: str) -> tuple[ClayParameters, DEMParameters]:
+    """Clay and DEM parameters of a case, from its material and ``micro.numerics``."""
+    material = case_material(config, case)
+    return clay_parameters(material), dem_parameters(material, config["micro"]["numerics"])
 
 
 def _dataset(records: list[dict[str, Any]], checkpoints: np.ndarray) -> xr.Dataset:
@@ -152,7 +155,8 @@ def run(
     Parameters
     ----------
     config
-        Validated configuration (``micro`` section).
+        Validated configuration: its ``micro`` section (with at least this case) and
+        ``materials.pellet``.
     case
         Case name (a key of ``micro.cases``).
     porosity_input
@@ -169,14 +173,15 @@ def run(
     """
     spec, settings, heterogeneous = case_settings(config, case)
     # the studies aggregate finished cases: they are not part of a case's configuration
-    section = {"micro": {k: v for k, v in config["micro"].items() if k != "studies"}, "case": case}
+    section = {"micro": {k: v for k, v in config["micro"].items() if k != "studies"}, "case": case,
+               "material": case_material(config, case)}
     checkpoints = np.asarray(config["micro"]["checkpoints_suction_pa"], dtype=float)
     output = Path(output)
     state_file = output.with_suffix(".checkpoint.npz")
     digest = config_sha256(section)
     grid = read_dataset(porosity_input, ["porosity"])["porosity"]
-    parameters = case_dem_parameters(config, case)
-    resumed = load_checkpoint(state_file, digest, DEFAULT_CLAY)
+    material, parameters = case_parameters(config, case)
+    resumed = load_checkpoint(state_file, digest, material)
     # optional ParaView snapshots, a side product beside the netCDF (not a rule output)
     vtk_dir = None
     if config["micro"].get("vtk_snapshots", False):
@@ -185,10 +190,10 @@ def run(
         if vtk_dir is not None:
             vtk.clear_snapshots(vtk_dir, output.stem)
         source = grid if heterogeneous else None
-        mean = None if heterogeneous else _specimen_mean(spec, grid)
-        state = initial_state(spec, source, mean, DEFAULT_CLAY, parameters)
+        mean = None if heterogeneous else _specimen_mean(spec, grid, material, parameters)
+        state = initial_state(spec, source, mean, material, parameters)
         system, settled = settle(state, FlowSystem.for_mesh(state.mesh), spec, source, mean,
-                                 settings, DEFAULT_CLAY, parameters)
+                                 settings, material, parameters)
         log.info("%s: settled at the initial suction in %d DEM steps (unbalanced force %.3g)",
                  case, settled["dem_steps"], settled["unbalanced_force"])
         records: list[dict[str, Any]] = []
@@ -202,7 +207,7 @@ def run(
         suction = float(checkpoints[index])
         try:
             system, diagnostics = advance_to_balance(state, system, suction, settings,
-                                                     DEFAULT_CLAY, parameters)
+                                                     material, parameters)
         except DivergenceError as err:
             raise DivergenceError(
                 f"case {case}, checkpoint {index} ({suction:.4g} Pa): {err}; "
@@ -212,7 +217,7 @@ def run(
         # interrupted run continues bit for bit (update_mesh rounds differently)
         state.mesh = mesh_from_tetrahedra(state.dem.positions, state.mesh.tetrahedra,
                                           state.mesh.neighbours, reorient=False)
-        record = measure_checkpoint(state, suction, reference_volume, DEFAULT_CLAY, settings.cracks)
+        record = measure_checkpoint(state, suction, reference_volume, material, settings.cracks)
         record.update(diagnostics)
         records.append(record)
         save_checkpoint(state_file, digest, state, system, records, reference_volume)
@@ -236,7 +241,9 @@ def run(
     return ds
 
 
-def _specimen_mean(spec: SpecimenSpec, grid: xr.DataArray) -> float:
+def _specimen_mean(spec: SpecimenSpec, grid: xr.DataArray, material: ClayParameters,
+                   parameters: DEMParameters) -> float:
     """Mean CT porosity over the specimen's cells, so that cases differ only in heterogeneity."""
-    probe = initial_state(dataclasses.replace(spec, n_points=min(spec.n_points, 512)), grid)
+    probe = initial_state(dataclasses.replace(spec, n_points=min(spec.n_points, 512)), grid,
+                          None, material, parameters)
     return float((probe.porosity * probe.mesh.volumes).sum() / probe.mesh.volumes.sum())

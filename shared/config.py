@@ -2,16 +2,28 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, MutableMapping
+from collections.abc import Callable, Iterable, Mapping, MutableMapping
 from pathlib import Path
 from typing import Any
 
 import jsonschema
 import yaml
 
-__all__ = ["ConfigError", "load_schema", "validate_config", "load_config", "SCHEMA_PATH"]
+__all__ = [
+    "ConfigError",
+    "load_schema",
+    "validate_config",
+    "load_config",
+    "default_config",
+    "SCHEMA_PATH",
+    "DEFAULT_CONFIG_PATH",
+]
 
-SCHEMA_PATH = Path(__file__).resolve().parent.parent / "workflow" / "schemas" / "config.schema.yaml"
+_ROOT = Path(__file__).resolve().parent.parent
+SCHEMA_PATH = _ROOT / "workflow" / "schemas" / "config.schema.yaml"
+DEFAULT_CONFIG_PATH = _ROOT / "config" / "config.yaml"
+
+Check = Callable[[Mapping[str, Any]], None]
 
 
 class ConfigError(ValueError):
@@ -59,25 +71,74 @@ def _key_path(error: jsonschema.ValidationError) -> str:
 
 
 def validate_config(
-    config: MutableMapping[str, Any], schema: Mapping[str, Any] | None = None
+    config: MutableMapping[str, Any],
+    schema: Mapping[str, Any] | None = None,
+    checks: Iterable[Check] = (),
 ) -> MutableMapping[str, Any]:
-    """Validate a configuration in place, filling in defaults.
+    """Validate a configuration in place, filling in defaults, then cross-check its fields.
+
+    Parameters
+    ----------
+    config
+        The configuration; the schema's defaults are written into it.
+    schema
+        The JSON schema (default: ``workflow/schemas/config.schema.yaml``).
+    checks
+        Further cross-field checks of the stages (e.g. the packings' geometry), each
+        raising :class:`ConfigError`; they run after the checks of this module.
 
     Raises
     ------
     ConfigError
         With the dotted path of the first offending key and the reason.
     """
-    validator = _Validator(schema if schema is not None else load_schema())
+    schema = schema if schema is not None else load_schema()
+    validator = _Validator(schema)
     errors = sorted(validator.iter_errors(config), key=lambda e: list(e.absolute_path))
     if errors:
         first = errors[0]
         raise ConfigError(f"{_key_path(first)}: {first.message}")
+    for check in (_check_micro, *checks):
+        check(config)
+    _check_case_materials(config, schema)
     return config
 
 
-def load_config(path: str | Path, schema: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """Read a YAML configuration file and validate it (defaults filled in)."""
+def _check_micro(config: Mapping[str, Any]) -> None:
+    """Cross-field checks of the micro section that the schema cannot express."""
+    micro = config.get("micro")
+    if not micro:
+        return
+    if micro["sample"] not in config["samples"]:
+        raise ConfigError(f"config key 'micro.sample': {micro['sample']!r} is not a sample")
+    checkpoints = list(micro["checkpoints_suction_pa"])
+    if any(later >= earlier for earlier, later in zip(checkpoints, checkpoints[1:])):
+        raise ConfigError(
+            "config key 'micro.checkpoints_suction_pa': suctions must strictly decrease, "
+            f"got {checkpoints}"
+        )
+
+
+def _check_case_materials(config: MutableMapping[str, Any], schema: Mapping[str, Any]) -> None:
+    """A case's own material values are keys of ``materials.pellet``, valid there."""
+    if not config.get("micro"):
+        return
+    pellet_schema = schema["properties"]["materials"]["properties"]["pellet"]
+    for case, entry in config["micro"]["cases"].items():
+        merged = {**config["materials"]["pellet"], **entry["materials"]}
+        for error in _Validator(pellet_schema).iter_errors(merged):
+            key = error.path[0] if error.path else ""
+            if error.validator == "additionalProperties":
+                key = sorted(set(merged) - set(pellet_schema["properties"]))[0]
+            raise ConfigError(
+                f"config key 'micro.cases.{case}.materials.{key}': {error.message}"
+            )
+
+
+def load_config(
+    path: str | Path, schema: Mapping[str, Any] | None = None, checks: Iterable[Check] = ()
+) -> dict[str, Any]:
+    """Read a YAML configuration file and validate it (defaults filled in, cross-checked)."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"{path}: no such configuration file")
@@ -85,4 +146,13 @@ def load_config(path: str | Path, schema: Mapping[str, Any] | None = None) -> di
         config = yaml.safe_load(handle) or {}
     if not isinstance(config, dict):
         raise ConfigError(f"{path}: the configuration must be a mapping")
-    return dict(validate_config(config, schema))
+    return dict(validate_config(config, schema, checks))
+
+
+def default_config() -> dict[str, Any]:
+    """The embedded default configuration (``config/config.yaml``), validated.
+
+    Benchmarks and tests take their parameters from it, so that they run the model users
+    run unless they say otherwise.
+    """
+    return load_config(DEFAULT_CONFIG_PATH)

@@ -33,7 +33,7 @@ import scipy.sparse as sp
 from numba import njit
 from scipy.spatial import cKDTree
 
-from shared.materials import DEFAULT_CLAY, ClayParameters
+from shared.materials import ClayParameters
 from shared.mesh import Mesh
 from shared.permeability import (
     Phase,
@@ -345,8 +345,8 @@ def facet_conductance(
     mesh: Mesh,
     saturation: FloatArray,
     porosity: FloatArray,
-    phase: Phase = "water",
-    material: ClayParameters = DEFAULT_CLAY,
+    phase: Phase,
+    material: ClayParameters,
 ) -> FloatArray:
     """Darcy conductance of each internal facet, g_ij = k_M k_r A_ij / (mu l_ij).
 
@@ -535,7 +535,7 @@ def transient_step(
     conductance: FloatArray,
     imposed_pressure: FloatArray,
     time_step: float,
-    material: ClayParameters = DEFAULT_CLAY,
+    material: ClayParameters,
     *,
     force_refactor: bool = False,
 ) -> StepResult:
@@ -717,7 +717,7 @@ def transfer_cell_state(
     pressure: FloatArray,
     saturation: FloatArray,
     porosity: FloatArray,
-    material: ClayParameters = DEFAULT_CLAY,
+    material: ClayParameters,
     *,
     conserve_water: bool = True,
 ) -> TransferredState:

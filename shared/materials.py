@@ -1,15 +1,18 @@
-"""Material parameters of the partially saturated clay model, in one place.
+"""Material parameters of the partially saturated clay model, read from the configuration.
 
-The defaults are those of Table 3.1 of Caulk (2022) (micro model of a compacted MX80
-pellet); where the Appendix .2 reference script differs, the docstring says so. Every
-value is in SI units, stated in the field's description.
+The values live in the ``materials`` section of the configuration (schema defaults:
+Table 3.1 of Caulk (2022) for the pellet clay); :func:`clay_parameters` turns that
+section into the one object the constitutive laws take. Field names spell out the
+thesis's symbols; the configuration keys carry the units.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
-__all__ = ["ClayParameters", "DEFAULT_CLAY"]
+__all__ = ["ClayParameters", "clay_parameters", "CLAY_CONFIG_KEYS"]
 
 
 @dataclass(frozen=True)
@@ -19,63 +22,60 @@ class ClayParameters:
     Attributes
     ----------
     retention_pressure_reference
-        zeta_0, van Genuchten air-entry-like pressure at the reference porosity [Pa]
-        (Table 3.1: 0.03e6 Pa).
+        zeta_0, van Genuchten air-entry-like pressure at the reference porosity [Pa].
     retention_exponent_reference
-        lambda_0, van Genuchten shape exponent at the reference porosity [1]
-        (Table 3.1: 0.08).
+        lambda_0, van Genuchten shape exponent at the reference porosity [1].
     retention_pressure_porosity_factor
-        a in zeta(phi) = zeta_0 exp(a (phi_0 - phi)) [1] (Table 3.1: 6.8).
+        a in zeta(phi) = zeta_0 exp(a (phi_0 - phi)) [1].
     retention_exponent_porosity_factor
-        b in lambda(phi) = lambda_0 exp(b (phi_0 - phi)) [1] (Table 3.1: -1.5).
+        b in lambda(phi) = lambda_0 exp(b (phi_0 - phi)) [1].
     reference_porosity
-        phi_0, reference (mean initial) porosity of retention and permeability laws [1]
-        (Sec. 3.3.4: 0.25 for the MX80 pellet).
+        phi_0, reference (measured mean) porosity of the retention and permeability
+        laws [1]; also the porosity anchor of the CT calibration (Sec. 3.3.4).
     residual_saturation
-        S_r, residual water saturation [1] (Table 3.1: 0; the script uses 0.01).
+        S_r, residual water saturation [1].
     saturated_saturation
-        S_s, maximal water saturation [1] (Table 3.1: 1).
+        S_s, maximal water saturation [1].
     relative_permeability_exponent
-        n in k_r = Se^n [1] (Table 3.1: 2; the script uses nUnsatPerm = 1).
+        n in k_r = Se^n [1].
     intrinsic_permeability_reference
-        k_0, intrinsic permeability at the reference porosity [m2] (Table 3.1: 1e-20).
+        k_0, intrinsic permeability at the reference porosity [m2].
     permeability_porosity_factor
-        b_k in k_M = k_0 exp(b_k (phi - phi_0)) [1] (Table 3.1: 2).
+        b_k in k_M = k_0 exp(b_k (phi - phi_0)) [1].
     water_viscosity
-        Dynamic viscosity of water [Pa s] (1e-3).
+        Dynamic viscosity of water [Pa s].
     gas_viscosity
-        Dynamic viscosity of the gas phase [Pa s] (Table 3.1: 1.8e-5).
+        Dynamic viscosity of the gas phase [Pa s].
     surface_tension
-        Gas-water surface tension gamma [N/m] (Table 3.1: 7.28e-2).
+        Gas-water surface tension gamma [N/m].
     crack_roughness_factor
-        eta, fraction of a gas-filled crack's facet area still conducting water [1]
-        (Table 3.1: 0.001).
+        eta, fraction of a gas-filled crack's facet area still conducting water [1].
     swelling_beta
         beta of the swelling law eps_v = (beta/alpha)[exp(-alpha s) - exp(-alpha s0)]
-        [1/Pa] (Table 3.1: 0.8e-8, printed as 'Pa'; the script uses 2.0e-8).
+        [1/Pa].
     swelling_alpha
-        alpha of the swelling law [1/Pa] (Table 3.1: 2.102e-8, printed as 'Pa').
+        alpha of the swelling law [1/Pa].
     initial_suction
-        s_0, suction of the reference (as-compacted) state [Pa] (Sec. 3.5.1: 132e6).
+        s_0, suction of the reference (as-compacted) state [Pa].
     """
 
-    retention_pressure_reference: float = 0.03e6
-    retention_exponent_reference: float = 0.08
-    retention_pressure_porosity_factor: float = 6.8
-    retention_exponent_porosity_factor: float = -1.5
-    reference_porosity: float = 0.25
-    residual_saturation: float = 0.0
-    saturated_saturation: float = 1.0
-    relative_permeability_exponent: float = 2.0
-    intrinsic_permeability_reference: float = 1e-20
-    permeability_porosity_factor: float = 2.0
-    water_viscosity: float = 1e-3
-    gas_viscosity: float = 1.8e-5
-    surface_tension: float = 7.28e-2
-    crack_roughness_factor: float = 1e-3
-    swelling_beta: float = 0.8e-8
-    swelling_alpha: float = 2.102e-8
-    initial_suction: float = 132e6
+    retention_pressure_reference: float
+    retention_exponent_reference: float
+    retention_pressure_porosity_factor: float
+    retention_exponent_porosity_factor: float
+    reference_porosity: float
+    residual_saturation: float
+    saturated_saturation: float
+    relative_permeability_exponent: float
+    intrinsic_permeability_reference: float
+    permeability_porosity_factor: float
+    water_viscosity: float
+    gas_viscosity: float
+    surface_tension: float
+    crack_roughness_factor: float
+    swelling_beta: float
+    swelling_alpha: float
+    initial_suction: float
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.residual_saturation < self.saturated_saturation <= 1.0:
@@ -85,6 +85,8 @@ class ClayParameters:
             )
         if not 0.0 < self.retention_exponent_reference < 1.0:
             raise ValueError("retention_exponent_reference (lambda_0) must lie in (0, 1)")
+        if not 0.0 < self.reference_porosity < 1.0:
+            raise ValueError("reference_porosity (phi_0) must lie in (0, 1)")
         positive = (
             "retention_pressure_reference",
             "intrinsic_permeability_reference",
@@ -98,4 +100,37 @@ class ClayParameters:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
 
 
-DEFAULT_CLAY = ClayParameters()
+CLAY_CONFIG_KEYS: dict[str, str] = {
+    "retention_pressure_reference": "retention_pressure_reference_pa",
+    "retention_exponent_reference": "retention_exponent_reference",
+    "retention_pressure_porosity_factor": "retention_pressure_porosity_factor",
+    "retention_exponent_porosity_factor": "retention_exponent_porosity_factor",
+    "reference_porosity": "reference_porosity",
+    "residual_saturation": "residual_saturation",
+    "saturated_saturation": "saturated_saturation",
+    "relative_permeability_exponent": "relative_permeability_exponent",
+    "intrinsic_permeability_reference": "intrinsic_permeability_reference_m2",
+    "permeability_porosity_factor": "permeability_porosity_factor",
+    "water_viscosity": "water_viscosity_pa_s",
+    "gas_viscosity": "gas_viscosity_pa_s",
+    "surface_tension": "surface_tension_n_per_m",
+    "crack_roughness_factor": "crack_roughness_factor",
+    "swelling_beta": "swelling_beta_per_pa",
+    "swelling_alpha": "swelling_alpha_per_pa",
+    "initial_suction": "initial_suction_pa",
+}
+"""Field of :class:`ClayParameters` -> key of the configuration's ``materials.pellet``."""
+
+
+def clay_parameters(section: Mapping[str, Any]) -> ClayParameters:
+    """The clay parameters of a validated ``materials.pellet`` configuration section.
+
+    Parameters
+    ----------
+    section
+        The section with the schema's defaults filled in (keys carry their units:
+        ``retention_pressure_reference_pa``, ``swelling_alpha_per_pa``, ...).
+    """
+    return ClayParameters(
+        **{field: float(section[key]) for field, key in CLAY_CONFIG_KEYS.items()}
+    )

@@ -12,7 +12,7 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from shared.materials import DEFAULT_CLAY, ClayParameters
+from shared.materials import ClayParameters
 
 __all__ = [
     "Phase",
@@ -28,7 +28,7 @@ Phase = Literal["water", "gas"]
 
 
 def effective_saturation(
-    saturation: npt.ArrayLike, material: ClayParameters = DEFAULT_CLAY
+    saturation: npt.ArrayLike, material: ClayParameters
 ) -> FloatArray:
     """Effective water saturation Se = (S - S_r)/(S_s - S_r), clamped to [0, 1].
 
@@ -51,8 +51,8 @@ def effective_saturation(
 
 def relative_permeability(
     saturation: npt.ArrayLike,
-    phase: Phase = "water",
-    material: ClayParameters = DEFAULT_CLAY,
+    phase: Phase,
+    material: ClayParameters,
 ) -> FloatArray:
     """Relative permeability k_r = Se^n (water) or (1 - Se)^n (gas), in [0, 1].
 
@@ -79,7 +79,7 @@ def relative_permeability(
 
 
 def intrinsic_permeability(
-    porosity: npt.ArrayLike, material: ClayParameters = DEFAULT_CLAY
+    porosity: npt.ArrayLike, material: ClayParameters
 ) -> FloatArray:
     """Intrinsic permeability k_M = k_0 exp(b_k (phi - phi_0)) (thesis Eq. 3.18).
 
@@ -120,7 +120,7 @@ def crack_conductivity(aperture: npt.ArrayLike, viscosity: float) -> FloatArray:
     return aperture**3 / (12.0 * viscosity)
 
 
-def phase_viscosity(phase: Phase, material: ClayParameters = DEFAULT_CLAY) -> float:
+def phase_viscosity(phase: Phase, material: ClayParameters) -> float:
     """Dynamic viscosity of ``phase`` [Pa s]."""
     if phase == "water":
         return material.water_viscosity

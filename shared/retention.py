@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from shared.materials import DEFAULT_CLAY, ClayParameters
+from shared.materials import ClayParameters
 
 __all__ = [
     "retention_parameters",
@@ -31,7 +31,7 @@ FloatArray = npt.NDArray[np.float64]
 
 
 def retention_parameters(
-    porosity: npt.ArrayLike, material: ClayParameters = DEFAULT_CLAY
+    porosity: npt.ArrayLike, material: ClayParameters
 ) -> tuple[FloatArray, FloatArray]:
     """Van Genuchten parameters zeta(phi) and lambda(phi) (thesis Eqs. 3.26-3.27).
 
@@ -79,7 +79,7 @@ def _unclamped_saturation(
 def saturation(
     suction: npt.ArrayLike,
     porosity: npt.ArrayLike,
-    material: ClayParameters = DEFAULT_CLAY,
+    material: ClayParameters,
 ) -> FloatArray:
     """Water saturation of the retention curve, clamped to [S_r, S_s].
 
@@ -106,7 +106,7 @@ def saturation(
 def suction(
     saturation: npt.ArrayLike,
     porosity: npt.ArrayLike,
-    material: ClayParameters = DEFAULT_CLAY,
+    material: ClayParameters,
 ) -> FloatArray:
     """Suction of the (unclamped) retention curve for a given saturation.
 
@@ -140,7 +140,7 @@ def suction(
 def saturation_derivative(
     suction: npt.ArrayLike,
     porosity: npt.ArrayLike,
-    material: ClayParameters = DEFAULT_CLAY,
+    material: ClayParameters,
 ) -> FloatArray:
     """Closed-form derivative dS_w/dp of the clamped curve w.r.t. water pressure.
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from shared.materials import DEFAULT_CLAY, ClayParameters
+from shared.materials import ClayParameters
 
 __all__ = ["volumetric_strain", "swollen_radius"]
 
@@ -18,7 +18,7 @@ FloatArray = npt.NDArray[np.float64]
 
 
 def volumetric_strain(
-    suction: npt.ArrayLike, material: ClayParameters = DEFAULT_CLAY
+    suction: npt.ArrayLike, material: ClayParameters
 ) -> FloatArray:
     """Volumetric swelling strain eps_v relative to the state at ``initial_suction``.
 

@@ -248,3 +248,14 @@ def parameters_of(section: Mapping[str, Any]) -> DepositionParameters:
         contact_line_swivel=section["two_contact_swivel"] == "line",
         log_interval=float(section["log_interval_s"]),
     )
+
+
+def check_packings(config: Mapping[str, Any]) -> None:
+    """Check every entry of ``packings``; the error names ``packings.<name>.<key>``."""
+    from shared.config import ConfigError
+
+    for name, section in config["packings"].items():
+        try:
+            resolve(section)
+        except ValueError as err:
+            raise ConfigError(f"config key 'packings.{name}.{err}") from err

@@ -2,10 +2,11 @@
 
 Typical use in a coupled loop::
 
-    state = new_state(*cube_points(15000, rng))
+    parameters = dem_parameters(config["materials"]["pellet"], config["micro"]["numerics"])
+    state = new_state(*cube_points(15000, rng), parameters)
     walls = walls_around(state.positions, state.radii, active=False)  # free swelling
-    dt = min(stable_time_step(state, walls=walls), DEFAULT_DEM.time_step)
-    report = step(state, dt, external_forces=hydro_forces, walls=walls)
+    dt = min(stable_time_step(state, parameters, walls=walls), parameters.time_step)
+    report = step(state, dt, parameters, external_forces=hydro_forces, walls=walls)
     state.radii = swollen_radius(state.reference_radii, eps_v)  # stiffness follows
 """
 
@@ -25,7 +26,7 @@ from shared.dem.integrator import (
     step,
     unbalanced_force,
 )
-from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.parameters import DEMParameters
 from shared.dem.points import cube_points
 from shared.dem.state import ContactList, DEMState, new_state
 from shared.dem.walls import (
@@ -38,7 +39,7 @@ from shared.dem.walls import (
 )
 
 __all__ = [
-    "DEFAULT_DEM",
+    "dem_parameters",
     "ContactList",
     "DEMParameters",
     "DEMState",

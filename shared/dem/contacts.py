@@ -8,7 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from shared.dem import _kernels
-from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.parameters import DEMParameters
 
 if TYPE_CHECKING:
     from shared.dem.state import DEMState
@@ -144,7 +144,7 @@ def contacts_need_update(state: DEMState) -> bool:
 
 
 def update_contacts(
-    state: DEMState, parameters: DEMParameters = DEFAULT_DEM, force: bool = False
+    state: DEMState, parameters: DEMParameters, force: bool = False
 ) -> bool:
     """Rebuild the contact list when needed, carrying the shear history of kept pairs.
 

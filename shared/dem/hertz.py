@@ -6,7 +6,7 @@ import numpy as np
 import numpy.typing as npt
 
 from shared.dem import _kernels
-from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.parameters import DEMParameters
 from shared.dem.state import DEMState
 
 __all__ = ["contact_forces", "bond_tension"]
@@ -17,7 +17,7 @@ FloatArray = npt.NDArray[np.float64]
 def contact_forces(
     state: DEMState,
     time_step: float,
-    parameters: DEMParameters = DEFAULT_DEM,
+    parameters: DEMParameters,
     forces: FloatArray | None = None,
     torques: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -86,7 +86,7 @@ def contact_forces(
 
 
 def bond_tension(
-    state: DEMState, parameters: DEMParameters = DEFAULT_DEM, forces: FloatArray | None = None
+    state: DEMState, parameters: DEMParameters, forces: FloatArray | None = None
 ) -> FloatArray:
     """Tension of the intact bonds; breaks those loaded beyond their strength.
 

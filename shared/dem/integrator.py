@@ -10,7 +10,7 @@ import numpy.typing as npt
 from shared.dem import _kernels
 from shared.dem.contacts import update_contacts
 from shared.dem.hertz import bond_tension, contact_forces
-from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.parameters import DEMParameters
 from shared.dem.state import DEMState
 from shared.dem.walls import WallLoads, Walls, servo_walls, wall_forces
 
@@ -54,7 +54,7 @@ class StepReport:
 
 def stable_time_step(
     state: DEMState,
-    parameters: DEMParameters = DEFAULT_DEM,
+    parameters: DEMParameters,
     walls: Walls | None = None,
     safety: float | None = None,
 ) -> float:
@@ -196,7 +196,7 @@ def kinetic_energy(state: DEMState) -> float:
 def step(
     state: DEMState,
     time_step: float,
-    parameters: DEMParameters = DEFAULT_DEM,
+    parameters: DEMParameters,
     external_forces: FloatArray | None = None,
     walls: Walls | None = None,
     damping: float | None = None,

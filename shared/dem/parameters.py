@@ -1,11 +1,17 @@
-"""Mechanical parameters of the DEM point model (Caulk 2022, Table 3.1 and Appendix .2)."""
+"""Mechanical parameters of the DEM point model, read from the configuration.
+
+Material values come from ``materials.pellet`` (Caulk 2022, Table 3.1 and Appendix .2),
+numerical ones from the stage's ``numerics``; :func:`dem_parameters` builds the object.
+"""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
-__all__ = ["DEMParameters", "DEFAULT_DEM"]
+__all__ = ["DEMParameters", "dem_parameters"]
 
 
 @dataclass(frozen=True)
@@ -39,28 +45,24 @@ class DEMParameters:
     wall_gain
         Fraction of the stiffness-predicted correction a servo wall applies per step
         [1] (Yade's TriaxialStressController stressDamping default: 0.25).
-    confining_stress
-        Compressive stress imposed by the servo walls on each axis [Pa]
-        (Sec. 3.5.4: 10e6 in the confined case, 0 for free swelling).
     bond_tensile_strength
         sigma_t, tensile strength of a bond [Pa]: an intact bond carries a tension up
         to sigma_t pi r^2 (r the mean radius of its two points) and breaks beyond. 0
-        (default) is the thesis's cohesionless reading: a bond breaks as soon as its
+        is the thesis's cohesionless reading: a bond breaks as soon as its
         normal force would turn tensile. Not a parameter of the thesis (see
         :func:`shared.dem.bond_tension` for why the micro model needs it).
     """
 
-    young_modulus: float = 100e8
-    poisson_ratio: float = 0.3
-    density: float = 2600.0
-    interaction_radius_factor: float = 1.0
-    damping: float = 0.4
-    time_step_safety: float = 0.8
-    time_step: float = 4e-9
-    wall_max_velocity: float = 1e-4
-    wall_gain: float = 0.25
-    confining_stress: float = 0.0
-    bond_tensile_strength: float = 0.0
+    young_modulus: float
+    poisson_ratio: float
+    density: float
+    interaction_radius_factor: float
+    damping: float
+    time_step_safety: float
+    time_step: float
+    wall_max_velocity: float
+    wall_gain: float
+    bond_tensile_strength: float
 
     def __post_init__(self) -> None:
         for name in ("young_modulus", "density", "interaction_radius_factor", "time_step"):
@@ -98,4 +100,30 @@ class DEMParameters:
         return 2.0 * math.sqrt(4.0) * self.shear_modulus / (2.0 - self.poisson_ratio)
 
 
-DEFAULT_DEM = DEMParameters()
+
+
+def dem_parameters(material: Mapping[str, Any], numerics: Mapping[str, Any]) -> DEMParameters:
+    """The DEM parameters of validated configuration sections.
+
+    Parameters
+    ----------
+    material
+        ``materials.pellet``: ``young_modulus_pa``, ``poisson_ratio``,
+        ``point_density_kg_m3``, ``bond_tensile_strength_pa``.
+    numerics
+        The stage's numerics: ``interaction_radius_factor``, ``dem_damping``,
+        ``time_step_safety``, ``dem_time_step_s``, ``wall_max_velocity_m_s``,
+        ``wall_gain``.
+    """
+    return DEMParameters(
+        young_modulus=float(material["young_modulus_pa"]),
+        poisson_ratio=float(material["poisson_ratio"]),
+        density=float(material["point_density_kg_m3"]),
+        interaction_radius_factor=float(numerics["interaction_radius_factor"]),
+        damping=float(numerics["dem_damping"]),
+        time_step_safety=float(numerics["time_step_safety"]),
+        time_step=float(numerics["dem_time_step_s"]),
+        wall_max_velocity=float(numerics["wall_max_velocity_m_s"]),
+        wall_gain=float(numerics["wall_gain"]),
+        bond_tensile_strength=float(material["bond_tensile_strength_pa"]),
+    )

@@ -8,7 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from shared.dem.contacts import bond_pairs, detect_contacts, pair_values
-from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.parameters import DEMParameters
 
 __all__ = ["ContactList", "DEMState", "new_state"]
 
@@ -128,7 +128,7 @@ class DEMState:
 def new_state(
     positions: npt.ArrayLike,
     radii: npt.ArrayLike,
-    parameters: DEMParameters = DEFAULT_DEM,
+    parameters: DEMParameters,
     skin_fraction: float = 0.1,
     bond_tolerance: float = 1e-9,
     stress_free_bonds: bool = False,

@@ -13,7 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from shared.dem import _kernels
-from shared.dem.parameters import DEFAULT_DEM, DEMParameters
+from shared.dem.parameters import DEMParameters
 from shared.dem.state import DEMState
 
 __all__ = ["Walls", "WallLoads", "walls_around", "wall_forces", "wall_stresses", "servo_walls"]
@@ -69,10 +69,9 @@ class WallLoads:
 def walls_around(
     positions: npt.ArrayLike,
     radii: npt.ArrayLike,
-    target_stress: float | npt.ArrayLike | None = None,
+    target_stress: float | npt.ArrayLike = 0.0,
     active: bool = True,
     servo: bool = True,
-    parameters: DEMParameters = DEFAULT_DEM,
 ) -> Walls:
     """Walls on the bounding box of the spheres (touching the outermost points).
 
@@ -83,19 +82,14 @@ def walls_around(
     radii
         (n,) interaction radii [m].
     target_stress
-        Compressive stress per axis [Pa], scalar or (3,); None takes
-        ``parameters.confining_stress``.
+        Compressive stress per axis [Pa], scalar or (3,).
     active
         Whether the walls push on the points (False: free swelling).
     servo
         Whether the walls move to impose ``target_stress``.
-    parameters
-        Source of the default confining stress [Pa].
     """
     positions = np.asarray(positions, dtype=np.float64)
     radii = np.asarray(radii, dtype=np.float64)
-    if target_stress is None:
-        target_stress = parameters.confining_stress
     return Walls(
         lower=(positions - radii[:, None]).min(axis=0),
         upper=(positions + radii[:, None]).max(axis=0),
@@ -109,7 +103,7 @@ def wall_forces(
     state: DEMState,
     walls: Walls,
     forces: FloatArray,
-    parameters: DEMParameters = DEFAULT_DEM,
+    parameters: DEMParameters,
     stiffness: FloatArray | None = None,
 ) -> WallLoads:
     """Add frictionless Hertz wall forces on the points (rigid wall, R* = r).
@@ -149,7 +143,7 @@ def servo_walls(
     walls: Walls,
     loads: WallLoads,
     time_step: float,
-    parameters: DEMParameters = DEFAULT_DEM,
+    parameters: DEMParameters,
 ) -> None:
     """Move active servo walls towards ``target_stress`` (in place).
 

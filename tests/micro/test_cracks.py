@@ -23,8 +23,8 @@ from micro.cracks import (
     crack_network,
 )
 from micro.fabric import crack_fabric, fabric_tensor
-from shared.materials import DEFAULT_CLAY
 from shared.mesh import build_mesh
+from _defaults import CLAY
 
 HALF_GAP, RING = 1e-4, 2e-4
 RADIUS = 0.99e-4  # aperture w = 2 (HALF_GAP - RADIUS) = 2 um
@@ -47,7 +47,7 @@ def _network(ring, suction, radius=RADIUS):
     points, mesh = ring
     return crack_network(
         [[0, 1], [2, 3]], points, np.full(8, radius), mesh.facet_vertices, mesh.facet_cells,
-        mesh.centroids, np.full(mesh.n_cells, suction),
+        mesh.centroids, np.full(mesh.n_cells, suction), CLAY,
     )
 
 
@@ -67,7 +67,7 @@ def test_imbibed_crack_adds_cubic_law_water_conductivity(ring):
     assert network.entry_suctions[0] == pytest.approx(0.0728 / APERTURE, rel=1e-9)
     lengths = centroid_distances(mesh.facet_cells, mesh.centroids)
     np.testing.assert_allclose(lengths, CENTROID_DISTANCE, rtol=1e-12)
-    change = crack_conductivity(network, lengths)
+    change = crack_conductivity(network, lengths, CLAY)
     cubic = APERTURE**3 / (12.0 * 1e-3) * RING / CENTROID_DISTANCE
     np.testing.assert_allclose(change.water_added, cubic, rtol=1e-9)
     np.testing.assert_array_equal(change.water_scale, 1.0)
@@ -79,8 +79,8 @@ def test_gas_filled_crack_blocks_water_and_carries_gas(ring):
     _, mesh = ring
     network = _network(ring, suction=1e5)  # above gamma / w
     assert not network.imbibed[0]
-    change = crack_conductivity(network, centroid_distances(mesh.facet_cells, mesh.centroids))
-    np.testing.assert_array_equal(change.water_scale, DEFAULT_CLAY.crack_roughness_factor)
+    change = crack_conductivity(network, centroid_distances(mesh.facet_cells, mesh.centroids), CLAY)
+    np.testing.assert_array_equal(change.water_scale, CLAY.crack_roughness_factor)
     np.testing.assert_array_equal(change.water_added, 0.0)
     np.testing.assert_allclose(
         change.gas_added, APERTURE**3 / (12.0 * 1.8e-5) * RING / CENTROID_DISTANCE, rtol=1e-9
@@ -92,7 +92,7 @@ def test_cubic_law_aperture_is_capped_at_the_crack_width(ring):
     _, mesh = ring
     network = _network(ring, suction=1e5)
     wide = dataclasses.replace(network, apertures=np.array([2.5 * RING]))
-    change = crack_conductivity(wide, centroid_distances(mesh.facet_cells, mesh.centroids))
+    change = crack_conductivity(wide, centroid_distances(mesh.facet_cells, mesh.centroids), CLAY)
     np.testing.assert_allclose(
         change.gas_added, RING**3 / (12.0 * 1.8e-5) * RING / CENTROID_DISTANCE, rtol=1e-9
     )
@@ -139,7 +139,7 @@ def test_gas_filled_crack_releases_its_capillary_pull(ring):
 def test_closed_bond_is_no_crack(ring):
     network = _network(ring, suction=1e3, radius=1.0001e-4)
     assert network.pairs.shape == (0, 2)
-    change = crack_conductivity(network, ring[1].facet_lengths)  # any lengths: no crack
+    change = crack_conductivity(network, ring[1].facet_lengths, CLAY)  # any lengths: no crack
     np.testing.assert_array_equal(change.water_scale, 1.0)
     assert change.water_added.dtype == np.float64 and not change.water_added.any()
 
@@ -181,7 +181,7 @@ def test_trace_width_and_patch_area_on_a_skewed_triangle():
     points = np.array([[0.0, 0, 0], [2.0, 0, 0], [0.5, 1.0, 0]]) * scale
     network = crack_network(
         [[0, 1]], points, np.full(3, 0.9 * scale), [[0, 1, 2]], [[0, 1]],
-        np.array([[1.0, 0.5, 1.0], [1.0, 0.5, -1.0]]) * scale, [1e3, 1e3],
+        np.array([[1.0, 0.5, 1.0], [1.0, 0.5, -1.0]]) * scale, [1e3, 1e3], CLAY,
     )
     assert network.patch_widths[0] == pytest.approx(2.0 / 3.0 * scale, rel=1e-12)
     assert network.patch_areas[0] == pytest.approx(0.5 * scale**2, rel=1e-12)

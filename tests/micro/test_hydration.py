@@ -15,7 +15,6 @@ from micro.checkpoint import load_checkpoint, save_checkpoint
 from micro.hydration import (
     DivergenceError,
     FlowSystem,
-    HydrationSettings,
     advance_to_balance,
     membrane_forces,
     triangulate,
@@ -24,10 +23,10 @@ from micro.hydration import (
 from micro.pellet import SpecimenSpec, centred_grid, initial_state, settle
 from shared.config import ConfigError, validate_config
 from shared.dem.integrator import step, unbalanced_force
-from shared.dem.parameters import DEFAULT_DEM
-from shared.materials import DEFAULT_CLAY
 from shared.dem.state import new_state
 from shared.mesh import mesh_from_tetrahedra
+from shared.retention import saturation as retention_saturation
+from _defaults import CLAY, DEM, SETTINGS, settings
 
 SMALL = SpecimenSpec(edge_length=4e-3, n_points=125, seed=3)
 
@@ -58,10 +57,10 @@ def test_pore_fluid_forces_have_no_net_resultant_on_a_heterogeneous_specimen():
     (the face loads are the hull facets' own resultants, per face)."""
     x = np.arange(16) * 1e-3
     grid = _grid(np.broadcast_to(0.1 + 20.0 * x, (16, 16, 16)).copy(), 1e-3)
-    state = initial_state(SMALL, grid)
+    state = initial_state(SMALL, grid, None, CLAY, DEM)
     bishop = state.saturation * state.pressure
     assert np.ptp(bishop[state.mesh.boundary_cells]) > 0.1 * np.abs(bishop).mean()
-    _, forces = hydration.swell(state, DEFAULT_CLAY)
+    _, forces = hydration.swell(state, CLAY)
     typical = np.linalg.norm(forces, axis=1).mean()
     assert np.linalg.norm(forces.sum(axis=0)) < 1e-10 * typical * state.dem.n_points
 
@@ -71,7 +70,7 @@ def test_a_fragment_that_left_the_specimen_is_not_its_main_body():
     the three (the pair still touches a neighbour, but not the specimen)."""
     positions = np.array([[0, 0, 0], [1.8, 0, 0], [0, 1.8, 0],
                           [10, 0, 0], [11.8, 0, 0], [20, 20, 20]], dtype=float) * 1e-4
-    dem = new_state(positions, np.full(6, 1e-4), stress_free_bonds=True)
+    dem = new_state(positions, np.full(6, 1e-4), DEM, stress_free_bonds=True)
     assert dem.bonds.shape[0] == 3  # 0-1, 0-2 and 3-4
     body = hydration._main_body(dem, np.zeros(dem.contacts.pairs.shape[0]))
     np.testing.assert_array_equal(body, [True, True, True, False, False, False])
@@ -92,14 +91,14 @@ def test_flat_tetrahedra_are_dropped(rng):
 
 def test_remesh_conserves_solid_and_water():
     """Solid and water of the moved cells (old connectivity) are both kept by a remesh."""
-    state = initial_state(SMALL, None)
+    state = initial_state(SMALL, None, None, CLAY, DEM)
     state.saturation = np.linspace(0.3, 0.7, state.mesh.n_cells)
     solid = state.solid_volume.sum()
     state.dem.positions[0] += 0.45 * (state.dem.positions[1] - state.dem.positions[0]) * 3
     corners = state.dem.positions[state.mesh.tetrahedra]
     moved = np.abs(np.linalg.det(corners[:, 1:] - corners[:, :1])) / 6
     water = float((np.clip(1 - state.solid_volume / moved, 1e-6, 1 - 1e-6) * moved * state.saturation).sum())
-    remeshed = update_geometry(state, (1e-6, 1 - 1e-6))
+    remeshed = update_geometry(state, (1e-6, 1 - 1e-6), CLAY)
     assert remeshed and state.n_remesh == 1
     assert state.solid_volume.sum() == pytest.approx(solid, rel=1e-12)
     assert state.water_volume() == pytest.approx(water, rel=1e-10)
@@ -107,10 +106,10 @@ def test_remesh_conserves_solid_and_water():
 
 def test_initial_suction_gives_uniform_pressure_and_mechanical_balance():
     """Homogeneous specimen at 132 MPa: pressure stays uniform, the DEM reaches balance."""
-    state = initial_state(SMALL, None)
+    state = initial_state(SMALL, None, None, CLAY, DEM)
     system = FlowSystem.for_mesh(state.mesh)
-    tight = HydrationSettings(unbalanced_force_tolerance=1e-4, max_relaxation_steps=30000)
-    system, report = advance_to_balance(state, system, 132e6, tight)
+    tight = settings(unbalanced_force_tolerance=1e-4, max_relaxation_steps=30000)
+    system, report = advance_to_balance(state, system, 132e6, tight, CLAY, DEM)
     assert report["balanced"] == 1.0 and report["flow_steps"] == 1.0
     assert report["unbalanced_force"] < 1e-4
     np.testing.assert_allclose(state.pressure, -132e6, rtol=1e-12)
@@ -123,22 +122,22 @@ def test_a_checkpoint_relaxes_on_until_mechanical_balance():
     the forces (a DEM step of 1e-15 s) confirms; without them the report says so."""
     reports = {}
     for final in (0, 100):
-        state = initial_state(SMALL, None)
-        settings = HydrationSettings(unbalanced_force_tolerance=1e-3, max_relaxation_steps=20,
-                                     ramp_steps=10, final_relaxations=final)
+        state = initial_state(SMALL, None, None, CLAY, DEM)
+        tuned = settings(unbalanced_force_tolerance=1e-3, max_relaxation_steps=20,
+                         ramp_steps=10, final_relaxations=final)
         _, reports[final] = advance_to_balance(state, FlowSystem.for_mesh(state.mesh), 132e6,
-                                               settings)
+                                               tuned, CLAY, DEM)
     assert reports[0]["unbalanced_force"] > 1e-3 and reports[0]["balanced"] == 0.0
     assert reports[100]["balanced"] == 1.0
-    check = step(state.dem, 1e-15, DEFAULT_DEM, state.hydraulic_forces, state.walls, 0.0)
+    check = step(state.dem, 1e-15, DEM, state.hydraulic_forces, state.walls, 0.0)
     assert unbalanced_force(check.forces, check.normal_forces) < 1e-3
 
 
 def test_suction_front_moves_inwards_and_balances():
-    state = initial_state(SMALL, None)
+    state = initial_state(SMALL, None, None, CLAY, DEM)
     system = FlowSystem.for_mesh(state.mesh)
     saturation = state.mean_saturation()
-    system, report = advance_to_balance(state, system, 60e6, HydrationSettings())
+    system, report = advance_to_balance(state, system, 60e6, SETTINGS, CLAY, DEM)
     assert report["balanced"] == 1.0
     np.testing.assert_allclose(-state.pressure, 60e6, rtol=0.02)
     # the pores filled (their volume shrank too: the Bishop stress S s compacts the
@@ -150,16 +149,16 @@ def test_suction_front_moves_inwards_and_balances():
 def test_a_non_finite_field_or_solve_stops_hydration_with_a_divergence_error(monkeypatch):
     """A NaN field or a failed solve ends in a DivergenceError naming it (run() then keeps
     the last good checkpoint, ``test_killed_run_resumes_to_the_same_result``)."""
-    state = initial_state(SMALL, None)
+    state = initial_state(SMALL, None, None, CLAY, DEM)
     system = FlowSystem.for_mesh(state.mesh)
     state.porosity[state.mesh.n_cells // 2] = np.nan
     with pytest.raises(DivergenceError, match="porosity"):
-        advance_to_balance(state, system, 60e6, HydrationSettings())
-    state = initial_state(SMALL, None)
+        advance_to_balance(state, system, 60e6, SETTINGS, CLAY, DEM)
+    state = initial_state(SMALL, None, None, CLAY, DEM)
     # a solve whose matrix is indefinite, as a negative conductance would make it
     monkeypatch.setattr(hydration, "conductances", lambda *args: -np.ones(state.mesh.n_facets))
     with pytest.raises(DivergenceError, match="flow solve failed"):
-        advance_to_balance(state, FlowSystem.for_mesh(state.mesh), 60e6, HydrationSettings())
+        advance_to_balance(state, FlowSystem.for_mesh(state.mesh), 60e6, SETTINGS, CLAY, DEM)
 
 
 def test_grid_not_covering_the_specimen_is_refused():
@@ -188,11 +187,12 @@ def test_the_settled_specimen_has_the_scanned_porosity_where_its_material_was_bu
     interpolation is exact), with solid volume (1 - porosity) V and S(s0)."""
     x = np.arange(16) * 1e-3
     grid = _grid(np.broadcast_to(0.1 + 20.0 * x, (16, 16, 16)).copy(), 1e-3)
-    state = initial_state(SMALL, grid)
+    state = initial_state(SMALL, grid, None, CLAY, DEM)
     built = state.dem.positions.copy()
     built_volume = state.mesh.volumes.sum()
-    system, report = settle(state, FlowSystem.for_mesh(state.mesh), SMALL, grid)
-    assert report["suction_misfit"] < HydrationSettings().hydraulic_tolerance
+    system, report = settle(state, FlowSystem.for_mesh(state.mesh), SMALL, grid, None, SETTINGS,
+                            CLAY, DEM)
+    assert report["suction_misfit"] < SETTINGS.hydraulic_tolerance
     assert state.mesh.volumes.sum() < 0.97 * built_volume  # S s0 compacted the cloud
     expected = 0.21 + 20.0 * built[state.mesh.tetrahedra].mean(axis=1)[:, 0]
     np.testing.assert_allclose(state.porosity, expected, rtol=1e-12)
@@ -207,15 +207,27 @@ def test_case_overrides_points_size_offset_and_bond_strength(micro_config):
     study = copy.deepcopy(config)
     study["micro"]["cases"]["sub"] = {"porosity": "ct", "n_points": 64,
                                       "specimen_size_m": 2e-3, "offset_m": [5e-4, 0.0, 0.0],
-                                      "bond_tensile_strength_pa": 2e6}
+                                      "materials": {"bond_tensile_strength_pa": 2e6}}
     study = validate_config(study)
     spec, _, _ = micro_run.case_settings(study, "sub")
     assert (spec.n_points, spec.edge_length, spec.offset) == (64, 2e-3, (5e-4, 0.0, 0.0))
-    assert micro_run.case_dem_parameters(study, "sub").bond_tensile_strength == 2e6
+    assert micro_run.case_parameters(study, "sub")[1].bond_tensile_strength == 2e6
     default, _, _ = micro_run.case_settings(study, "c")
     assert (default.n_points, default.edge_length, default.offset) == (125, 4e-3, (0.0, 0.0, 0.0))
-    assert (micro_run.case_dem_parameters(study, "c").bond_tensile_strength
-            == study["micro"]["bond_tensile_strength_pa"] == 2e7)
+    assert (micro_run.case_parameters(study, "c")[1].bond_tensile_strength
+            == study["materials"]["pellet"]["bond_tensile_strength_pa"] == 2e7)
+
+
+@pytest.mark.parametrize(("override", "key"), [
+    ({"bond_strength": 1.0}, "micro.cases.c.materials.bond_strength"),
+    ({"poisson_ratio": 0.7}, "micro.cases.c.materials.poisson_ratio"),
+])
+def test_bad_case_material_names_the_key(micro_config, override, key):
+    config, _ = micro_config
+    bad = copy.deepcopy(config)
+    bad["micro"]["cases"]["c"]["materials"] = override
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+        validate_config(bad)
 
 
 @pytest.fixture()
@@ -246,7 +258,7 @@ def test_checkpoints_must_decrease(micro_config):
     bad = copy.deepcopy(config)
     bad["micro"]["checkpoints_suction_pa"] = [132.0e6, 140.0e6]
     with pytest.raises(ConfigError, match="micro.checkpoints_suction_pa"):
-        micro_run.case_settings(bad, "c")
+        validate_config(bad)
 
 
 def test_killed_run_resumes_to_the_same_result(micro_config, tmp_path, monkeypatch):
@@ -282,38 +294,52 @@ def test_cracks_open_in_a_heterogeneous_specimen_only():
     The heterogeneity is a flaw, a 1.2 mm slab of porosity 0.5 in a 0.2 matrix, as the
     compaction planes of a CT scan; the homogeneous specimen has the same mean porosity.
     """
-    strength = validate_config({"samples": {"p": {"source": "phantom", "voxel_size_m": 3e-4}}})[
-        "micro"
-    ]["bond_tensile_strength_pa"]
-    parameters = dataclasses.replace(DEFAULT_DEM, bond_tensile_strength=strength)
+    parameters = DEM  # the default configuration's bonds
     spec = dataclasses.replace(SMALL, n_points=343)
     x = np.arange(11) * 5e-4
     field = np.broadcast_to(np.where(np.abs(x - 2e-3) < 6e-4, 0.5, 0.2), (11, 11, 11))
-    settings = HydrationSettings(max_flow_steps=25)
-    flawed = initial_state(spec, _grid(field.copy()), parameters=parameters)
+    tuned = settings(max_flow_steps=25)
+    flawed = initial_state(spec, _grid(field.copy()), None, CLAY, parameters)
     mean = float((flawed.porosity * flawed.mesh.volumes).sum() / flawed.mesh.volumes.sum())
     counts = {}
-    for name, state in (("homogeneous", initial_state(spec, None, mean, parameters=parameters)),
+    for name, state in (("homogeneous", initial_state(spec, None, mean, CLAY, parameters)),
                         ("heterogeneous", flawed)):
         system = FlowSystem.for_mesh(state.mesh)
         for suction in (132e6, 40e6, 10e6, 1e6):
-            system, _ = advance_to_balance(state, system, suction, settings, parameters=parameters)
+            system, _ = advance_to_balance(state, system, suction, tuned, CLAY, parameters)
         counts[name] = (int(state.dem.bond_broken.sum()), state.cracks.bonds.size)
     assert counts["homogeneous"] == (0, 0)
     assert counts["heterogeneous"][1] > 0
 
 
 def test_checkpoint_round_trip_and_files_of_older_versions_are_ignored(tmp_path):
-    state = initial_state(SMALL, None)
+    state = initial_state(SMALL, None, None, CLAY, DEM)
     system = FlowSystem.for_mesh(state.mesh)
     state.dem.bond_broken[:3] = True
     path = tmp_path / "case.checkpoint.npz"
     save_checkpoint(path, "abc", state, system, [], 1.0)
-    loaded, _, _, _ = load_checkpoint(path, "abc")
+    loaded, _, _, _ = load_checkpoint(path, "abc", CLAY)
     np.testing.assert_array_equal(loaded.dem.bond_broken, state.dem.bond_broken)
     np.testing.assert_array_equal(loaded.dem.bond_overlaps, state.dem.bond_overlaps)
-    assert load_checkpoint(path, "another config") is None
+    assert load_checkpoint(path, "another config", CLAY) is None
     with np.load(path) as data:
         older = {k: data[k] for k in data.files if k != "dem_bond_broken"}
     np.savez(path, **older)
-    assert load_checkpoint(path, "abc") is None
+    assert load_checkpoint(path, "abc", CLAY) is None
+
+
+def test_a_material_value_in_config_reaches_the_model(micro_config):
+    """zeta_0 doubled in ``materials.pellet`` gives, at phi_0, the saturation of
+    Eq. 3.15 with the doubled pressure, [1 + (s / 2 zeta_0)^(1 / (1 - lambda_0))]^-lambda_0."""
+    config, _ = micro_config
+    edited = copy.deepcopy(config)
+    zeta = 2.0 * config["materials"]["pellet"]["retention_pressure_reference_pa"]
+    edited["materials"]["pellet"]["retention_pressure_reference_pa"] = zeta
+    material, _ = micro_run.case_parameters(validate_config(edited), "c")
+    exponent = config["materials"]["pellet"]["retention_exponent_reference"]
+    porosity = config["materials"]["pellet"]["reference_porosity"]
+    suction = 5e6
+    expected = (1.0 + (suction / zeta) ** (1.0 / (1.0 - exponent))) ** (-exponent)
+    assert retention_saturation(suction, porosity, material) == pytest.approx(expected, rel=1e-12)
+    default, _ = micro_run.case_parameters(config, "c")
+    assert retention_saturation(suction, porosity, default) < 0.99 * expected

@@ -56,7 +56,6 @@ from micro.consolidation import coupled_steps, saturated_flow, volume_gradient
 from micro.forces import SectorWeights, hydromechanical_forces
 from micro.permeability import measure_permeability
 from shared.dem import (
-    DEMParameters,
     DEMState,
     Walls,
     new_state,
@@ -66,13 +65,14 @@ from shared.dem import (
     walls_around,
 )
 from shared.mesh import boundary_cell_mask, build_mesh, mesh_from_tetrahedra
+from _defaults import DEM, dem
 
 NEIGHBOUR_DISTANCE = 1e-3  # m
 PRELOAD = 1e6  # Pa on the top face of the lattice
 LOAD_STEP = 0.2  # dF / F_0: small, so the Hertz tangent modulus changes little
 VISCOSITY = 1e-3  # Pa s
-RELAXED = DEMParameters(damping=0.4)  # dry equilibration
-UNDAMPED = DEMParameters(damping=0.0)  # consolidation: the Darcy drag is the damping
+RELAXED = dem(damping=0.4)  # dry equilibration
+UNDAMPED = dem(damping=0.0)  # consolidation: the Darcy drag is the damping
 
 
 def terzaghi_degree(time_factor: float, terms: int = 200) -> float:
@@ -214,7 +214,7 @@ def test_fluid_force_is_hydromechanical_force_with_equal_shares(
 ) -> None:
     positions = rng.uniform(0.0, 1e-3, (80, 3))
     radii = rng.uniform(0.5e-4, 1e-4, 80)
-    state = new_state(positions, radii)
+    state = new_state(positions, radii, DEM)
     flow = saturated_flow(state, ["z+"], 1e-15, 1e-3, 1e-8, enclosed=enclosed)
     mesh = flow.mesh
     pressure = rng.normal(0.0, 1e5, mesh.n_cells)

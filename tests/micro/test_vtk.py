@@ -17,7 +17,7 @@ from micro.hydration import update_cracks
 from micro.pellet import SpecimenSpec, initial_state
 from shared.config import ConfigError, validate_config
 from shared.io import write_dataset
-from shared.materials import DEFAULT_CLAY
+from _defaults import CLAY, DEM
 
 SMALL = SpecimenSpec(edge_length=4e-3, n_points=125, seed=3)
 
@@ -25,14 +25,14 @@ SMALL = SpecimenSpec(edge_length=4e-3, n_points=125, seed=3)
 @pytest.fixture()
 def state(rng):
     """A small pellet with non-uniform cell fields and two fake cracks on mesh edges."""
-    state = initial_state(SMALL, None)
+    state = initial_state(SMALL, None, None, CLAY, DEM)
     n = state.mesh.n_cells
     state.pressure = -rng.uniform(1e5, 1e8, n)
     state.pressure[:5] = rng.uniform(0.0, 1e3, 5)  # a few cells above atmospheric pressure
     state.saturation = rng.uniform(0.3, 1.0, n)
     state.porosity = rng.uniform(0.1, 0.5, n)
     state.dem.radii[:] *= rng.uniform(1.0, 1.1, state.dem.n_points)
-    update_cracks(state, DEFAULT_CLAY)
+    update_cracks(state, CLAY)
     tetra = state.mesh.tetrahedra
     pairs = np.sort(np.array([tetra[0, [0, 1]], tetra[7, [2, 3]]]), axis=1)
     state.cracks = dataclasses.replace(state.cracks, pairs=pairs,
@@ -113,7 +113,8 @@ def test_collection_lists_the_snapshots_in_order_and_a_fresh_run_clears_them(sta
 
 
 def _config(**micro):
-    return {"samples": {"p": {"source": "phantom", "voxel_size_m": 3e-4}}, "micro": micro}
+    return {"samples": {"p": {"source": "phantom", "voxel_size_m": 3e-4}},
+            "micro": {"sample": "p", **micro}}
 
 
 def test_config_key_defaults_to_false_and_must_be_boolean():

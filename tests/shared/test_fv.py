@@ -17,10 +17,10 @@ from shared.fv import (
     transient_step,
     water_volume,
 )
-from shared.materials import ClayParameters
 from shared.mesh import WALLS, Mesh, boundary_cell_mask, build_mesh
 from shared.retention import saturation, saturation_derivative
 from shared.solver import CholeskySolver, SolverError
+from _defaults import CLAY, clay
 
 
 def jittered_mesh(per_side: int, rng: np.random.Generator, edge: float = 7e-3) -> Mesh:
@@ -47,7 +47,7 @@ def test_fv_reproduces_linear_pressure_on_jittered_mesh(rng: np.random.Generator
 def test_fv_conductance_hand_value() -> None:
     points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0.8, 0.8, 0.8]]) * 1e-3
     mesh = build_mesh(points)
-    material = ClayParameters(residual_saturation=0.2)
+    material = clay(residual_saturation=0.2)
     porosity = np.full(3, 0.35)
     water = np.array([0.6, 0.6, 0.6])
     # A = 0.4 sqrt(2) mm2, l = 0.3 sqrt(2) mm, k_M = 1e-20 exp(2 * 0.1), k_r = 0.5^2.
@@ -65,7 +65,9 @@ def test_fv_conductance_uses_mean_of_the_two_cells() -> None:
     water = np.array([0.2, 0.6, 1.0])
     i, j = mesh.facet_cells.T
     mean = 0.5 * (water[i] + water[j])
-    ratio = facet_conductance(mesh, water, porosity) / facet_conductance(mesh, np.ones(3), porosity)
+    ratio = facet_conductance(mesh, water, porosity, "water", CLAY) / facet_conductance(
+        mesh, np.ones(3), porosity, "water", CLAY
+    )
     np.testing.assert_allclose(ratio, mean**2, rtol=1e-12)
 
 
@@ -91,7 +93,7 @@ def _hydration_state(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     porosity = rng.uniform(0.2, 0.35, mesh.n_cells)
     suction = np.where(mesh.centroids[:, 0] < 3.5e-3, 100e6, 20e6)
-    return -suction, saturation(suction, porosity), porosity
+    return -suction, saturation(suction, porosity, CLAY), porosity
 
 
 def test_fv_water_volume_conserved_without_boundary_flux(rng: np.random.Generator) -> None:
@@ -102,9 +104,9 @@ def test_fv_water_volume_conserved_without_boundary_flux(rng: np.random.Generato
     initial = water_volume(mesh, porosity, water)
     spread = np.ptp(pressure)
     for _ in range(6):
-        conductance = facet_conductance(mesh, water, porosity)
+        conductance = facet_conductance(mesh, water, porosity, "water", CLAY)
         step = transient_step(
-            mesh, pattern, solver, pressure, water, porosity, conductance, pressure, 2e3
+            mesh, pattern, solver, pressure, water, porosity, conductance, pressure, 2e3, CLAY
         )
         pressure, water = step.pressure, step.saturation
         assert step.clamped_volume == 0.0
@@ -132,10 +134,10 @@ def test_fv_water_conserved_with_crack_conductances_and_a_stale_factor(
     cracks = rng.random(mesh.n_facets) < 0.03
     for _ in range(6):
         contrast = 10.0 ** (9.0 + rng.random(mesh.n_facets))
-        conductance = facet_conductance(mesh, water, porosity)
+        conductance = facet_conductance(mesh, water, porosity, "water", CLAY)
         conductance = np.where(cracks, conductance * contrast, conductance)
         step = transient_step(
-            mesh, pattern, solver, pressure, water, porosity, conductance, pressure, 2e3
+            mesh, pattern, solver, pressure, water, porosity, conductance, pressure, 2e3, CLAY
         )
         pressure, water = step.pressure, step.saturation
         assert step.clamped_volume == 0.0
@@ -153,9 +155,9 @@ def test_fv_boundary_inflow_accounts_for_water_gain(rng: np.random.Generator) ->
     solver = CholeskySolver()
     for _ in range(3):
         before = water_volume(mesh, porosity, water, free)
-        conductance = facet_conductance(mesh, water, porosity)
+        conductance = facet_conductance(mesh, water, porosity, "water", CLAY)
         step = transient_step(
-            mesh, pattern, solver, pressure, water, porosity, conductance, imposed, 5e3
+            mesh, pattern, solver, pressure, water, porosity, conductance, imposed, 5e3, CLAY
         )
         gain = water_volume(mesh, porosity, step.saturation, free) - before
         assert step.boundary_inflow > 0.0
@@ -187,7 +189,7 @@ def test_fv_remesh_transfer_conserves_water(rng: np.random.Generator) -> None:
     pressure, water, porosity = _hydration_state(old, rng)
     moved = old.points + rng.normal(0.0, 2e-5, old.points.shape)
     new = build_mesh(moved)
-    state = transfer_cell_state(old, new, pressure, water, porosity)
+    state = transfer_cell_state(old, new, pressure, water, porosity, CLAY)
     assert state.water_defect != 0.0
     assert water_volume(new, state.porosity, state.saturation) == pytest.approx(
         water_volume(old, porosity, water), rel=1e-12
@@ -203,7 +205,7 @@ def test_fv_transient_uptake_follows_slab_diffusion_series(rng: np.random.Genera
     # D = k / (mu n dS/dp). The Dirichlet layer is about one point spacing thick, which
     # shortens the slab: O(h/L) excess, +7 % at 12 points per side; tolerance 10 %.
     mesh = jittered_mesh(12, rng)
-    material = ClayParameters()
+    material = CLAY
     porosity = np.full(mesh.n_cells, 0.25)
     pressure = np.full(mesh.n_cells, -50e6)
     water = saturation(50e6, porosity, material)

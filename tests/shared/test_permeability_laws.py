@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from shared.materials import ClayParameters
 from shared.permeability import (
     crack_conductivity,
     intrinsic_permeability,
@@ -13,17 +12,18 @@ from shared.permeability import (
     relative_permeability,
 )
 from shared.swelling import swollen_radius, volumetric_strain
+from _defaults import CLAY, clay
 
 
 def test_permeability_relative_water_and_gas() -> None:
-    material = ClayParameters(residual_saturation=0.2, saturated_saturation=1.0)
+    material = clay(residual_saturation=0.2, saturated_saturation=1.0)
     # Se = (0.6 - 0.2)/0.8 = 0.5, n = 2: water 0.25, gas 0.25; Se = 0.75: water 0.5625.
     np.testing.assert_allclose(relative_permeability([0.6, 0.8], "water", material), [0.25, 0.5625])
     np.testing.assert_allclose(relative_permeability([0.6, 0.8], "gas", material), [0.25, 0.0625])
 
 
 def test_permeability_relative_is_clamped() -> None:
-    material = ClayParameters(residual_saturation=0.2, saturated_saturation=0.9)
+    material = clay(residual_saturation=0.2, saturated_saturation=0.9)
     np.testing.assert_array_equal(relative_permeability([0.1, 0.95], "water", material), [0.0, 1.0])
     np.testing.assert_array_equal(relative_permeability([0.1, 0.95], "gas", material), [1.0, 0.0])
     with pytest.raises(ValueError, match="phase"):
@@ -31,19 +31,19 @@ def test_permeability_relative_is_clamped() -> None:
 
 
 def test_permeability_intrinsic_exponential_in_porosity() -> None:
-    assert intrinsic_permeability(0.25) == pytest.approx(1e-20, rel=1e-14)
-    assert intrinsic_permeability(0.35) == pytest.approx(1e-20 * np.exp(0.2), rel=1e-14)
+    assert intrinsic_permeability(0.25, CLAY) == pytest.approx(1e-20, rel=1e-14)
+    assert intrinsic_permeability(0.35, CLAY) == pytest.approx(1e-20 * np.exp(0.2), rel=1e-14)
 
 
 def test_permeability_cubic_law_hand_value() -> None:
     # w = 10 um, mu = 1e-3 Pa s: 1e-15 / 12e-3 = 8.333e-14 m3/(Pa s).
     assert crack_conductivity(1e-5, 1e-3) == pytest.approx(1e-15 / 12e-3, rel=1e-14)
     assert crack_conductivity(-1e-6, 1e-3) == 0.0
-    assert phase_viscosity("gas") == 1.8e-5
+    assert phase_viscosity("gas", CLAY) == 1.8e-5
 
 
 def test_swelling_strain_hand_values() -> None:
-    material = ClayParameters(swelling_alpha=2e-8, swelling_beta=1e-8, initial_suction=1e8)
+    material = clay(swelling_alpha=2e-8, swelling_beta=1e-8, initial_suction=1e8)
     assert volumetric_strain(1e8, material) == 0.0
     # (1e-8/2e-8) (exp(0) - exp(-2)) at zero suction.
     assert volumetric_strain(0.0, material) == pytest.approx(0.5 * (1.0 - np.exp(-2.0)), rel=1e-14)

@@ -1,7 +1,7 @@
 # Shared helpers of the rules: validation, sample sheet, code hash, input functions.
 import sys
 
-from imaging.deposition.config import resolve as resolve_packing
+from imaging.deposition.config import check_packings
 from micro.studies import (
     case_edge_length,
     check_studies,
@@ -13,7 +13,9 @@ from shared.provenance import code_sha256
 
 try:
     validate_config(
-        config, load_schema(workflow.source_path("../schemas/config.schema.yaml"))
+        config,
+        load_schema(workflow.source_path("../schemas/config.schema.yaml")),
+        checks=[check_packings, check_studies],
     )
 except ConfigError as err:
     sys.exit(f"claychain: invalid configuration: {err}")
@@ -21,22 +23,6 @@ except ConfigError as err:
 SAMPLES = sorted(config["samples"])
 CASES = sorted(config["micro"]["cases"])
 PACKINGS = sorted(config["packings"])
-for _name, _section in config["packings"].items():
-    try:
-        resolve_packing(_section)
-    except ValueError as err:
-        sys.exit(
-            f"claychain: invalid configuration: config key 'packings.{_name}.{err}"
-        )
-if config["micro"]["sample"] not in config["samples"]:
-    sys.exit(
-        f"claychain: invalid configuration: config key 'micro.sample': "
-        f"{config['micro']['sample']!r} is not a sample"
-    )
-try:
-    check_studies(config)
-except ConfigError as err:
-    sys.exit(f"claychain: invalid configuration: {err}")
 
 
 wildcard_constraints:
@@ -76,14 +62,22 @@ def get_micro_porosity(wildcards):
 
 
 def get_micro_case_config(wildcards):
-    """The micro settings and this case's entry (a param: editing one case reruns it alone)."""
+    """The micro settings with this case alone (a param: editing one case reruns it alone)."""
     # the studies only aggregate finished cases: declaring one reruns no case
     shared = {
         key: value
         for key, value in config["micro"].items()
         if key not in ("cases", "studies")
     }
-    return {**shared, "case": config["micro"]["cases"][wildcards.case]}
+    return {
+        **shared,
+        "cases": {wildcards.case: config["micro"]["cases"][wildcards.case]},
+    }
+
+
+def get_micro_materials(wildcards):
+    """The pellet's material section (a param: editing it reruns every micro case)."""
+    return {"pellet": config["materials"]["pellet"]}
 
 
 def get_convergence_cases(wildcards):

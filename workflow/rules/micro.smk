@@ -10,6 +10,7 @@ rule micro_case:
     params:
         code=MICRO_CODE,
         micro=get_micro_case_config,
+        materials=get_micro_materials,
     conda:
         "../envs/claychain.yaml"
     log:

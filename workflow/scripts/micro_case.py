@@ -13,4 +13,5 @@ sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
 # the parallel mesh and force kernels use the job's threads, not every core per job
 numba.set_num_threads(sm.threads)
-run.run(sm.config, sm.wildcards.case, sm.input.porosity, sm.output.result, sm.output.figure, rule=sm.rule)
+config = {"micro": sm.params.micro, "materials": sm.params.materials}
+run.run(config, sm.wildcards.case, sm.input.porosity, sm.output.result, sm.output.figure, rule=sm.rule)

@@ -1,6 +1,7 @@
 """Cell-list contact detection against a brute-force O(N^2) search; Verlet list upkeep."""
 
 import numpy as np
+from _defaults import DEM
 
 from shared.dem import detect_contacts, new_state, update_contacts
 
@@ -33,20 +34,20 @@ def test_flat_and_tiny_clouds():
 
 def test_rebuild_keeps_shear_history_of_surviving_pairs():
     positions = np.array([[0.0, 0, 0], [1.9, 0, 0], [3.8, 0, 0]]) * 1e-3
-    state = new_state(positions, np.full(3, 1e-3), skin_fraction=0.05)
+    state = new_state(positions, np.full(3, 1e-3), DEM, skin_fraction=0.05)
     np.testing.assert_array_equal(state.contacts.pairs, [[0, 1], [1, 2]])
     state.contacts.shear_forces[:] = [[0.0, 1.0, 0.0], [0.0, 2.0, 0.0]]
     state.positions[2, 0] += 1e-3  # far beyond the skin: pair (1, 2) must leave
-    assert update_contacts(state)
+    assert update_contacts(state, DEM)
     np.testing.assert_array_equal(state.contacts.pairs, [[0, 1]])
     np.testing.assert_array_equal(state.contacts.shear_forces, [[0.0, 1.0, 0.0]])
-    assert not update_contacts(state)
+    assert not update_contacts(state, DEM)
 
 
 def test_bonds_are_touching_pairs_within_tolerance():
     positions = np.array([[0.0, 0, 0], [2.0005, 0, 0], [0, 1.999, 0]]) * 1e-3
     radii = np.full(3, 1e-3)
-    np.testing.assert_array_equal(new_state(positions, radii).bonds, [[0, 2]])
+    np.testing.assert_array_equal(new_state(positions, radii, DEM).bonds, [[0, 2]])
     np.testing.assert_array_equal(
-        new_state(positions, radii, bond_tolerance=1e-3).bonds, [[0, 1], [0, 2]]
+        new_state(positions, radii, DEM, bond_tolerance=1e-3).bonds, [[0, 1], [0, 2]]
     )

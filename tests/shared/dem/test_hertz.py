@@ -5,7 +5,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from shared.dem import DEFAULT_DEM, bond_tension, contact_forces, new_state
+from shared.dem import bond_tension, contact_forces, new_state
+from _defaults import DEM
 
 E_STAR = 100e8 / (2.0 * (1.0 - 0.3**2))  # two identical points, Table 3.1 E and nu
 G = 100e8 / (2.0 * 1.3)
@@ -13,13 +14,13 @@ G = 100e8 / (2.0 * 1.3)
 
 def _pair(radius_a, radius_b, overlap):
     positions = np.array([[0.0, 0.0, 0.0], [radius_a + radius_b - overlap, 0.0, 0.0]])
-    return new_state(positions, np.array([radius_a, radius_b]))
+    return new_state(positions, np.array([radius_a, radius_b]), DEM)
 
 
 @pytest.mark.parametrize("overlap", [1e-7, 3e-6, 2e-5])
 def test_normal_force_is_hertz(overlap):
     state = _pair(1e-4, 2.5e-4, overlap)
-    forces, _, normal = contact_forces(state, 1e-9)
+    forces, _, normal = contact_forces(state, 1e-9, DEM)
     r_eff = 1e-4 * 2.5e-4 / 3.5e-4
     expected = 4.0 / 3.0 * E_STAR * np.sqrt(r_eff) * overlap**1.5
     assert normal[0] == pytest.approx(expected, rel=1e-12)
@@ -30,7 +31,7 @@ def test_normal_force_is_hertz(overlap):
 def test_stiffness_follows_swollen_radii():
     state = _pair(1e-4, 1e-4, 0.0)
     state.radii *= 1.01  # swelling after contact creation: overlap 2e-6
-    _, _, normal = contact_forces(state, 1e-9)
+    _, _, normal = contact_forces(state, 1e-9, DEM)
     expected = 4.0 / 3.0 * E_STAR * np.sqrt(1.01e-4 / 2) * 2e-6**1.5
     assert normal[0] == pytest.approx(expected, rel=1e-12)
 
@@ -40,7 +41,7 @@ def test_shear_force_is_mindlin_tangent_stiffness_times_slip():
     state = _pair(1e-4, 1e-4, overlap)
     state.velocities[1, 1] = slip_speed
     for _ in range(10):
-        forces, torques, _ = contact_forces(state, time_step)
+        forces, torques, _ = contact_forces(state, time_step, DEM)
     k_t = 2.0 * np.sqrt(4 * 0.5e-4) * G / (2.0 - 0.3) * np.sqrt(overlap)
     slip = 10 * slip_speed * time_step
     # b slides along +y relative to a: the shear force drags a along +y
@@ -57,17 +58,17 @@ def test_rigid_rotation_of_a_pair_creates_no_shear():
     spin = np.array([0.3, -2.0, 5.0])  # rad/s, whole pair turning as one body
     state.spins[:] = spin
     state.velocities[:] = np.cross(spin, state.positions)
-    contact_forces(state, 1e-6)
+    contact_forces(state, 1e-6, DEM)
     np.testing.assert_allclose(state.contacts.shear_forces, 0.0, atol=1e-15)
     state.spins[:] = 0.0  # without the spins, the same motion would shear the contact
-    contact_forces(state, 1e-6)
+    contact_forces(state, 1e-6, DEM)
     assert np.abs(state.contacts.shear_forces).max() > 1e-6
 
 
 def test_separated_pair_has_no_force_and_loses_history():
     state = _pair(1e-4, 1e-4, -1e-6)
     state.contacts.shear_forces[:] = 1.0
-    forces, _, normal = contact_forces(state, 1e-9, DEFAULT_DEM)
+    forces, _, normal = contact_forces(state, 1e-9, DEM)
     assert normal[0] == 0.0 and np.all(forces == 0.0)
     assert np.all(state.contacts.shear_forces == 0.0)
 
@@ -76,8 +77,8 @@ def test_kernel_matches_numpy_reference_on_random_assembly():
     rng = np.random.default_rng(4)
     positions = rng.uniform(0.0, 1e-3, (300, 3))
     radii = rng.uniform(6e-5, 1.2e-4, 300)
-    state = new_state(positions, radii)
-    forces, _, normal = contact_forces(state, 1e-9)
+    state = new_state(positions, radii, DEM)
+    forces, _, normal = contact_forces(state, 1e-9, DEM)
     i, j = state.contacts.pairs.T
     d = positions[j] - positions[i]
     distance = np.linalg.norm(d, axis=1)
@@ -96,8 +97,8 @@ def test_kernel_matches_numpy_reference_on_random_assembly():
 def _bonded_pair(overlap, strength):
     """Two points of radius 1e-4 m built at ``overlap`` as their stress-free state."""
     positions = np.array([[0.0, 0.0, 0.0], [2e-4 - overlap, 0.0, 0.0]])
-    parameters = dataclasses.replace(DEFAULT_DEM, bond_tensile_strength=strength)
-    return new_state(positions, np.full(2, 1e-4), stress_free_bonds=True), parameters
+    parameters = dataclasses.replace(DEM, bond_tensile_strength=strength)
+    return new_state(positions, np.full(2, 1e-4), parameters, stress_free_bonds=True), parameters
 
 
 def _pair_force(state, parameters):

@@ -6,22 +6,23 @@ import numpy as np
 import pytest
 
 from shared.dem import (
-    DEFAULT_DEM,
     cube_points,
     kinetic_energy,
     new_state,
     stable_time_step,
     step,
 )
+from _defaults import DEM
 
-UNDAMPED = replace(DEFAULT_DEM, damping=0.0)
+# Hertz contacts alone: the chain tests are about the contact stiffness
+UNDAMPED = replace(DEM, damping=0.0, bond_tensile_strength=0.0)
 RADIUS = 1e-3
 E_STAR = 100e8 / (2.0 * (1.0 - 0.3**2))
 
 
 def _collision(time_step):
     positions = np.array([[0.0, 0, 0], [2.02 * RADIUS, 0, 0]])
-    state = new_state(positions, np.full(2, RADIUS), skin_fraction=0.05)
+    state = new_state(positions, np.full(2, RADIUS), DEM, skin_fraction=0.05)
     state.velocities[:, 0] = [0.1, -0.1]
     energy_before = kinetic_energy(state)
     steps_in_contact = 0
@@ -49,7 +50,7 @@ def _chain(n_free, overlap):
     """Free points between two fixed ones, every contact at the same overlap."""
     spacing = 2.0 * RADIUS - overlap
     positions = np.c_[np.arange(n_free + 2) * spacing, np.zeros(n_free + 2), np.zeros(n_free + 2)]
-    state = new_state(positions, np.full(n_free + 2, RADIUS))
+    state = new_state(positions, np.full(n_free + 2, RADIUS), DEM)
     state.fixed[[0, -1]] = True
     return state
 
@@ -57,9 +58,9 @@ def _chain(n_free, overlap):
 def test_damped_chain_comes_to_rest_at_uniform_overlap():
     state = _chain(5, 1e-5)
     state.positions[1:-1, 0] += np.random.default_rng(0).uniform(-2e-6, 2e-6, 5)
-    time_step = stable_time_step(state)
+    time_step = stable_time_step(state, DEM)
     for _ in range(3000):
-        report = step(state, time_step)
+        report = step(state, time_step, DEM)
     assert kinetic_energy(state) < 1e-20
     gaps = np.diff(state.positions[:, 0])
     # equilibrium of equal springs in series: the total compression is shared evenly
@@ -78,7 +79,7 @@ def test_stable_time_step_bounds_chain_oscillations(factor, bound):
     """
     state = _chain(5, 1e-5)
     state.velocities[1:-1, 0] = np.random.default_rng(1).uniform(-1e-4, 1e-4, 5)
-    time_step = factor * stable_time_step(state, safety=1.0)
+    time_step = factor * stable_time_step(state, UNDAMPED, safety=1.0)
     energy = kinetic_energy(state)
     peak = energy
     for _ in range(2000):
@@ -95,7 +96,7 @@ def test_oscillation_period_between_two_fixed_points():
     overlap = 1e-5
     state = _chain(1, overlap)
     state.velocities[1, 0] = 1e-5  # amplitude about 2e-8 m, 0.2 % of the overlap
-    time_step = 0.02 * stable_time_step(state, safety=1.0)
+    time_step = 0.02 * stable_time_step(state, UNDAMPED, safety=1.0)
     crossings = []
     start = state.positions[1, 0]
     previous = 0.0
@@ -119,8 +120,8 @@ def test_same_start_same_trajectory():
     for _ in range(2):
         positions, radii = cube_points(216, np.random.default_rng(9), jitter=0.2,
                                        radius_factor=1.02, edge_length=1e-3)
-        state = new_state(positions, radii)
+        state = new_state(positions, radii, DEM)
         for _ in range(200):
-            step(state, min(0.5 * stable_time_step(state), 1e-8))
+            step(state, min(0.5 * stable_time_step(state, DEM), 1e-8), DEM)
         runs.append(np.concatenate([state.positions, state.velocities, state.spins]))
     np.testing.assert_array_equal(runs[0], runs[1])

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from shared.dem import (
-    DEFAULT_DEM,
     cube_points,
     new_state,
     stable_time_step,
@@ -16,14 +15,15 @@ from shared.dem import (
     wall_stresses,
     walls_around,
 )
+from _defaults import DEM
 
 
 def test_sphere_on_wall_is_hertz_with_rigid_wall():
-    state = new_state(np.array([[0.0, 0.0, 0.0]]), np.array([1e-4]))
+    state = new_state(np.array([[0.0, 0.0, 0.0]]), np.array([1e-4]), DEM)
     walls = walls_around(state.positions, state.radii)
     walls.upper[2] -= 3e-6  # top wall indents the sphere by 3 um
     forces = np.zeros((1, 3))
-    loads = wall_forces(state, walls, forces)
+    loads = wall_forces(state, walls, forces, DEM)
     expected = 4.0 / 3.0 * 100e8 / (1.0 - 0.3**2) * np.sqrt(1e-4) * 3e-6**1.5
     assert forces[0] == pytest.approx([0.0, 0.0, -expected], rel=1e-12)
     assert loads.force[5] == pytest.approx(expected, rel=1e-12)
@@ -32,21 +32,21 @@ def test_sphere_on_wall_is_hertz_with_rigid_wall():
 
 def test_inactive_walls_leave_free_swelling_unconstrained():
     positions, radii = cube_points(27, np.random.default_rng(0), edge_length=3e-4)
-    state = new_state(positions, radii)
+    state = new_state(positions, radii, DEM)
     walls = walls_around(positions, radii, active=False)
     state.radii *= 1.05
     forces = np.zeros_like(positions)
-    loads = wall_forces(state, walls, forces)
+    loads = wall_forces(state, walls, forces, DEM)
     assert np.all(forces == 0.0) and np.all(loads.force == 0.0)
 
 
 def test_servo_walls_reach_confining_stress():
     target = 2e6
-    parameters = replace(DEFAULT_DEM, wall_max_velocity=0.5, wall_gain=0.5)
+    parameters = replace(DEM, wall_max_velocity=0.5, wall_gain=0.5)
     positions, radii = cube_points(
         64, np.random.default_rng(2), edge_length=4e-4, jitter=0.1, radius_factor=1.01
     )
-    state = new_state(positions, radii)
+    state = new_state(positions, radii, DEM)
     walls = walls_around(positions, radii, target_stress=target)
     walls.lower -= 1e-6  # start just off the specimen
     walls.upper += 1e-6
@@ -62,11 +62,11 @@ def test_confined_cubic_lattice_overlaps_follow_hertz():
     carries sigma A / 16, so neighbour centres sit 2 r - delta apart with
     F = 4/3 E* sqrt(r / 2) delta^(3/2) (delta = 1.2 um here, matched to 1e-9)."""
     target = 5e6
-    parameters = replace(DEFAULT_DEM, wall_max_velocity=0.5, wall_gain=0.5)
+    parameters = replace(DEM, wall_max_velocity=0.5, wall_gain=0.5)
     positions, radii = cube_points(
         64, np.random.default_rng(0), edge_length=4e-4, jitter=0.0, radius_factor=1.001
     )
-    state = new_state(positions, radii)
+    state = new_state(positions, radii, DEM)
     walls = walls_around(positions, radii, target_stress=target)
     for _ in range(3000):
         report = step(state, stable_time_step(state, parameters, walls), parameters, walls=walls)
