@@ -13,6 +13,7 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/imaging.smk"
 include: "workflow/rules/micro.smk"
 include: "workflow/rules/packing.smk"
+include: "workflow/rules/upscaling.smk"
 
 
 rule all:

@@ -98,7 +98,7 @@ def validate_config(
     if errors:
         first = errors[0]
         raise ConfigError(f"{_key_path(first)}: {first.message}")
-    for check in (_check_micro, *checks):
+    for check in (_check_micro, _check_upscaling, *checks):
         check(config)
     _check_case_materials(config, schema)
     return config
@@ -116,6 +116,25 @@ def _check_micro(config: Mapping[str, Any]) -> None:
         raise ConfigError(
             "config key 'micro.checkpoints_suction_pa': suctions must strictly decrease, "
             f"got {checkpoints}"
+        )
+
+
+def _check_upscaling(config: Mapping[str, Any]) -> None:
+    """The table's sources are micro cases, and its suction range is ordered."""
+    upscaling = config.get("upscaling")
+    if not upscaling or not config.get("micro"):
+        return
+    for condition, source in upscaling["conditions"].items():
+        for case in [source] if isinstance(source, str) else source:
+            if case not in config["micro"]["cases"]:
+                raise ConfigError(
+                    f"config key 'upscaling.conditions.{condition}': {case!r} is not a case "
+                    f"of micro.cases (cases: {', '.join(sorted(config['micro']['cases']))})"
+                )
+    low, high = upscaling["suction_range_pa"]
+    if not low < high:
+        raise ConfigError(
+            f"config key 'upscaling.suction_range_pa': need smallest < largest, got {[low, high]}"
         )
 
 

@@ -1,4 +1,4 @@
-"""Static checks that CI runs through pytest: the workflow linter, snakefmt and ruff."""
+"""Static checks that CI runs through pytest: workflow linter, snakefmt, ruff, import contracts."""
 
 import subprocess
 import sys
@@ -25,3 +25,10 @@ def test_snakefmt_leaves_the_workflow_unchanged():
 def test_ruff_finds_no_undefined_or_unused_names():
     result = _run(sys.executable, "-m", "ruff", "check", ".")
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_import_contracts_hold():
+    """The layering of pyproject.toml's [tool.importlinter]: stages apart, shared below."""
+    result = _run(str(Path(sys.executable).with_name("lint-imports")))
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "0 broken" in result.stdout

@@ -2,6 +2,7 @@
 import sys
 
 from imaging.deposition.config import check_packings
+from micro.upscaling.run import source_cases
 from micro.studies import (
     case_edge_length,
     check_studies,
@@ -80,6 +81,14 @@ def get_micro_materials(wildcards):
     return {"pellet": config["materials"]["pellet"]}
 
 
+def get_upscaling_sources(wildcards):
+    """Per condition, the micro results the pellet permeability table comes from."""
+    return {
+        condition: expand("results/micro/{case}.nc", case=cases)
+        for condition, cases in source_cases(config["upscaling"]).items()
+    }
+
+
 def get_convergence_cases(wildcards):
     """The outputs of the convergence study's cases (micro.studies.convergence)."""
     cases = convergence_cases(config)
@@ -135,7 +144,19 @@ def get_final_outputs():
         packing=PACKINGS,
     )
     studies = get_study_outputs()
-    return imaging + micro + ["results/micro/comparison.png"] + studies + packing
+    upscaling = [
+        "results/upscaling/pellet_permeability.nc",
+        "results/upscaling/pellet_permeability.csv",
+        "results/upscaling/pellet_permeability.png",
+    ]
+    return (
+        imaging
+        + micro
+        + ["results/micro/comparison.png"]
+        + studies
+        + upscaling
+        + packing
+    )
 
 
 # The sources each stage's rules run; their hash is a param so that edits rerun the rules.
@@ -157,4 +178,12 @@ STUDIES_CODE = code_hash(
 )
 PACKING_CODE = code_hash(
     "imaging", "shared/io.py", "shared/provenance.py", "shared/figures.py"
+)
+UPSCALING_CODE = code_hash(
+    "micro/upscaling",
+    "shared/upscaling.py",
+    "shared/io.py",
+    "shared/provenance.py",
+    "shared/figures.py",
+    "shared/config.py",
 )

@@ -1,0 +1,101 @@
+"""Entry point of the upscaling stage: micro results -> ``results/upscaling/pellet_permeability``.
+
+Writes the netCDF table (the only thing macro reads from micro, DESIGN §2), its CSV
+export (condition, suction, phase, axis, k) for users of other tools, and a figure. The
+table is checked before anything is written, and every file is replaced atomically, so
+a refused source leaves no partial table.
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import xarray as xr
+
+from micro.upscaling.figures import table_figure
+from micro.upscaling.table import SOURCE_VARIABLES, table_rows, upscaling_table
+from shared.config import ConfigError
+from shared.io import OutputError, read_dataset, write_dataset
+
+__all__ = ["run", "source_cases"]
+
+log = logging.getLogger("micro.upscaling")
+
+
+def source_cases(upscaling: Mapping[str, Any]) -> dict[str, list[str]]:
+    """Micro cases of each condition of a validated ``upscaling`` section."""
+    return {
+        condition: [source] if isinstance(source, str) else list(source)
+        for condition, source in upscaling["conditions"].items()
+    }
+
+
+def _write_csv(table: xr.Dataset, path: Path) -> None:
+    handle, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(handle, "w", newline="") as stream:
+            writer = csv.writer(stream)
+            writer.writerow(["condition", "suction_pa", "phase", "axis", "k_m2"])
+            for condition, suction, phase, axis, k in table_rows(table):
+                writer.writerow([condition, f"{suction:.10g}", phase, axis, f"{k:.10g}"])
+        os.replace(tmp_name, path)
+    except BaseException:
+        Path(tmp_name).unlink(missing_ok=True)
+        raise
+
+
+def run(
+    upscaling: Mapping[str, Any],
+    inputs: Mapping[str, Sequence[str | Path]],
+    output: str | Path,
+    csv_output: str | Path,
+    figure_output: str | Path,
+    rule: str | None = None,
+) -> xr.Dataset:
+    """Build, check and write the pellet permeability table.
+
+    Parameters
+    ----------
+    upscaling
+        Validated ``upscaling`` section (``conditions``, ``suction_range_pa``).
+    inputs
+        Per condition, the micro result files of its case or ensemble.
+    output, csv_output, figure_output
+        ``pellet_permeability.nc``, ``.csv`` and ``.png``.
+    rule
+        Snakemake rule name, for provenance.
+
+    Raises
+    ------
+    ConfigError
+        Naming the source file, if a source cannot enter the table.
+    """
+    sources: dict[str, list[tuple[str, xr.Dataset]]] = {}
+    for condition, paths in inputs.items():
+        members = []
+        for path in paths:
+            try:
+                members.append((str(path), read_dataset(path, SOURCE_VARIABLES)))
+            except OutputError as err:
+                raise ConfigError(f"upscaling source of condition {condition!r}: {err}") from err
+        sources[condition] = members
+    low, high = upscaling["suction_range_pa"]
+    table = upscaling_table(sources, (float(low), float(high)))
+    files = [str(p) for paths in inputs.values() for p in paths]
+    write_dataset(table, output, stage="upscaling", title="pellet permeability table",
+                  config=dict(upscaling), inputs=files, rule=rule,
+                  references="Caulk (2022), PhD thesis, Sec. 3.5.3 and 4.6")
+    _write_csv(table, Path(csv_output))
+    table_figure(table, figure_output)
+    for condition in table["condition"].values:
+        k = table["k"].sel(condition=condition, phase="water")
+        log.info("%s: water k %.3g-%.3g m2 over %.3g-%.3g Pa from %d result(s)", condition,
+                 float(k.min()), float(k.max()), float(table["suction"][0]),
+                 float(table["suction"][-1]), int(table["n_realizations"].sel(condition=condition)))
+    return table

@@ -1,0 +1,22 @@
+# Upscaling: the micro cases' permeability curves -> the pellet permeability table that
+# the macro model reads (DESIGN section 2).
+
+
+rule upscaling_table:
+    input:
+        unpack(get_upscaling_sources),
+    output:
+        table="results/upscaling/pellet_permeability.nc",
+        csv="results/upscaling/pellet_permeability.csv",
+        figure="results/upscaling/pellet_permeability.png",
+    params:
+        code=UPSCALING_CODE,
+        upscaling=config["upscaling"],
+    conda:
+        "../envs/claychain.yaml"
+    log:
+        "results/logs/upscaling_table/all.log",
+    benchmark:
+        "results/benchmarks/upscaling_table/all.tsv"
+    script:
+        "../scripts/upscaling_table.py"
