@@ -77,8 +77,12 @@ def comparison_figure(cases: Mapping[str, xr.Dataset], path: str | Path) -> Path
     return save_figure(fig, path)
 
 
-def convergence_figure(ds: xr.Dataset, path: str | Path) -> Path:
-    """Convergence study (Fig. 3.17): last-checkpoint values vs n_points, eps_v vs saturation.
+def convergence_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 4) -> Path:
+    """Convergence study (Fig. 3.17): tracked quantities against the number of points.
+
+    Top: mean saturation, volumetric strain, water and gas permeability (geometric mean
+    of the axes) against N at up to ``n_levels`` checkpoints; bottom: their relative
+    change from the previous N, and the cracks, wall time and peak memory per N.
 
     Parameters
     ----------
@@ -87,62 +91,54 @@ def convergence_figure(ds: xr.Dataset, path: str | Path) -> Path:
     path
         Target PNG.
     """
-    fig, axes = new_figure(2, 2, width=5.0)
+    fig, axes = new_figure(2, 4, width=3.6)
     n = ds["n_points"].values
+    levels = np.unique(np.linspace(0, ds.sizes["checkpoint"] - 1, n_levels).round().astype(int))
+    colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.9, levels.size))
+    k = ds["permeability"].where(ds["permeability"] > 0)
+    geomean = np.exp(np.log(k).mean("axis"))
+    change = ds["permeability_relative_change"].max("axis")
+    top = (("saturation", ds["saturation"], ds["saturation_relative_change"], False),
+           ("eps_v", ds["eps_v"], ds["eps_v_relative_change"], False),
+           ("k_w [m2]", geomean.sel(phase="water"), change.sel(phase="water"), True),
+           ("k_g [m2]", geomean.sel(phase="gas"), change.sel(phase="gas"), True))
+    for column, (label, values, relative, log) in enumerate(top):
+        for colour, level in zip(colours, levels):
+            legend = f"s = {float(ds['suction'][level]):.3g} Pa"
+            axes[0, column].plot(n, values.isel(checkpoint=level).values, "o-", ms=3, color=colour,
+                                 label=legend)
+            if column < 2:
+                axes[1, column].plot(n, relative.isel(checkpoint=level).values, "o-", ms=3,
+                                     color=colour, label=legend)
+        axes[0, column].set(xscale="log", yscale="log" if log else "linear",
+                            xlabel="number of points", ylabel=label)
+    axes[0, 0].legend(fontsize="x-small")
+    for column in (0, 1):
+        axes[1, column].set(xscale="log", yscale="log", xlabel="number of points",
+                            ylabel=f"relative change of {top[column][0]}")
+    for phase, style in (("water", "o-"), ("gas", "s--")):
+        axes[1, 2].plot(n, change.sel(phase=phase).max("checkpoint").values, style, ms=3,
+                        color=_PHASE_COLOUR[phase], label=f"{phase}, largest over checkpoints")
+    axes[1, 2].set(xscale="log", yscale="log", xlabel="number of points",
+                   ylabel="relative change of k (largest axis)")
+    axes[1, 2].legend(fontsize="x-small")
     last = ds.isel(checkpoint=-1)
-    suction = float(last["suction"])
-    ax = axes[0, 0]
-    ax.plot(n, last["eps_v"].values, "ko-", ms=4)
-    ax.set(xscale="log", xlabel="number of points", ylabel="eps_v [-]",
-           title=f"volumetric strain at s = {suction:.3g} Pa")
-    ax = axes[0, 1]
-    for name, style, colour, label in (("crack_count", "o-", "k", "all"),
-                                       ("crack_count_imbibed", "o--", "tab:blue", "imbibed"),
-                                       ("crack_count_gas", "s:", "tab:red", "gas-filled")):
-        ax.plot(n, last[name].values, style, color=colour, ms=4, label=label)
-    ax.set(xscale="log", xlabel="number of points", ylabel="cracks [-]",
-           title=f"crack count at s = {suction:.3g} Pa")
-    ax.legend(fontsize="x-small")
-    ax = axes[1, 0]
-    for phase in ("water", "gas"):
-        for axis in ("x", "y", "z"):
-            k = last["permeability"].sel(phase=phase, axis=axis).values
-            ax.plot(n, np.where(k > 0, k, np.nan), _AXIS_STYLE[axis], marker="o", ms=4,
-                    color=_PHASE_COLOUR[phase], label=f"{phase} {axis}")
-    ax.set(xscale="log", yscale="log", xlabel="number of points", ylabel="permeability [m2]",
-           title=f"k_w and k_g at s = {suction:.3g} Pa")
-    ax.legend(fontsize="x-small", ncol=2)
-    ax = axes[1, 1]
-    colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.9, n.size))
-    for index, count in enumerate(n):
-        row = ds.isel(n_points=index)
-        ax.plot(row["saturation"].values, row["eps_v"].values, "o-", ms=3, color=colours[index],
-                label=f"N = {count}")
-    ax.set(xlabel="saturation [-]", ylabel="eps_v [-]", title="volumetric strain vs saturation")
-    ax.legend(fontsize="x-small")
+    axes[1, 3].plot(n, last["crack_count"].values, "ko-", ms=3, label="cracks (last checkpoint)")
+    axes[1, 3].set(xscale="log", xlabel="number of points", ylabel="cracks [-]")
+    if "wall_time_s" in ds:
+        twin = axes[1, 3].twinx()
+        twin.plot(n, ds["wall_time_s"].values, "r^:", ms=3, label="wall time [s]")
+        twin.set(yscale="log", ylabel="wall time [s] (red)")
     return save_figure(fig, path)
 
 
-def _band(ax, x, mean, std, colour, label, positive=False):  # type: ignore[no-untyped-def]
-    """Mean line and a mean +- std band (no band where std is NaN, one realization)."""
-    if positive:
-        mean = np.where(mean > 0, mean, np.nan)
-    ax.plot(x, mean, "o-", ms=3, color=colour, label=label)
-    lower, upper = mean - std, mean + std
-    if positive:
-        # on a log axis the band's lower edge stops at a decade below the smallest mean
-        floor = np.nanmin(mean) / 10 if np.any(np.isfinite(mean)) else np.nan
-        lower = np.where(lower > 0, lower, floor)
-    ax.fill_between(x, lower, upper, color=colour, alpha=0.2, linewidth=0)
+def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
+    """Scale study (Fig. 3.18): mean (top) and standard deviation (bottom) over the
+    realizations against the domain fraction, one line per hydration level.
 
-
-def scale_figure(ds: xr.Dataset, path: str | Path) -> Path:
-    """Scale study (Fig. 3.18): mean +- std over realizations per domain fraction.
-
-    Rows: water and gas permeability vs mean saturation (x, y, z axes), then the
-    volumetric strain, the crack count and the mean porosity. One colour per domain
-    fraction; the band is mean +- the sample standard deviation (absent for one
-    realization).
+    Columns: water and gas permeability (geometric mean of the axes), crack volume per
+    sub-region volume, volumetric strain and saturation; lines: up to ``n_levels``
+    checkpoints, labelled by suction and the reference's saturation.
 
     Parameters
     ----------
@@ -151,24 +147,29 @@ def scale_figure(ds: xr.Dataset, path: str | Path) -> Path:
     path
         Target PNG.
     """
-    fig, axes = new_figure(3, 3, width=4.2)
-    fractions = ds["domain_fraction"].values
-    colours = plt.get_cmap("tab10").colors
-    for index, fraction in enumerate(fractions):
-        row = ds.isel(domain_fraction=index)
-        colour = colours[index % len(colours)]
-        label = f"{fraction:.3g} ({int(row['n_realizations'])} real.)"
-        s = row["saturation_mean"].values
-        for r, phase in enumerate(("water", "gas")):
-            for c, axis in enumerate(("x", "y", "z")):
-                sel = {"phase": phase, "axis": axis}
-                _band(axes[r, c], s, row["permeability_mean"].sel(sel).values,
-                      row["permeability_std"].sel(sel).values, colour, label, positive=True)
-                axes[r, c].set(yscale="log", xlabel="mean saturation [-]",
-                               ylabel="permeability [m2]", title=f"{phase} permeability, {axis}")
-        for c, (name, ylabel) in enumerate((("eps_v", "eps_v [-]"), ("crack_count", "cracks [-]"),
-                                            ("porosity_mean", "mean porosity [-]"))):
-            _band(axes[2, c], s, row[f"{name}_mean"].values, row[f"{name}_std"].values, colour, label)
-            axes[2, c].set(xlabel="mean saturation [-]", ylabel=ylabel, title=f"{name} vs saturation")
-    axes[0, 0].legend(title="domain fraction", fontsize="x-small")
+    panels = (("permeability_geomean", {"phase": "water"}, "k_w [m2]", True),
+              ("permeability_geomean", {"phase": "gas"}, "k_g [m2]", True),
+              ("crack_volume_fraction", {}, "crack volume / volume [-]", False),
+              ("eps_v", {}, "eps_v [-]", False),
+              ("saturation", {}, "saturation [-]", False))
+    fig, axes = new_figure(2, len(panels), width=3.6)
+    fraction = ds["domain_fraction"].values
+    levels = np.unique(np.linspace(0, ds.sizes["checkpoint"] - 1, n_levels).round().astype(int))
+    colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.9, levels.size))
+    reference = ds.isel(realization=0)
+    for column, (name, sel, label, log) in enumerate(panels):
+        for colour, level in zip(colours, levels):
+            legend = (f"s = {float(ds['suction'][level]):.3g} Pa, "
+                      f"S = {float(reference['saturation'][level]):.2f}")
+            for row, stat in enumerate(("mean", "std")):
+                values = ds[f"{name}_{stat}"].isel(checkpoint=level).sel(sel).values
+                if log:
+                    values = np.where(values > 0, values, np.nan)
+                axes[row, column].plot(fraction, values, "o-", ms=3, color=colour, label=legend)
+        for row, stat in enumerate(("mu", "sigma")):
+            axes[row, column].set(xscale="log", yscale="log" if log else "linear",
+                                  xlabel="domain fraction [-]", ylabel=f"{stat} of {label}")
+    axes[0, 0].legend(fontsize="x-small")
+    counts = ", ".join(f"{f:.3g}: {int(n)}" for f, n in zip(fraction, ds["n_realizations"].values))
+    fig.suptitle(f"scale study, realizations per domain fraction ({counts})", fontsize="small")
     return save_figure(fig, path)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import resource
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -232,7 +233,8 @@ def run(
     ds.attrs.update(n_points=state.dem.n_points, n_cells=state.mesh.n_cells,
                     confinement=spec.confinement, crack_model=int(settings.cracks),
                     porosity_source="ct" if heterogeneous else "homogeneous",
-                    wall_time_s=time.monotonic() - started)
+                    wall_time_s=time.monotonic() - started,
+                    peak_memory_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0)
     write_dataset(ds, output, stage="micro", title=f"micro pellet hydration, case {case}",
                   config=section, seed=spec.seed, inputs=[porosity_input], rule=rule,
                   references="Caulk (2022), PhD thesis, Univ. Grenoble Alpes, Chap. 3")

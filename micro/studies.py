@@ -4,11 +4,12 @@ The studies are aggregates of finished cases (``results/micro/<case>.nc``, DESIG
 
 - convergence (thesis Sec. 3.5.8): the per-checkpoint outputs of cases that differ in
   their number of points, stacked along a new dimension ``n_points`` (ascending);
-- scale (thesis Sec. 3.5.9): sub-region realizations grouped by their ``domain_fraction``
-  (sub-specimen volume over the reference specimen's), with the mean and the sample
-  standard deviation (``ddof=1``) over the realizations of each group, per checkpoint.
-  The full-size reference case is domain fraction 1, a single realization whose standard
-  deviation is NaN (undefined for one sample), not 0.
+- scale (thesis Sec. 3.5.9): sub-cubes of volume fraction f of a reference case's cube,
+  at seeded random positions inside it (:func:`scale_realizations`), each hydrated as a
+  specimen of its own with the reference's point spacing; per realization and, grouped
+  by ``domain_fraction``, the mean and the sample standard deviation (``ddof=1``) over
+  the realizations, per checkpoint. The reference itself is domain fraction 1, a single
+  realization whose standard deviation is NaN (undefined for one sample), not 0.
 
 The studies are declared in ``micro.studies`` of the configuration; :func:`check_studies`
 refuses a study that names an unknown case. The functions here do no file I/O.
@@ -17,7 +18,8 @@ refuses a study that names an unknown case. The functions here do no file I/O.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -26,9 +28,11 @@ import xarray as xr
 from shared.config import ConfigError
 
 __all__ = [
+    "Realization",
     "check_studies",
     "convergence_cases",
-    "scale_cases",
+    "scale_realizations",
+    "realization_case",
     "case_edge_length",
     "case_n_points",
     "convergence_dataset",
@@ -41,7 +45,11 @@ _SHARED_COORDS = ("checkpoint", "phase", "axis", "i", "j", "bin")
 _CASE_ATTRS = {
     "n_cells": ("1", "number of tetrahedra of the mesh"),
     "wall_time_s": ("s", "wall time of the case's run"),
+    "peak_memory_mb": ("MiB", "peak resident memory of the case's run"),
 }
+# quantities whose relative change between successive point counts the convergence
+# study reports (thesis Sec. 3.5.8 tracks the first three)
+_TRACKED = ("saturation", "eps_v", "permeability", "porosity_mean", "crack_count", "crack_volume")
 
 
 # ---------------------------------------------------------------------------------------
@@ -66,11 +74,87 @@ def convergence_cases(config: Mapping[str, Any]) -> list[str]:
     return list(config["micro"].get("studies", {}).get("convergence", []))
 
 
-def scale_cases(config: Mapping[str, Any]) -> list[str]:
-    """Reference and realizations of the scale study (empty: no study)."""
-    scale = config["micro"].get("studies", {}).get("scale", {})
-    cases = list(scale.get("cases", []))
-    return [scale["reference"], *cases] if cases else []
+@dataclass(frozen=True)
+class Realization:
+    """One sub-region of the scale study.
+
+    Attributes
+    ----------
+    name
+        Job name, ``f<fraction>_r<index>`` (``f0p25_r03``).
+    domain_fraction
+        Sub-cube volume over the reference cube's [1].
+    edge_length
+        Cube edge [m].
+    n_points
+        Number of points: the reference's density, at least ``min_points`` [1].
+    offset
+        Centre of the sub-cube from the scanned specimen's centre [m].
+    """
+
+    name: str
+    domain_fraction: float
+    edge_length: float
+    n_points: int
+    offset: tuple[float, float, float]
+
+
+def _scale_section(config: Mapping[str, Any]) -> Mapping[str, Any]:
+    return config["micro"].get("studies", {}).get("scale", {})
+
+
+def scale_realizations(config: Mapping[str, Any]) -> list[Realization]:
+    """The realizations of the scale study of a validated configuration (none if undeclared).
+
+    Positions lie on the lattice of the reference's point spacing, centred in the
+    reference cube, so that every sub-cube lies inside it and no two realizations of one
+    fraction coincide; a fraction's realizations are the first ones of a permutation of
+    its lattice seeded by (``seed``, fraction), so that adding realizations keeps the
+    earlier ones.
+
+    Raises
+    ------
+    ConfigError
+        If a fraction has fewer distinct positions than ``realizations``.
+    """
+    scale = _scale_section(config)
+    reference = scale.get("reference")
+    if reference is None or not scale.get("fractions"):
+        return []
+    edge = case_edge_length(config, reference)
+    count = case_n_points(config, reference)
+    spacing = edge / count ** (1.0 / 3.0)
+    centre = np.asarray(config["micro"]["cases"][reference]["offset_m"], dtype=float)
+    realizations = []
+    for fraction in sorted(float(f) for f in scale["fractions"]):
+        sub_edge = edge * fraction ** (1.0 / 3.0)
+        per_axis = int(np.floor((edge - sub_edge) / spacing + 1e-9)) + 1
+        if per_axis**3 < scale["realizations"]:
+            raise ConfigError(
+                f"config key 'micro.studies.scale.realizations': {scale['realizations']} "
+                f"realizations, but a {fraction:g} sub-cube has only {per_axis**3} distinct "
+                f"positions one point spacing ({spacing:.3g} m) apart in {reference!r}"
+            )
+        lattice = spacing * (np.arange(per_axis) - 0.5 * (per_axis - 1))
+        rng = np.random.default_rng([scale["seed"], int(round(fraction * 1e12))])
+        picks = rng.permutation(per_axis**3)[: scale["realizations"]]
+        label = f"{fraction:.6g}".replace(".", "p")
+        points = max(scale["min_points"], int(round(count * fraction)))
+        for index, pick in enumerate(picks):
+            shift = lattice[np.array(np.unravel_index(pick, (per_axis,) * 3))]
+            realizations.append(Realization(
+                name=f"f{label}_r{index:02d}", domain_fraction=fraction, edge_length=sub_edge,
+                n_points=points, offset=tuple(float(v) for v in centre + shift),
+            ))
+    return realizations
+
+
+def realization_case(config: Mapping[str, Any], realization: Realization) -> dict[str, Any]:
+    """The micro case of a realization: the reference case on the realization's cube."""
+    entry = dict(config["micro"]["cases"][_scale_section(config)["reference"]])
+    entry.update(n_points=realization.n_points, specimen_size_m=realization.edge_length,
+                 offset_m=list(realization.offset))
+    return entry
 
 
 def check_studies(config: Mapping[str, Any]) -> None:
@@ -81,8 +165,8 @@ def check_studies(config: Mapping[str, Any]) -> None:
     ConfigError
         Naming the key, if a study names a case that is not in ``micro.cases``, if two
         convergence cases have the same number of points, if the scale study has
-        realizations but no reference (or a reference and no realizations), lists its
-        reference among its realizations, or has a realization larger than the reference.
+        fractions but no reference (or a reference and no fractions), a homogeneous
+        reference, or more realizations than a fraction has distinct positions.
     """
     micro = config["micro"]
     studies = micro.get("studies", {})
@@ -110,34 +194,26 @@ def check_studies(config: Mapping[str, Any]) -> None:
 
     scale = studies.get("scale", {})
     reference = scale.get("reference")
-    cases = list(scale.get("cases", []))
-    if cases and reference is None:
+    fractions = list(scale.get("fractions", []))
+    if fractions and reference is None:
         raise ConfigError(
             "config key 'micro.studies.scale.reference': required when "
-            "micro.studies.scale.cases is not empty"
-        )
-    if reference is not None and not cases:
-        raise ConfigError(
-            "config key 'micro.studies.scale.cases': empty, but a reference "
-            f"({reference!r}) is given"
+            "micro.studies.scale.fractions is not empty"
         )
     if reference is None:
         return
-    _known("micro.studies.scale.reference", [reference])
-    _known("micro.studies.scale.cases", cases)
-    if reference in cases:
+    if not fractions:
         raise ConfigError(
-            f"config key 'micro.studies.scale.cases': the reference {reference!r} is "
-            "listed among the realizations"
+            "config key 'micro.studies.scale.fractions': empty, but a reference "
+            f"({reference!r}) is given"
         )
-    edge = case_edge_length(config, reference)
-    for name in cases:
-        if case_edge_length(config, name) > edge * (1 + 1e-12):
-            raise ConfigError(
-                f"config key 'micro.studies.scale.cases': {name!r} "
-                f"({case_edge_length(config, name):g} m) is larger than the reference "
-                f"{reference!r} ({edge:g} m)"
-            )
+    _known("micro.studies.scale.reference", [reference])
+    if known[reference]["porosity"] != "ct":
+        raise ConfigError(
+            f"config key 'micro.studies.scale.reference': {reference!r} has a homogeneous "
+            "porosity; sub-regions of it would all be alike"
+        )
+    scale_realizations(config)
 
 
 # ---------------------------------------------------------------------------------------
@@ -195,9 +271,11 @@ def convergence_dataset(cases: Mapping[str, xr.Dataset]) -> xr.Dataset:
         Every variable over ``checkpoint`` of the inputs (except ``suction``), with a new
         leading dimension ``n_points`` in ascending order: ``saturation(n_points,
         checkpoint)``, ``permeability(n_points, checkpoint, phase, axis)`` [m2], ...;
-        ``suction(checkpoint)`` [Pa]; ``n_cells(n_points)`` and ``wall_time_s(n_points)``
-        when the inputs record them. Attribute ``cases``: the case names in ``n_points``
-        order.
+        ``suction(checkpoint)`` [Pa]; ``n_cells``, ``wall_time_s`` and ``peak_memory_mb``
+        over ``n_points`` when the inputs record them; ``<var>_relative_change`` of the
+        tracked quantities (saturation, eps_v, permeability, porosity_mean, crack_count,
+        crack_volume), |x_N - x_N-1| / |x_N|. Attribute ``cases``: the case names in
+        ``n_points`` order.
 
     Raises
     ------
@@ -225,6 +303,15 @@ def convergence_dataset(cases: Mapping[str, xr.Dataset]) -> xr.Dataset:
         if all(attr in cases[name].attrs for name in order):
             data[attr] = ("n_points", np.array([float(cases[name].attrs[attr]) for name in order]),
                           {"units": units, "long_name": long_name})
+    for var in _TRACKED:
+        if var in data:
+            values = np.asarray(data[var].values, dtype=float)
+            change = np.full_like(values, np.nan)
+            change[1:] = np.abs(np.diff(values, axis=0)) / np.abs(values[1:])
+            data[f"{var}_relative_change"] = xr.Variable(
+                data[var].dims, change,
+                {"units": "1", "long_name": f"|change| of {var} from the previous n_points, "
+                                           "relative to its value (NaN for the first)"})
     data["suction"] = base["suction"].variable.copy()
     coords: dict[str, Any] = _shared_coords(base)
     coords["n_points"] = ("n_points", np.array([counts[name] for name in order], dtype=np.int64),
@@ -234,86 +321,106 @@ def convergence_dataset(cases: Mapping[str, xr.Dataset]) -> xr.Dataset:
     return ds
 
 
+def _with_derived(ds: xr.Dataset, edge_length: float) -> xr.Dataset:
+    """A case's outputs plus the scale study's derived quantities."""
+    out = ds.copy()
+    log_k = np.log(np.where(ds["permeability"].values > 0, ds["permeability"].values, np.nan))
+    out["permeability_geomean"] = (
+        ("checkpoint", "phase"), np.exp(log_k.mean(axis=-1)),
+        {"units": "m2", "long_name": "geometric mean of the x, y, z permeabilities"},
+    )
+    out["crack_volume_fraction"] = (
+        "checkpoint", ds["crack_volume"].values / edge_length**3,
+        {"units": "1", "long_name": "crack volume per sub-region volume"},
+    )
+    return out
+
+
 def scale_dataset(
-    cases: Mapping[str, xr.Dataset],
-    edge_length_m: Mapping[str, float],
-    reference: str,
+    reference: tuple[str, xr.Dataset],
+    reference_edge_m: float,
+    realizations: Sequence[tuple[Realization, xr.Dataset]],
 ) -> xr.Dataset:
-    """Mean and standard deviation over realizations per domain fraction and checkpoint.
+    """Per realization and per domain fraction (mean, std) outputs of the scale study.
 
     Parameters
     ----------
-    cases
-        Micro outputs by case name: the reference (full size) and the realizations
-        (sub-regions), all with the same checkpoints.
-    edge_length_m
-        Cube edge [m] of each case (``specimen_size_m`` of its configuration).
     reference
-        Name of the full-size case; its volume is the unit of ``domain_fraction``.
+        Name and micro output of the full-size case (domain fraction 1).
+    reference_edge_m
+        Its cube edge [m].
+    realizations
+        Each realization (:func:`scale_realizations`) with its micro output; all share
+        the reference's checkpoints.
 
     Returns
     -------
     xr.Dataset
-        Over ``domain_fraction`` (ascending, = (edge / reference edge)^3) and the
-        inputs' dimensions: ``<var>_mean`` and ``<var>_std`` for every variable over
-        ``checkpoint`` (``permeability_mean(domain_fraction, checkpoint, phase, axis)``
-        [m2], ``saturation_mean``, ``eps_v_std``, ...). The standard deviation is the
-        sample one (``ddof=1``); it is NaN for a group of one realization, such as the
-        reference at domain fraction 1. Also ``n_realizations(domain_fraction)``,
+        Every variable over ``checkpoint`` of the inputs (except ``suction``), plus
+        ``permeability_geomean(checkpoint, phase)`` [m2] and ``crack_volume_fraction``:
+        per realization (``<var>(realization, checkpoint, ...)``, the reference first,
+        with ``realization_fraction``, ``realization_size_m`` and
+        ``realization_offset_m(realization, xyz)``), and as ``<var>_mean`` and
+        ``<var>_std`` over ``domain_fraction`` (ascending). The standard deviation is the
+        sample one (``ddof=1``); NaN for a group of one realization, such as the
+        reference. Also ``n_realizations(domain_fraction)``,
         ``specimen_size_m(domain_fraction)`` [m] and ``suction(checkpoint)`` [Pa].
-        Attribute ``realizations``: JSON of case name -> domain fraction.
 
     Raises
     ------
     ValueError
-        If the reference is not among the cases, an edge length is missing or not
-        positive, a case is larger than the reference, or the cases differ in
-        checkpoints, coordinates or variables.
+        If the cases differ in checkpoints, coordinates or variables, or a realization
+        is larger than the reference.
     """
-    if reference not in cases:
-        raise ValueError(f"the reference {reference!r} is not among the cases")
-    missing = [name for name in cases if name not in edge_length_m]
-    if missing:
-        raise ValueError(f"no edge length for case(s) {missing}")
+    name, ref_ds = reference
+    members = [(name, 1.0, reference_edge_m, (np.nan,) * 3, ref_ds)]
+    for realization, ds in realizations:
+        if realization.domain_fraction > 1:
+            raise ValueError(f"{realization.name} is larger than the reference {name!r}")
+        members.append((realization.name, realization.domain_fraction, realization.edge_length,
+                        realization.offset, ds))
+    cases = {m[0]: _with_derived(m[4], m[2]) for m in members}
     first, names = _check_alike(cases)
-    edges = {name: float(edge_length_m[name]) for name in cases}
-    if any(edge <= 0 for edge in edges.values()):
-        raise ValueError(f"edge lengths must be positive, got {edges}")
-    # rounded so that 3.5e-3 / 7e-3 and its float neighbours form one group
-    fractions = {name: float(np.round((edges[name] / edges[reference]) ** 3, 12)) for name in cases}
-    if any(fraction > 1 for fraction in fractions.values()):
-        raise ValueError(f"a case is larger than the reference {reference!r}: {fractions}")
-    levels = sorted(set(fractions.values()))
-    groups = [[name for name in cases if fractions[name] == level] for level in levels]
     base = cases[first]
+    levels = sorted({m[1] for m in members})
+    groups = [[m[0] for m in members if m[1] == level] for level in levels]
     data: dict[str, Any] = {}
     for var in names:
-        dims = ("domain_fraction", *base[var].dims)
+        attrs = dict(base[var].attrs)
+        per_case = np.stack([np.asarray(cases[m[0]][var].values, dtype=float) for m in members])
+        data[var] = (("realization", *base[var].dims), per_case, attrs)
         means, stds = [], []
         for group in groups:
-            values = np.stack([np.asarray(cases[name][var].values, dtype=float) for name in group])
-            means.append(values.mean(axis=0))
-            stds.append(values.std(axis=0, ddof=1) if len(group) > 1
-                        else np.full(values.shape[1:], np.nan))
-        units = base[var].attrs.get("units", "1")
-        long_name = base[var].attrs.get("long_name", var)
-        data[f"{var}_mean"] = (dims, np.stack(means),
-                               {"units": units, "long_name": f"mean over realizations of: {long_name}"})
-        data[f"{var}_std"] = (dims, np.stack(stds),
-                              {"units": units,
-                               "long_name": f"sample standard deviation (ddof=1) over realizations "
-                                            f"of: {long_name}; NaN for one realization"})
+            rows = per_case[[i for i, m in enumerate(members) if m[0] in group]]
+            means.append(rows.mean(axis=0))
+            stds.append(rows.std(axis=0, ddof=1) if len(group) > 1
+                        else np.full(rows.shape[1:], np.nan))
+        dims = ("domain_fraction", *base[var].dims)
+        long_name = attrs.get("long_name", var)
+        data[f"{var}_mean"] = (dims, np.stack(means), {
+            "units": attrs.get("units", "1"), "long_name": f"mean over realizations of: {long_name}"})
+        data[f"{var}_std"] = (dims, np.stack(stds), {
+            "units": attrs.get("units", "1"),
+            "long_name": f"sample standard deviation (ddof=1) over realizations of: {long_name}; "
+                         "NaN for one realization"})
     data["n_realizations"] = ("domain_fraction", np.array([len(g) for g in groups], dtype=np.int64),
                               {"units": "1", "long_name": "number of realizations"})
-    data["specimen_size_m"] = ("domain_fraction", np.array([edges[g[0]] for g in groups]),
+    data["specimen_size_m"] = ("domain_fraction", reference_edge_m * np.array(levels) ** (1 / 3),
                                {"units": "m", "long_name": "cube edge of the realizations"})
+    data["realization_fraction"] = ("realization", np.array([m[1] for m in members]),
+                                    {"units": "1", "long_name": "domain fraction of the realization"})
+    data["realization_size_m"] = ("realization", np.array([m[2] for m in members]),
+                                  {"units": "m", "long_name": "cube edge of the realization"})
+    data["realization_offset_m"] = (("realization", "xyz"), np.array([m[3] for m in members]),
+                                    {"units": "m", "long_name": "centre of the sub-cube from the "
+                                     "scanned specimen's centre (NaN: the reference)"})
     data["suction"] = base["suction"].variable.copy()
     coords: dict[str, Any] = _shared_coords(base)
-    coords["domain_fraction"] = ("domain_fraction", np.array(levels),
-                                 {"units": "1",
-                                  "long_name": "sub-specimen volume / reference specimen volume"})
+    coords["domain_fraction"] = ("domain_fraction", np.array(levels), {
+        "units": "1", "long_name": "sub-specimen volume / reference specimen volume"})
+    coords["realization"] = ("realization", np.array([m[0] for m in members]),
+                             {"long_name": "realization (the reference first)"})
+    coords["xyz"] = ("xyz", np.array(["x", "y", "z"]), {"long_name": "direction"})
     ds = xr.Dataset(data, coords=coords)
-    ds.attrs.update(study="scale", reference=reference,
-                    reference_size_m=edges[reference],
-                    realizations=json.dumps({name: fractions[name] for name in cases}))
+    ds.attrs.update(study="scale", reference=name, reference_size_m=reference_edge_m)
     return ds

@@ -239,6 +239,7 @@ def micro_config(tmp_path):
             "checkpoints_suction_pa": [132.0e6, 80.0e6, 50.0e6],
             "cases": {"c": {"porosity": "ct"}},
         },
+        "upscaling": {"conditions": {"free": "c", "confined": "c"}},
     })
     rng = np.random.default_rng(0)
     grid = _grid(np.clip(0.25 + 0.03 * rng.standard_normal((14, 14, 14)), 0.05, 0.6), 4e-4)

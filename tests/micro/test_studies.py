@@ -13,7 +13,13 @@ import pytest
 import xarray as xr
 import yaml
 
-from micro.studies import check_studies, convergence_dataset, scale_dataset
+from micro.studies import (
+    Realization,
+    check_studies,
+    convergence_dataset,
+    scale_dataset,
+    scale_realizations,
+)
 from shared.config import ConfigError, validate_config
 from shared.io import read_dataset, write_dataset
 
@@ -29,6 +35,7 @@ def _case(rng: np.random.Generator, n_points: int, suctions: np.ndarray = SUCTIO
         "saturation": ("checkpoint", rng.uniform(0.3, 1.0, n), scalar),
         "eps_v": ("checkpoint", rng.normal(0.0, 0.1, n), scalar),
         "crack_count": ("checkpoint", rng.integers(0, 50, n).astype(float), scalar),
+        "crack_volume": ("checkpoint", rng.uniform(0, 1e-12, n), {"units": "m3", "long_name": "V_c"}),
         "suction": ("checkpoint", suctions.copy(), {"units": "Pa", "long_name": "boundary suction"}),
         "permeability": (("checkpoint", "phase", "axis"), 10.0 ** rng.uniform(-24, -19, (n, 2, 3)),
                          {"units": "m2", "long_name": "permeability"}),
@@ -50,7 +57,8 @@ def _case(rng: np.random.Generator, n_points: int, suctions: np.ndarray = SUCTIO
     return ds
 
 
-VARIABLES = ("saturation", "eps_v", "crack_count", "permeability", "crack_fabric", "porosity_hist")
+VARIABLES = ("saturation", "eps_v", "crack_count", "permeability", "crack_fabric", "porosity_hist",
+             "crack_volume")
 
 
 def test_convergence_stacks_the_cases_sorted_by_n_points(rng):
@@ -75,19 +83,36 @@ def test_convergence_refuses_equal_point_counts_and_other_checkpoints(rng):
         convergence_dataset({"a": _case(rng, 125), "b": _case(rng, 343, SUCTIONS * 2)})
 
 
-def test_scale_mean_and_std_match_numpy_over_the_realizations(rng):
-    octants = {f"oct_{k}": _case(rng, 125) for k in range(4)}
-    sixteenths = {f"six_{k}": _case(rng, 27) for k in range(3)}
+def test_convergence_relative_change_against_numpy(rng):
+    cases = {"a": _case(rng, 125), "b": _case(rng, 343), "c": _case(rng, 1000)}
+    ds = convergence_dataset(cases)
+    for var in ("saturation", "eps_v", "permeability", "crack_count"):
+        values = np.stack([cases[name][var].values for name in ("a", "b", "c")])
+        change = ds[f"{var}_relative_change"].values
+        assert np.isnan(change[0]).all()
+        np.testing.assert_allclose(change[1:], np.abs(values[1:] - values[:-1]) / np.abs(values[1:]),
+                                   rtol=1e-12)
+
+
+def _realization(name, fraction, edge=7e-3):
+    return Realization(name, fraction, edge * fraction ** (1 / 3), 125, (0.0, 0.0, 0.0))
+
+
+def test_scale_per_realization_values_and_mean_and_std_match_numpy(rng):
+    eighths = [(_realization(f"e{k}", 1 / 8), _case(rng, 125)) for k in range(4)]
+    hundredths = [(_realization(f"h{k}", 0.01), _case(rng, 27)) for k in range(3)]
     reference = _case(rng, 1000)
-    cases = {"ref": reference, **octants, **sixteenths}
-    edges = {"ref": 7e-3, **{n: 3.5e-3 for n in octants}, **{n: 1.75e-3 for n in sixteenths}}
-    ds = scale_dataset(cases, edges, "ref")
-    np.testing.assert_allclose(ds["domain_fraction"].values, [1 / 64, 1 / 8, 1.0], rtol=1e-12)
+    ds = scale_dataset(("ref", reference), 7e-3, eighths + hundredths)
+    np.testing.assert_allclose(ds["domain_fraction"].values, [0.01, 1 / 8, 1.0], rtol=1e-12)
     np.testing.assert_array_equal(ds["n_realizations"].values, [3, 4, 1])
-    np.testing.assert_allclose(ds["specimen_size_m"].values, [1.75e-3, 3.5e-3, 7e-3])
-    for index, group in enumerate([sixteenths, octants]):
+    np.testing.assert_allclose(ds["specimen_size_m"].values,
+                               7e-3 * np.array([0.01, 1 / 8, 1.0]) ** (1 / 3), rtol=1e-12)
+    assert list(ds["realization"].values) == ["ref", "e0", "e1", "e2", "e3", "h0", "h1", "h2"]
+    np.testing.assert_array_equal(ds["saturation"].sel(realization="h1").values,
+                                  hundredths[1][1]["saturation"].values)
+    for index, group in enumerate([hundredths, eighths]):
         for var in VARIABLES:
-            values = np.stack([group[name][var].values for name in group])
+            values = np.stack([case[var].values for _, case in group])
             # independent reference: the mean as a sum, the std from its definition
             mean = values.sum(axis=0) / len(group)
             std = np.sqrt(((values - mean) ** 2).sum(axis=0) / (len(group) - 1))
@@ -95,6 +120,14 @@ def test_scale_mean_and_std_match_numpy_over_the_realizations(rng):
                                        rtol=1e-12)
             np.testing.assert_allclose(ds[f"{var}_std"].isel(domain_fraction=index).values, std,
                                        rtol=1e-10)
+        k = np.stack([case["permeability"].values for _, case in group])
+        geometric = np.prod(k, axis=-1) ** (1 / 3)
+        np.testing.assert_allclose(ds["permeability_geomean_mean"].isel(domain_fraction=index),
+                                   geometric.mean(axis=0), rtol=1e-10)
+        volume = group[0][0].edge_length ** 3
+        crack = np.stack([case["crack_volume"].values for _, case in group]) / volume
+        np.testing.assert_allclose(ds["crack_volume_fraction_std"].isel(domain_fraction=index),
+                                   crack.std(axis=0, ddof=1), rtol=1e-10)
     for var in VARIABLES:
         np.testing.assert_array_equal(ds[f"{var}_mean"].isel(domain_fraction=2).values,
                                       reference[var].values)
@@ -102,18 +135,15 @@ def test_scale_mean_and_std_match_numpy_over_the_realizations(rng):
         assert ds[f"{var}_mean"].attrs["units"] == reference[var].attrs["units"]
 
 
-def test_scale_refuses_a_case_larger_than_the_reference(rng):
-    cases = {"ref": _case(rng, 125), "big": _case(rng, 1000)}
+def test_scale_refuses_a_realization_larger_than_the_reference(rng):
     with pytest.raises(ValueError, match="larger than the reference"):
-        scale_dataset(cases, {"ref": 3.5e-3, "big": 7e-3}, "ref")
-    with pytest.raises(ValueError, match="not among the cases"):
-        scale_dataset(cases, {"ref": 3.5e-3, "big": 7e-3}, "other")
+        scale_dataset(("ref", _case(rng, 125)), 7e-3, [(_realization("big", 1.5), _case(rng, 125))])
 
 
 def test_study_datasets_meet_the_writer_contract_and_round_trip(rng, tmp_path):
     convergence = convergence_dataset({"a": _case(rng, 125), "b": _case(rng, 343)})
-    scale = scale_dataset({"ref": _case(rng, 1000), "o0": _case(rng, 125), "o1": _case(rng, 125)},
-                          {"ref": 7e-3, "o0": 3.5e-3, "o1": 3.5e-3}, "ref")
+    scale = scale_dataset(("ref", _case(rng, 1000)), 7e-3,
+                          [(_realization(f"o{k}", 1 / 8), _case(rng, 125)) for k in range(2)])
     for name, ds in (("convergence", convergence), ("scale", scale)):
         path = write_dataset(ds, tmp_path / f"{name}.nc", stage="studies", title=name,
                              config={"study": name})
@@ -129,32 +159,39 @@ def test_study_datasets_meet_the_writer_contract_and_round_trip(rng, tmp_path):
 def _config(studies: dict | None) -> dict:
     micro: dict = {"cases": {"het": {"porosity": "ct"},
                              "p125": {"porosity": "ct", "n_points": 125},
-                             "oct": {"porosity": "ct", "specimen_size_m": 3.5e-3}}}
+                             "hom": {"porosity": "homogeneous"}}}
     if studies is not None:
         micro["studies"] = studies
-    config = {"samples": {"pellet": {"source": "phantom", "voxel_size_m": 3e-4}}, "micro": micro}
+    config = {"samples": {"pellet": {"source": "phantom", "voxel_size_m": 3e-4}}, "micro": micro,
+              "upscaling": {"conditions": {"free": "het", "confined": "het"}}}
     return dict(validate_config(config))
 
 
 def test_studies_default_to_none():
     config = _config(None)
-    assert config["micro"]["studies"] == {"convergence": [], "scale": {"reference": None, "cases": []}}
+    assert config["micro"]["studies"]["convergence"] == []
+    assert config["micro"]["studies"]["scale"]["reference"] is None
     check_studies(config)
+    assert scale_realizations(config) == []
 
 
 def test_declared_studies_pass_the_check():
     check_studies(_config({"convergence": ["p125", "het"],
-                           "scale": {"reference": "het", "cases": ["oct"]}}))
+                           "scale": {"reference": "het", "fractions": [0.25], "realizations": 3}}))
 
 
 @pytest.mark.parametrize(
     ("studies", "key"),
     [
         ({"convergence": ["p125", "absent"]}, "micro.studies.convergence"),
-        ({"scale": {"reference": "het", "cases": ["oct", "absent"]}}, "micro.studies.scale.cases"),
-        ({"scale": {"reference": "absent", "cases": ["oct"]}}, "micro.studies.scale.reference"),
-        ({"scale": {"cases": ["oct"]}}, "micro.studies.scale.reference"),
-        ({"scale": {"reference": "oct", "cases": ["het"]}}, "micro.studies.scale.cases"),
+        ({"scale": {"reference": "absent", "fractions": [0.1]}}, "micro.studies.scale.reference"),
+        ({"scale": {"fractions": [0.1]}}, "micro.studies.scale.reference"),
+        ({"scale": {"reference": "het"}}, "micro.studies.scale.fractions"),
+        ({"scale": {"reference": "hom", "fractions": [0.1]}}, "micro.studies.scale.reference"),
+        ({"scale": {"reference": "het", "fractions": [1.0], "realizations": 2}},
+         "micro.studies.scale.realizations"),
+        ({"scale": {"reference": "het", "fractions": [0.5], "realizations": 28}},
+         "micro.studies.scale.realizations"),
     ],
 )
 def test_a_bad_study_is_a_config_error_naming_the_key(studies, key):
@@ -169,6 +206,43 @@ def test_equal_point_counts_in_the_convergence_study_are_a_config_error():
     config["micro"]["studies"]["convergence"].append("p1000")
     with pytest.raises(ConfigError, match="micro.studies.convergence.*same number of points"):
         check_studies(config)
+
+
+@pytest.mark.parametrize("fraction", [0.0, 1.2, -0.1])
+def test_a_fraction_outside_zero_one_is_a_schema_error(fraction):
+    with pytest.raises(ConfigError, match=r"micro\.studies\.scale\.fractions"):
+        _config({"scale": {"reference": "het", "fractions": [fraction]}})
+
+
+def _realizations(**scale):
+    return scale_realizations(_config({"scale": {"reference": "het", **scale}}))
+
+
+def test_realizations_lie_inside_the_reference_distinct_and_reproducible():
+    """7 mm reference of 1000 points (spacing 0.7 mm); a 1/8 sub-cube (3.5 mm) has
+    floor(3.5 / 0.7) + 1 = 6 positions per axis, 216 in all."""
+    realizations = _realizations(fractions=[0.125, 0.01], realizations=20, seed=3)
+    assert len(realizations) == 40
+    assert _realizations(fractions=[0.125, 0.01], realizations=20, seed=3) == realizations
+    assert _realizations(fractions=[0.125, 0.01], realizations=20, seed=4) != realizations
+    for fraction in (0.125, 0.01):
+        group = [r for r in realizations if r.domain_fraction == fraction]
+        edge = 7e-3 * fraction ** (1 / 3)
+        offsets = np.array([r.offset for r in group])
+        assert all(r.edge_length == pytest.approx(edge, rel=1e-12) for r in group)
+        assert np.all(np.abs(offsets) + edge / 2 <= 3.5e-3 * (1 + 1e-12))
+        assert len({tuple(np.round(o, 12)) for o in offsets}) == len(group)
+        assert {r.n_points for r in group} == {max(64, round(1000 * fraction))}
+    with pytest.raises(ConfigError, match="216 distinct positions"):
+        _realizations(fractions=[0.125], realizations=217)
+
+
+def test_more_realizations_keep_the_earlier_ones():
+    """A realization's case (its params) is unchanged when others are added: only the new
+    ones and the aggregate rerun."""
+    few = _realizations(fractions=[0.25], realizations=3)
+    more = _realizations(fractions=[0.25], realizations=5)
+    assert more[:3] == few and len({r.name for r in more}) == 5
 
 
 def test_an_unknown_study_key_is_a_schema_error():
@@ -200,13 +274,17 @@ def test_dry_run_with_the_presets_plans_the_study_jobs(tmp_path):
     assert result.returncode == 0, result.stderr[-3000:]
     jobs = _job_counts(result)
     assert jobs["micro_convergence"] == 1 and jobs["micro_scale"] == 1
-    # 4 default cases + 5 convergence + 8 octants
-    assert jobs["micro_case"] == 17
+    # 4 default cases + 6 convergence + the scale study's principal case
+    assert jobs["micro_case"] == 11
+    # the thesis's 6 domain fractions x 40 realizations
+    assert jobs["micro_scale_realization"] == 240
     (tmp_path / "default").mkdir()
     result = _dry_run(tmp_path / "default")
     assert result.returncode == 0, result.stderr[-3000:]
     jobs = _job_counts(result)
-    assert "micro_convergence" not in jobs and "micro_scale" not in jobs
+    # the default's small scale study: 2 fractions x 2 realizations, no convergence study
+    assert "micro_convergence" not in jobs
+    assert jobs["micro_scale"] == 1 and jobs["micro_scale_realization"] == 4
 
 
 def test_dry_run_refuses_a_study_naming_an_unknown_case(tmp_path):

@@ -25,6 +25,8 @@ TINY = {
         "checkpoints_suction_pa": [132.0e6, 60.0e6],
         "cases": {"het": {"porosity": "ct"}, "hom": {"porosity": "homogeneous"}},
     },
+    "upscaling": {"conditions": {"free": "het", "confined": "hom"},
+                  "suction_range_pa": [60.0e6, 132.0e6]},
 }
 
 

@@ -7,7 +7,8 @@ from micro.studies import (
     case_edge_length,
     check_studies,
     convergence_cases,
-    scale_cases,
+    realization_case,
+    scale_realizations,
 )
 from shared.config import ConfigError, load_schema, validate_config
 from shared.provenance import code_sha256
@@ -24,12 +25,14 @@ except ConfigError as err:
 SAMPLES = sorted(config["samples"])
 CASES = sorted(config["micro"]["cases"])
 PACKINGS = sorted(config["packings"])
+REALIZATIONS = {r.name: r for r in scale_realizations(config)}
 
 
 wildcard_constraints:
     sample="|".join(SAMPLES),
     case="|".join(CASES),
     packing="|".join(PACKINGS) or "(?!)",
+    realization="|".join(REALIZATIONS) or "(?!)",
 
 
 def code_hash(*packages):
@@ -62,18 +65,26 @@ def get_micro_porosity(wildcards):
     return f"results/porosity/{config['micro']['sample']}.nc"
 
 
-def get_micro_case_config(wildcards):
-    """The micro settings with this case alone (a param: editing one case reruns it alone)."""
+def _micro_with_case(name, entry):
+    """The micro settings with one case alone (a param: editing one case reruns it alone)."""
     # the studies only aggregate finished cases: declaring one reruns no case
     shared = {
         key: value
         for key, value in config["micro"].items()
         if key not in ("cases", "studies")
     }
-    return {
-        **shared,
-        "cases": {wildcards.case: config["micro"]["cases"][wildcards.case]},
-    }
+    return {**shared, "cases": {name: entry}}
+
+
+def get_micro_case_config(wildcards):
+    """The micro settings with this case alone."""
+    return _micro_with_case(wildcards.case, config["micro"]["cases"][wildcards.case])
+
+
+def get_scale_realization_config(wildcards):
+    """The micro settings with this realization of the scale study as its case."""
+    realization = REALIZATIONS[wildcards.realization]
+    return _micro_with_case(realization.name, realization_case(config, realization))
 
 
 def get_micro_materials(wildcards):
@@ -99,19 +110,27 @@ def get_convergence_cases(wildcards):
     return expand("results/micro/{case}.nc", case=cases)
 
 
-def get_scale_cases(wildcards):
-    """The outputs of the scale study's reference and realizations (micro.studies.scale)."""
-    cases = scale_cases(config)
-    if not cases:
-        raise ValueError(
-            "claychain: no scale study: micro.studies.scale.cases is empty"
-        )
-    return expand("results/micro/{case}.nc", case=cases)
+def get_scale_inputs(wildcards):
+    """The scale study's reference case and realizations (micro.studies.scale)."""
+    if not REALIZATIONS:
+        raise ValueError("claychain: no scale study: micro.studies.scale is empty")
+    reference = config["micro"]["studies"]["scale"]["reference"]
+    return {
+        "reference": f"results/micro/{reference}.nc",
+        "realizations": expand(
+            "results/studies/scale/{realization}.nc", realization=REALIZATIONS
+        ),
+    }
 
 
-def get_scale_edge_lengths(wildcards):
-    """Cube edge [m] of each case of the scale study (a param: its edits rerun the study)."""
-    return {case: case_edge_length(config, case) for case in scale_cases(config)}
+def get_scale_layout(wildcards):
+    """The reference's edge and each realization (a param: a change reruns the aggregate)."""
+    reference = config["micro"]["studies"]["scale"]["reference"]
+    return {
+        "reference": reference,
+        "reference_edge_m": case_edge_length(config, reference),
+        "realizations": [vars(r) for r in REALIZATIONS.values()],
+    }
 
 
 def get_study_outputs():
@@ -122,7 +141,7 @@ def get_study_outputs():
             "results/studies/convergence.nc",
             "results/studies/convergence.png",
         ]
-    if scale_cases(config):
+    if REALIZATIONS:
         outputs += ["results/studies/scale.nc", "results/studies/scale.png"]
     return outputs
 

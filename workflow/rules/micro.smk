@@ -57,16 +57,41 @@ rule micro_convergence:
         "../scripts/micro_convergence.py"
 
 
+rule micro_scale_realization:
+    input:
+        porosity=get_micro_porosity,
+    output:
+        result="results/studies/scale/{realization}.nc",
+        figure="results/studies/scale/{realization}.png",
+    params:
+        code=MICRO_CODE,
+        micro=get_scale_realization_config,
+        materials=get_micro_materials,
+    group:
+        "scale"
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    conda:
+        "../envs/claychain.yaml"
+    log:
+        "results/logs/micro_scale_realization/{realization}.log",
+    benchmark:
+        "results/benchmarks/micro_scale_realization/{realization}.tsv"
+    script:
+        "../scripts/micro_case.py"
+
+
 rule micro_scale:
     input:
-        get_scale_cases,
+        unpack(get_scale_inputs),
     output:
         result="results/studies/scale.nc",
         figure="results/studies/scale.png",
     params:
         code=STUDIES_CODE,
-        scale=config["micro"]["studies"]["scale"],
-        edge_lengths=get_scale_edge_lengths,
+        layout=get_scale_layout,
+    localrule: True
     conda:
         "../envs/claychain.yaml"
     log:

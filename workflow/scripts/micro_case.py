@@ -1,4 +1,4 @@
-"""Snakemake glue: hydrate one micro case."""
+"""Snakemake glue: hydrate one micro case (a configured case or a scale-study realization)."""
 
 import sys
 from pathlib import Path
@@ -14,4 +14,5 @@ _logging.setup(sm.log[0])
 # the parallel mesh and force kernels use the job's threads, not every core per job
 numba.set_num_threads(sm.threads)
 config = {"micro": sm.params.micro, "materials": sm.params.materials}
-run.run(config, sm.wildcards.case, sm.input.porosity, sm.output.result, sm.output.figure, rule=sm.rule)
+(case,) = sm.params.micro["cases"]
+run.run(config, case, sm.input.porosity, sm.output.result, sm.output.figure, rule=sm.rule)
