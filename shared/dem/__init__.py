@@ -16,7 +16,7 @@ from shared.dem.contacts import (
     pair_values,
     update_contacts,
 )
-from shared.dem.hertz import bond_tension, contact_forces
+from shared.dem.hertz import bond_stretches, bond_tension, contact_forces
 from shared.dem.integrator import (
     StepReport,
     integrate,
@@ -46,6 +46,7 @@ __all__ = [
     "WallLoads",
     "Walls",
     "bond_pairs",
+    "bond_stretches",
     "bond_tension",
     "contact_forces",
     "contacts_need_update",
