@@ -20,7 +20,6 @@ from shared.dem.hertz import bond_stretches, bond_tension, contact_forces
 from shared.dem.integrator import (
     StepReport,
     integrate,
-    kinetic_energy,
     stable_time_step,
     step,
     unbalanced_force,
@@ -33,7 +32,6 @@ from shared.dem.walls import (
     Walls,
     servo_walls,
     wall_forces,
-    wall_stresses,
     walls_around,
 )
 
@@ -53,7 +51,6 @@ __all__ = [
     "cube_points",
     "detect_contacts",
     "integrate",
-    "kinetic_energy",
     "new_state",
     "pair_values",
     "servo_walls",
@@ -62,6 +59,5 @@ __all__ = [
     "unbalanced_force",
     "update_contacts",
     "wall_forces",
-    "wall_stresses",
     "walls_around",
 ]
