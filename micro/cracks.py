@@ -131,22 +131,9 @@ def bond_apertures(
 ) -> FloatArray:
     """Opening w of each bond beyond its stress-free contact [m]; > 0 means open.
 
-    w = |x_b - x_a| - (r_a + r_b) + delta0 (r_a + r_b) / (r0_a + r0_b), delta0 the
-    bond's stress-free overlap (0: the gap between the two spheres): the DEM's bond
-    stretch (:func:`shared.dem.bond_stretches`), the value bonds break by.
-
-    Parameters
-    ----------
-    bonds
-        (n_bonds, 2) point indices.
-    positions
-        (n_points, 3) point centres [m].
-    radii
-        (n_points,) current interaction radii [m].
-    reference_overlaps
-        (n_bonds,) stress-free overlaps delta0 at the reference radii [m], or None (0).
-    reference_radii
-        (n_points,) reference radii r0 [m]; needed with ``reference_overlaps``.
+    The DEM's bond stretch (:func:`shared.dem.bond_stretches`, whose parameters these
+    are, ``reference_overlaps`` being its ``bond_overlaps``): the number bonds break
+    by is the crack's aperture.
     """
     return bond_stretches(bonds, positions, radii, reference_overlaps, reference_radii)
 
