@@ -185,7 +185,7 @@ class SolverStats:
     ----------
     analyses
         Symbolic analyses (fill-reducing ordering), one per new sparsity pattern.
-    factorizations
+    factorisations
         Numeric factorisations.
     solves
         Calls of :meth:`CholeskySolver.solve`.
@@ -196,7 +196,7 @@ class SolverStats:
     """
 
     analyses: int = 0
-    factorizations: int = 0
+    factorisations: int = 0
     solves: int = 0
     factor_applications: int = 0
     iterations: int = 0
@@ -296,7 +296,7 @@ class CholeskySolver:
             and np.array_equal(matrix.indices, self._indices)
         )
 
-    def _factorize(self, matrix: sp.csc_matrix, ordered: bool) -> None:
+    def _factorise(self, matrix: sp.csc_matrix, ordered: bool) -> None:
         threaded = self.factor_blas_threads is not None
         try:
             if not self._same_pattern(matrix):
@@ -322,7 +322,7 @@ class CholeskySolver:
         self._factored_data = matrix.data.copy()
         self._stale_iterations = 0
         self._stale_solves = 0
-        self.stats.factorizations += 1
+        self.stats.factorisations += 1
 
     def drift(self, lower: sp.csc_matrix) -> float:
         """Largest scaled entry change of ``lower`` since the last factorisation [1].
@@ -396,7 +396,7 @@ class CholeskySolver:
             self.last_drift = self.drift(lower)
             refactor = refactor or self.last_drift > self.refactor_tolerance
         if refactor:
-            self._factorize(lower, ordered)
+            self._factorise(lower, ordered)
         diagonal = np.abs(lower.data[lower.indptr[:-1]])
         # A stale factor may only rent the iterations left before buying a new one.
         budget = self.max_iterations if refactor else min(self.max_iterations, remaining)
@@ -413,7 +413,7 @@ class CholeskySolver:
             self._backoff = 1 if converged else min(2 * self._backoff, _MAX_BACKOFF)
         if not converged and not refactor:
             # Buy: refactor and finish from the iterate reached with the old factor.
-            self._factorize(lower, ordered)
+            self._factorise(lower, ordered)
             solution, converged = self._corrected_solve(
                 lower, rhs, diagonal, self.max_iterations, offset, solution
             )
