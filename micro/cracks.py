@@ -307,9 +307,8 @@ def crack_conductivity(
         (n_facets,) length l_ij of the flow along a crack between the two cells of each
         facet [m]: the distance between their centroids (:func:`centroid_distances`),
         the points the crack's patches are built from. Not the dual length of the clay
-        conductances: between near-cospherical cells it tends to zero (8e-7 m against
-        3e-4 m of centroid distance, measured), and a crack there carried gas across
-        the default specimen at 5e-13 m2 with two cracks at 60 MPa.
+        conductances: between near-cospherical cells it tends to zero, and a crack
+        there would conduct without bound.
     material
         ``crack_roughness_factor`` eta [1], ``water_viscosity`` and ``gas_viscosity``
         [Pa s].
@@ -364,9 +363,8 @@ def capillary_release_forces(
     pi r_m^2 (r_m the pair's mean radius, the section of the bond model): the pull
     released cannot exceed what the two points' bond carried. Inside the specimen
     a_c is about that section; on the hull the patches reach to the centroids of hull
-    slivers, and without the bound a boundary point pushed out by its crack grew
-    the crack's area, hence the push, as it left (measured at 8 000 points: a point
-    1 mm out of the specimen on a 'crack' of 5 mm2 and 2.8 mm aperture).
+    slivers, and without the bound a boundary point pushed out by its crack would
+    grow the crack's area, hence the push, as it left.
 
     Parameters
     ----------

@@ -439,8 +439,7 @@ def transient_step(
     # the water of a free cell changes by dt times its net inflow, not by dS/dp dp:
     # equal for an exact solve, but the fluxes cancel pair by pair whatever the
     # solver's residual, which with crack conductances 1e10 times the clay's is not
-    # small next to the clay's storage (measured: 0.5 % of the water lost in one
-    # stale-factor step at a normwise backward error of 3e-12)
+    # small next to the clay's storage
     raw = saturation[free] + time_step * inflow[free] / pore
     clipped = np.clip(raw, material.residual_saturation, material.saturated_saturation)
     new_saturation = np.array(saturation, dtype=np.float64)

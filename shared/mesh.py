@@ -23,12 +23,12 @@ Walls: a boundary (hull) facet belongs to the face of the points' bounding box
 nearest to its centroid, index ``2 * axis + side`` with side 0 for the lower and 1
 for the upper wall (:data:`WALLS` gives the names). Not to the face its normal points
 to most: on the jagged faces of a deformed specimen a hull triangle in the middle of
-the y- face can face -x, and a permeability measurement along x then imposed the
-inlet pressure there, 4 mm from the inlet wall, next to outlet cells. The hull of a packed or jittered point cloud has few,
-large triangles, so pressure boundary conditions use a boundary *layer* of cells
-(:func:`boundary_cell_mask`): cells with a vertex within half a point spacing of the
-wall plane, plus the cells owning the wall's hull triangles, whose centroids lie within
-one spacing of the plane.
+the y- face can face -x, and a permeability measurement along x would impose the
+inlet pressure there, next to outlet cells. The hull of a packed or jittered point
+cloud has few, large triangles, so pressure boundary conditions use a boundary *layer*
+of cells (:func:`boundary_cell_mask`): cells with a vertex within half a point spacing
+of the wall plane, plus the cells owning the wall's hull triangles, whose centroids lie
+within one spacing of the plane.
 
 All loops over cells and facets run in serial numba kernels or vectorised numpy.
 :func:`update_mesh` recomputes only the geometry of moved points on the facet lists
@@ -594,9 +594,8 @@ def face_planes(points: npt.ArrayLike) -> FloatArray:
 
     Row 0 holds the lower faces (x-, y-, z-), row 1 the upper ones. A face's plane is
     the mean position of the N^(2/3) outermost points along its axis, not the outermost
-    one: a single point pushed out of a face would otherwise move the whole face (a
-    3 375-point specimen once loaded one such point with a whole face's membrane load,
-    2.1 kN; a 125-point one had no cell within a spacing of its y+ face).
+    one: a single point pushed out of a face would otherwise move the whole face, and
+    the face's membrane load would fall on that one point.
     """
     points = np.asarray(points, dtype=np.float64)
     n = points.shape[0]
