@@ -2,8 +2,8 @@
 
 - :func:`bench_deposition`: Table II series 2 (monodisperse disks of aspect ratio 0.1 in
   a box of 7.5 equivalent diameters, theta_ini random, A_swiv = 80 deg, A_slide = 5 d,
-  3 x 800 attempts). The issue's target is the full Table II run (2500 disks) in 10 min or
-  less on 2 cores, with a cost per particle that does not grow with the bed.
+  3 x 800 attempts). Target: the full Table II run (2500 disks) in 10 min or less on 2
+  cores, with a cost per particle that does not grow with the bed.
 - :func:`bench_deposition_cost`: the cost per particle against the particles already in
   the bed (series 2 measured here, plus the stored ``settle_time`` of earlier packing
   files, e.g. the 10 000-particle 0.1-0.2 um fraction); ``deposition_cost.{json,png}``.

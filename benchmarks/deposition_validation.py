@@ -31,8 +31,7 @@ resolution is multiplied by ``sqrt(scale)`` too, to keep the voxel edge l_v (f_o
 chord lengths depend on it). The narrower box cannot hold the largest particles of the
 polydisperse size laws, so scaled runs of the fractions truncate the basal surface law at
 a diameter w / 2 (``basal_surface_max_m2 = pi (w / 4)^2``) unless the preset cuts lower
-(the 1-2 um preset cuts at w / 4 of the full box); it cuts 0.4-0.7 % of the particles of
-the other two fractions at scale 0.2. A narrower box gives noisier values and a
+(the 1-2 um preset cuts at w / 4 of the full box). A narrower box gives noisier values and a
 box-limited REV edge: scaled rows are a check that the chain runs, the full-scale rows are
 the validation.
 """

@@ -115,7 +115,7 @@ def bench_flow(
     dict
         Sizes (points, cells, facets, unknowns), the machine's load average before the
         timings (other jobs share the cores); median and fastest time of each phase
-        [ms] (``factorization_solve_blas2``: the refactorisation with two OpenBLAS
+        [ms] (``factorisation_solve_blas2``: the refactorisation with two OpenBLAS
         threads, :class:`shared.solver.CholeskySolver` ``factor_blas_threads=2``);
         ``remesh_step_ms`` (Delaunay + geometry + pattern + conductance +
         assembly + analysis + factorisation + solve), ``reuse_step_ms`` (one transient
@@ -164,13 +164,13 @@ def bench_flow(
         "pattern": lambda: flow_pattern(mesh, dirichlet),
         "conductance": lambda: facet_conductance(mesh, water, porosity, "water", material),
         "assembly": lambda: assemble_matrix(mesh, pattern, conductance, capacity / time_step),
-        "analysis_factorization_solve": lambda: CholeskySolver(
+        "analysis_factorisation_solve": lambda: CholeskySolver(
             ordering_method=ordering_method
         ).solve(matrix, rhs, ordered=True),
-        "factorization_solve": lambda: solver.solve(
+        "factorisation_solve": lambda: solver.solve(
             matrix, rhs, force_refactor=True, ordered=True
         ),
-        "factorization_solve_blas2": lambda: threaded.solve(
+        "factorisation_solve_blas2": lambda: threaded.solve(
             matrix, rhs, force_refactor=True, ordered=True
         ),
         "solve_reused_factor": lambda: solver.solve(matrix, rhs, ordered=True),
@@ -195,7 +195,7 @@ def bench_flow(
         porosity * mesh.volumes * saturation_derivative(-drifted, porosity, material) / time_step,
     )
     record["reuse_drift"] = stale.drift(drifted_matrix)
-    record["reuse_refactored"] = stale.stats.factorizations > before.factorizations
+    record["reuse_refactored"] = stale.stats.factorisations > before.factorisations
     record["reuse_factor_applications"] = (
         stale.stats.factor_applications - before.factor_applications
     )
@@ -204,7 +204,7 @@ def bench_flow(
     record["residual_tolerance"] = stale.residual_tolerance
     remesh_phases = (
         "delaunay", "geometry", "pattern", "conductance", "assembly",
-        "analysis_factorization_solve",
+        "analysis_factorisation_solve",
     )
     for suffix in ("ms", "min_ms"):
         record[f"remesh_step_{suffix}"] = sum(record[f"{p}_{suffix}"] for p in remesh_phases)
@@ -265,7 +265,7 @@ def _plot_scaling(records: list[dict], exponents: dict[str, float], path: Path) 
     figure = Figure(figsize=(7.0, 5.0))
     axes = figure.add_subplot()
     steps = ("remesh_step", "coupled_flow_step", "reuse_step")
-    phases = ("delaunay", "analysis_factorization_solve", "geometry_update", "pattern")
+    phases = ("delaunay", "analysis_factorisation_solve", "geometry_update", "pattern")
     for name in steps + phases:
         style = "o-" if name in steps else "s--"
         axes.loglog(
@@ -390,7 +390,7 @@ def bench_coupled_step(
         "geometry_update": lambda: update_geometry(state, bounds, material),
     }
     times: dict[str, list[float]] = {name: [] for name in phases}
-    work: dict[str, list] = {"applications": [], "iterations": [], "factorizations": [],
+    work: dict[str, list] = {"applications": [], "iterations": [], "factorisations": [],
                              "saturation_error": [], "saturation_change": []}
     remeshes = 0
     for count in range(repeats + 1):
@@ -414,9 +414,9 @@ def bench_coupled_step(
             stats = system.solver.stats
             work["applications"].append(stats.factor_applications - before.factor_applications)
             work["iterations"].append(stats.iterations - before.iterations)
-            work["factorizations"].append(stats.factorizations - before.factorizations)
+            work["factorisations"].append(stats.factorisations - before.factorisations)
     totals = np.sum([times[name] for name in phases], axis=0)
-    reused = totals[np.array(work["factorizations"]) == 0]
+    reused = totals[np.array(work["factorisations"]) == 0]
     record: dict = {
         "n_points": dem.n_points,
         "n_cells": mesh.n_cells,
@@ -429,7 +429,7 @@ def bench_coupled_step(
         "remeshed_steps": remeshes,
         "factor_applications_per_step": work["applications"],
         "iterations_per_step": work["iterations"],
-        "factorizations_per_step": work["factorizations"],
+        "factorisations_per_step": work["factorisations"],
         "saturation_error_per_step": work["saturation_error"],
         "saturation_change_per_step": work["saturation_change"],
         "coupled_step_per_step_ms": totals.tolist(),

@@ -1,9 +1,13 @@
 """Crack model of the micro pellet (Caulk 2022, Sec. 3.3.6; DESIGN.md section 3).
 
-A bond (two points in contact in the reference state) opens when its normal force
-reaches zero, i.e. when the aperture w = |x_b - x_a| - (r_a + r_b) turns positive. An
-open bond that is an edge of the Delaunay mesh is a crack: a planar gap normal to the
-bond through the middle of the gap, p3 = x_a + n (r_a + w/2), n = (x_b - x_a)/|x_b - x_a|.
+A bond (two points in contact in the reference state) breaks in the DEM once its
+tension exceeds its strength (:func:`shared.dem.bond_tension`). A broken bond is open
+while its aperture w is positive, i.e. while it carries no normal force: w is the
+bond's stretch beyond its stress-free contact (:func:`shared.dem.bond_stretches`, the
+number the DEM breaks it by; |x_b - x_a| - (r_a + r_b) without a stress-free overlap).
+An open bond that is an edge of the Delaunay mesh is a crack: a planar gap normal to
+the bond through the middle of the gap, p3 = x_a + n (r_a + w/2),
+n = (x_b - x_a)/|x_b - x_a|.
 
 It crosses every internal facet (triangle a, b, c between cells i and j) around the
 edge; each such crossing is a patch of the crack with
@@ -19,12 +23,11 @@ below gamma / w, gas-filled otherwise. A gas-filled crack scales the water condu
 of its facets by eta (Eq. 3.34) and adds the cubic-law gas conductivity
 w^3 / (12 mu_gas) b / l_ij (Eq. 3.37 times the facet geometry b / l_ij, the crack's
 width across the facet over the distance between the two cells' centroids); an
-imbibed crack does
-the reverse with the water viscosity. The parallel-plate law holds for w << b: the
-aperture in it is capped at b, so that a bond opened wider than its crack (a point
-leaving the specimen) conducts at most like a channel of side b instead of adding a
-conductance that grows as w^3 (2.8 mm "apertures" once put 16 decades between the gas
-conductances and made the permeability measurement ill-conditioned).
+imbibed crack does the reverse with the water viscosity. The parallel-plate law holds
+for w << b: the aperture in it is capped at b, so that a bond opened wider than its
+crack (a point leaving the specimen) conducts at most like a channel of side b instead
+of adding a conductance that grows as w^3, which would make the permeability
+measurement ill-conditioned.
 
 Mesh data used (:class:`shared.mesh.Mesh`): ``facet_vertices`` (triangles),
 ``facet_cells`` (the two cells of each triangle), ``centroids`` (C, and the flow
@@ -38,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from shared.dem.hertz import bond_stretches
 from shared.materials import ClayParameters
 
 __all__ = ["CrackNetwork", "CrackConductivity", "bond_apertures", "crack_network",
@@ -127,34 +131,11 @@ def bond_apertures(
 ) -> FloatArray:
     """Opening w of each bond beyond its stress-free contact [m]; > 0 means open.
 
-    w = |x_b - x_a| - (r_a + r_b) + delta0 (r_a + r_b) / (r0_a + r0_b), delta0 the
-    bond's stress-free overlap (0: the gap between the two spheres).
-
-    Parameters
-    ----------
-    bonds
-        (n_bonds, 2) point indices.
-    positions
-        (n_points, 3) point centres [m].
-    radii
-        (n_points,) current interaction radii [m].
-    reference_overlaps
-        (n_bonds,) stress-free overlaps delta0 at the reference radii [m], or None (0).
-    reference_radii
-        (n_points,) reference radii r0 [m]; needed with ``reference_overlaps``.
+    The DEM's bond stretch (:func:`shared.dem.bond_stretches`, whose parameters these
+    are, ``reference_overlaps`` being its ``bond_overlaps``): the number bonds break
+    by is the crack's aperture.
     """
-    bonds = np.asarray(bonds, dtype=np.int64).reshape(-1, 2)
-    positions = np.asarray(positions, dtype=np.float64)
-    radii = np.asarray(radii, dtype=np.float64)
-    distance = np.linalg.norm(positions[bonds[:, 1]] - positions[bonds[:, 0]], axis=1)
-    contact = radii[bonds[:, 0]] + radii[bonds[:, 1]]
-    if reference_overlaps is None:
-        return distance - contact
-    if reference_radii is None:
-        raise ValueError("reference_radii are needed with reference_overlaps")
-    reference = np.asarray(reference_radii, dtype=np.float64)
-    scale = contact / (reference[bonds[:, 0]] + reference[bonds[:, 1]])
-    return distance - contact + np.asarray(reference_overlaps, dtype=np.float64) * scale
+    return bond_stretches(bonds, positions, radii, reference_overlaps, reference_radii)
 
 
 def _edge_patches(
@@ -326,9 +307,8 @@ def crack_conductivity(
         (n_facets,) length l_ij of the flow along a crack between the two cells of each
         facet [m]: the distance between their centroids (:func:`centroid_distances`),
         the points the crack's patches are built from. Not the dual length of the clay
-        conductances: between near-cospherical cells it tends to zero (8e-7 m against
-        3e-4 m of centroid distance, measured), and a crack there carried gas across
-        the default specimen at 5e-13 m2 with two cracks at 60 MPa.
+        conductances: between near-cospherical cells it tends to zero, and a crack
+        there would conduct without bound.
     material
         ``crack_roughness_factor`` eta [1], ``water_viscosity`` and ``gas_viscosity``
         [Pa s].
@@ -383,9 +363,8 @@ def capillary_release_forces(
     pi r_m^2 (r_m the pair's mean radius, the section of the bond model): the pull
     released cannot exceed what the two points' bond carried. Inside the specimen
     a_c is about that section; on the hull the patches reach to the centroids of hull
-    slivers, and without the bound a boundary point pushed out by its crack grew
-    the crack's area, hence the push, as it left (measured at 8 000 points: a point
-    1 mm out of the specimen on a 'crack' of 5 mm2 and 2.8 mm aperture).
+    slivers, and without the bound a boundary point pushed out by its crack would
+    grow the crack's area, hence the push, as it left.
 
     Parameters
     ----------

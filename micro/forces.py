@@ -202,10 +202,9 @@ def sector_weights(mesh: Mesh, positions: npt.ArrayLike, radii: npt.ArrayLike) -
     Returns
     -------
     SectorWeights
-        Exact for these positions and radii only. Measured at 15k points: reusing
-        those of the remesh (reference radii) four coupled steps later errs by 2-6e-5
-        of the largest point force, while :func:`hydromechanical_forces` computes
-        exact ones in its kernel for about 10 ms more than with cached weights.
+        Exact for these positions and radii only: weights kept from a remesh are
+        approximate once the points move, while :func:`hydromechanical_forces`
+        computes exact ones in its kernel at a small cost.
     """
     return SectorWeights(
         facets=facet_vertex_weights(positions, radii, mesh.facet_vertices),

@@ -262,11 +262,11 @@ def relax(
     points held together no longer touches the main body (the largest group), is a
     detached fragment: the pore-fluid and membrane loads, computed for the cells it
     closed at the start, no longer act on it (held, they would push it away without
-    bound: at 343 points, a hull point that still touched a neighbour, but no longer
-    the specimen, was carried 4 mm out), and it is stopped, since damping proportional
-    to force does not slow a point that no force acts on. Single points are checked
-    every ``check_interval`` steps, groups every ten times that (a connected-components
-    pass takes about 4 ms at 8 000 points, more than a DEM step).
+    bound, even a hull point that still touches a neighbour but no longer the
+    specimen), and it is stopped, since damping proportional to force does not slow a
+    point that no force acts on. Single points are checked every ``check_interval``
+    steps, groups every ten times that (a connected-components pass costs more than a
+    DEM step).
 
     Returns
     -------

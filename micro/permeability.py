@@ -20,32 +20,29 @@ circumcentre (its dual point). With the velocity method every boundary cell is
 Dirichlet and this linear field is the exact discrete solution of a homogeneous
 medium (the scheme reproduces linear fields), so the input permeability comes back to
 round-off. With the wall-flux method the jagged no-flux side walls break linearity
-anyway; there the circumcentres are clipped to the box, so that hull slivers, whose
-circumcentres lie far out, keep pressures between the two wall values, which cuts
-the O(h/L) excess by a third (+2.5 %, +1.2 %, +0.5 % for 8^3, 12^3, 16^3 jittered grids,
-+1.4 % for 2000 random points).
+anyway, an O(h/L) excess; there the circumcentres are clipped to the box, so that hull
+slivers, whose circumcentres lie far out, keep pressures between the two wall values,
+which reduces that excess.
 
 Zero conductances (e.g. the gas phase of a saturated region) would make isolated free
 cells singular: conductances are floored at ``conductance_floor`` times the largest
-one; gas cracks reach 1e11 times the clay's conductance, and a floor of 1e-12 raised
-half the clay's gas conductances (+25 % on the measured value), hence 1e-16.
+one, a floor low enough to leave the clay's gas conductances alone although gas cracks
+reach 1e11 times them.
 
 A steady solve without storage does not depend on the mean pressure, so it is solved
 for the departure from ``mean_pressure``: with open gas cracks the conductances span
 twelve decades, and carrying a mean ten times the drop through that ill-conditioned
-system loses the digits the flux is made of (a measured gas flux once came out
-negative). Near saturation a few gas-filled cracks conduct 1e16 times the clay's gas
-conductance: the flux across such a facet, computed in double precision, carries a
-round-off as large as a few per cent of the whole specimen's rate (measured: inlet and
-outlet 3.56e-19 and 3.78e-19 m3/s, with per-cell imbalances of 1e-20 beside the cracks),
-whatever the solver's tolerance, and the clay's fluxes can be off as much (a rate 1 %
-off with inlet and outlet balanced to 0.5 %). Inlet and outlet rates that differ by
-more than ``balance_tolerance`` (0.1 %) are then refined: the residual and the fluxes are computed in
-extended precision (``numpy.longdouble``) and the double-precision factor solves for the
-correction (mixed-precision iterative refinement; each sweep cut that imbalance about
-tenfold, to 1e-4 in three). A wall flux that runs against the gradient, or that stays
-unbalanced after ``_REFINEMENTS`` sweeps, is a failed solve: it is reported as NaN with
-a warning rather than as a permeability.
+system loses the digits the flux is made of. Near saturation a few gas-filled cracks
+conduct 1e16 times the clay's gas conductance: the flux across such a facet, computed
+in double precision, carries a round-off as large as a few per cent of the whole
+specimen's rate, whatever the solver's tolerance, and the clay's fluxes can be off as
+much. Inlet and outlet rates that differ by more than ``balance_tolerance`` (0.1 %) are
+then refined: the residual and the fluxes are computed in extended precision
+(``numpy.longdouble``) and the double-precision factor solves for the correction
+(mixed-precision iterative refinement). A wall flux that runs against the gradient, or that stays unbalanced
+after ``_REFINEMENTS`` sweeps, is a failed solve: it is reported as NaN with a warning
+rather than as a permeability. The measurements behind these choices are in
+``benchmarks/reference/README.md``.
 """
 
 from __future__ import annotations
@@ -89,8 +86,7 @@ def _measurement_solver() -> CholeskySolver:
     A factor kept from another phase or axis would precondition conjugate gradients
     that meet a normwise backward error of 1e-16 on a crack network's conductances
     (twelve decades) and still miss the fluxes of the clay matrix by orders of
-    magnitude (measured: inlet and outlet gas rates 1.6e-12 and 5.3e-12 m3/s); a
-    direct solve with the matrix's own factor balances them to 1e-12.
+    magnitude; a direct solve with the matrix's own factor balances them to 1e-12.
     """
     return CholeskySolver(residual_tolerance=1e-13)
 

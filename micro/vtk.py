@@ -27,11 +27,9 @@ its directory and renamed.
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 import xml.etree.ElementTree as ET
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import meshio
@@ -40,6 +38,7 @@ import numpy.typing as npt
 
 from micro.forces import point_suction
 from micro.hydration import PelletState
+from shared.io import atomic_write
 
 __all__ = ["snapshot_mesh", "write_snapshot", "write_collection", "write_checkpoint_snapshot",
            "clear_snapshots", "snapshot_name"]
@@ -115,20 +114,6 @@ def snapshot_mesh(state: PelletState, cracks: bool = True) -> meshio.Mesh:
     return meshio.Mesh(positions, cells, point_data=point_data, cell_data=cell_data)
 
 
-def _atomic(path: Path, write: Callable[[str], None]) -> Path:
-    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(handle)
-    try:
-        write(tmp_name)
-        os.replace(tmp_name, path)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
-    return path
-
-
 def write_snapshot(path: str | Path, state: PelletState, cracks: bool = True) -> Path:
     """Write one snapshot of the pellet state to a ``.vtu`` file, atomically.
 
@@ -146,7 +131,7 @@ def write_snapshot(path: str | Path, state: PelletState, cracks: bool = True) ->
     """
     grid = snapshot_mesh(state, cracks)
     # binary, zlib-compressed appended data (meshio's default for vtu)
-    return _atomic(Path(path), lambda tmp: meshio.write(tmp, grid, file_format="vtu"))
+    return atomic_write(path, lambda tmp: meshio.write(tmp, grid, file_format="vtu"))
 
 
 def write_collection(path: str | Path, entries: Sequence[tuple[float, str]]) -> Path:
@@ -172,8 +157,8 @@ def write_collection(path: str | Path, entries: Sequence[tuple[float, str]]) -> 
                       part="0", file=str(name))
     ET.indent(root)
     tree = ET.ElementTree(root)
-    return _atomic(Path(path), lambda tmp: tree.write(tmp, encoding="utf-8",
-                                                      xml_declaration=True))
+    return atomic_write(path, lambda tmp: tree.write(tmp, encoding="utf-8",
+                                                     xml_declaration=True))
 
 
 def _snapshots(directory: Path) -> list[tuple[int, str]]:

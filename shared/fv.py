@@ -35,6 +35,7 @@ from scipy.spatial import cKDTree
 
 from shared.materials import ClayParameters
 from shared.mesh import Mesh
+from shared.ordering import nested_dissection
 from shared.permeability import (
     Phase,
     intrinsic_permeability,
@@ -63,13 +64,6 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
-
-# Nested dissection stops at this many cells: smaller blocks barely change the fill.
-_LEAF_SIZE = 16
-# Candidate positions (quantiles) of a dissection plane: trading some balance for a
-# smaller separator reduces the fill (and 0.42-0.58 lost nothing against 0.35-0.65).
-_CUT_FRACTIONS = np.array([0.42, 0.46, 0.5, 0.54, 0.58])
-_BINS = 1024
 
 
 def _require_cell_arrays(mesh: Mesh, **arrays: FloatArray) -> None:
@@ -115,150 +109,6 @@ class FlowPattern:
 
 
 @njit(cache=True)
-def _adjacency(n_nodes: int, pairs: IntArray) -> tuple[IntArray, IntArray]:
-    """Symmetric CSR adjacency (start, neighbours) of nodes joined by the listed pairs."""
-    start = np.zeros(n_nodes + 1, dtype=np.int64)
-    for f in range(pairs.shape[0]):
-        start[pairs[f, 0] + 1] += 1
-        start[pairs[f, 1] + 1] += 1
-    for k in range(n_nodes):
-        start[k + 1] += start[k]
-    fill = start[:-1].copy()
-    neighbours = np.empty(start[n_nodes], dtype=np.int64)
-    for f in range(pairs.shape[0]):
-        a, b = pairs[f, 0], pairs[f, 1]
-        neighbours[fill[a]] = b
-        fill[a] += 1
-        neighbours[fill[b]] = a
-        fill[b] += 1
-    return start, neighbours
-
-
-@njit(cache=True)
-def _label_halves(
-    nodes: IntArray, centres: FloatArray, start: IntArray, neighbours: IntArray,
-    side: IntArray, cross: IntArray, stamp: IntArray, segment: int,
-) -> None:
-    """Label ``nodes`` 0 / 1 (halves) or 2 (separator) in ``side``.
-
-    The nodes are cut by a plane normal to their longest coordinate extent, at the
-    quantile of :data:`_CUT_FRACTIONS` that cuts the fewest edges per unit of balance
-    (cut edges / (2 min(q, 1 - q))); the cut edges are covered by a small vertex
-    separator, taking the nodes with the most uncovered cut edges first (for a plane
-    cut this greedy cover matched the minimum cover, by bipartite matching, at 15k
-    points). Measured at 15k points: 11 % less fill in the Cholesky factor than the
-    median cut, for one more pass over the edges.
-    """
-    low = np.full(3, np.inf)
-    high = np.full(3, -np.inf)
-    for node in nodes:
-        stamp[node] = segment
-        for d in range(3):
-            low[d] = min(low[d], centres[node, d])
-            high[d] = max(high[d], centres[node, d])
-    axis = np.argmax(high - low)
-    if not high[axis] > low[axis]:
-        side[nodes] = 1  # coincident centres: no cut
-        return
-    # Quantiles from a histogram of as many bins as nodes (at most 1024): one pass, no
-    # sort, balance within a bin.
-    bins = min(nodes.shape[0], _BINS)
-    width = (high[axis] - low[axis]) / bins
-    counts = np.zeros(bins + 1, dtype=np.int64)
-    for node in nodes:
-        counts[int((centres[node, axis] - low[axis]) / width)] += 1
-    planes = np.empty(_CUT_FRACTIONS.shape[0])
-    below, k = 0, 0
-    for b in range(bins + 1):
-        below += counts[b]
-        while k < planes.shape[0] and below >= _CUT_FRACTIONS[k] * nodes.shape[0]:
-            planes[k] = low[axis] + (b + 1) * width
-            k += 1
-    cut_edges = np.zeros(planes.shape[0])
-    first, final = planes[0], planes[-1]
-    for node in nodes:
-        here = centres[node, axis]
-        if here >= final:
-            continue
-        for m in range(start[node], start[node + 1]):
-            other = neighbours[m]
-            there = centres[other, axis]
-            if there <= here or there < first or stamp[other] != segment:
-                continue
-            for k in range(planes.shape[0]):
-                # an edge is cut by a plane lying in (here, there]
-                if here < planes[k] <= there:
-                    cut_edges[k] += 1.0
-    score = cut_edges / (2.0 * np.minimum(_CUT_FRACTIONS, 1.0 - _CUT_FRACTIONS))
-    plane = planes[np.argmin(score)]
-    for node in nodes:
-        side[node] = 0 if centres[node, axis] < plane else 1
-    cut = np.empty(nodes.shape[0], dtype=np.int64)
-    n_cut, most = 0, 0
-    for node in nodes:
-        cross[node] = 0
-        for m in range(start[node], start[node + 1]):
-            other = neighbours[m]
-            if stamp[other] == segment and side[other] != side[node]:
-                cross[node] += 1
-        if cross[node] > 0:
-            cut[n_cut] = node
-            n_cut += 1
-            most = max(most, cross[node])
-    for level in range(most, 0, -1):
-        for node in cut[:n_cut]:
-            if side[node] == 2 or cross[node] < level:
-                continue
-            for m in range(start[node], start[node + 1]):
-                other = neighbours[m]
-                if stamp[other] == segment and side[other] == 1 - side[node]:
-                    cross[other] -= 1
-            side[node] = 2
-
-
-@njit(cache=True)
-def _nested_dissection(
-    centres: FloatArray, start: IntArray, neighbours: IntArray, leaf_size: int
-) -> IntArray:
-    """Fill-reducing elimination order of a mesh graph by geometric nested dissection.
-
-    Each set of nodes larger than ``leaf_size`` is split by :func:`_label_halves` and
-    reordered as [half 0, half 1, separator]; the halves are split in turn. Returns
-    the nodes in elimination order.
-    """
-    n = centres.shape[0]
-    order = np.arange(n)
-    side = np.zeros(n, dtype=np.int64)
-    cross = np.zeros(n, dtype=np.int64)
-    stamp = np.full(n, -1, dtype=np.int64)
-    # Depth-first: the stack never holds more than two segments per level.
-    stack = np.empty((128, 2), dtype=np.int64)
-    stack[0, 0], stack[0, 1] = 0, n
-    top, segment = 1, 0
-    while top > 0:
-        top -= 1
-        first, end = stack[top, 0], stack[top, 1]
-        if end - first <= leaf_size:
-            continue
-        segment += 1
-        nodes = order[first:end].copy()
-        _label_halves(nodes, centres, start, neighbours, side, cross, stamp, segment)
-        counts = np.zeros(3, dtype=np.int64)
-        for node in nodes:
-            counts[side[node]] += 1
-        if counts[0] == 0 or counts[1] == 0:
-            continue  # coincident centres: no cut, keep as a leaf
-        fill = np.array([first, first + counts[0], first + counts[0] + counts[1]])
-        for node in nodes:
-            order[fill[side[node]]] = node
-            fill[side[node]] += 1
-        stack[top, 0], stack[top, 1] = first, first + counts[0]
-        stack[top + 1, 0], stack[top + 1, 1] = first + counts[0], fill[1]
-        top += 2
-    return order
-
-
-@njit(cache=True)
 def _lower_pattern(
     free_index: IntArray, facet_cells: IntArray, n_free: int
 ) -> tuple[IntArray, npt.NDArray[np.int32], IntArray]:
@@ -300,10 +150,9 @@ def _lower_pattern(
 def flow_pattern(mesh: Mesh, dirichlet: npt.ArrayLike) -> FlowPattern:
     """Build the system's sparsity pattern for a mesh and a set of Dirichlet cells.
 
-    The unknowns are numbered in a fill-reducing order (geometric nested dissection
-    of the free cells' centroids), so that the solver needs no ordering of its own
-    (:meth:`shared.solver.CholeskySolver.solve` with ``ordered=True``): METIS took as
-    long as the factorisation itself at 15k points.
+    The unknowns are numbered in a fill-reducing order of the free cells' centroids
+    (:func:`shared.ordering.nested_dissection`), so that the solver needs no ordering of
+    its own (:meth:`shared.solver.CholeskySolver.solve` with ``ordered=True``).
 
     Parameters
     ----------
@@ -324,9 +173,7 @@ def flow_pattern(mesh: Mesh, dirichlet: npt.ArrayLike) -> FlowPattern:
     local = np.full(mesh.n_cells, -1, dtype=np.int64)
     local[free] = np.arange(n_free, dtype=np.int64)
     ends = local[mesh.facet_cells]
-    start, neighbours = _adjacency(n_free, ends[np.all(ends >= 0, axis=1)])
-    centres = np.ascontiguousarray(mesh.centroids[free])
-    free_cells = free[_nested_dissection(centres, start, neighbours, _LEAF_SIZE)]
+    free_cells = free[nested_dissection(mesh.centroids[free], ends[np.all(ends >= 0, axis=1)])]
     free_index = np.full(mesh.n_cells, -1, dtype=np.int64)
     free_index[free_cells] = np.arange(n_free, dtype=np.int64)
     indptr, indices, facet_position = _lower_pattern(free_index, mesh.facet_cells, n_free)
@@ -592,8 +439,7 @@ def transient_step(
     # the water of a free cell changes by dt times its net inflow, not by dS/dp dp:
     # equal for an exact solve, but the fluxes cancel pair by pair whatever the
     # solver's residual, which with crack conductances 1e10 times the clay's is not
-    # small next to the clay's storage (measured: 0.5 % of the water lost in one
-    # stale-factor step at a normwise backward error of 3e-12)
+    # small next to the clay's storage
     raw = saturation[free] + time_step * inflow[free] / pore
     clipped = np.clip(raw, material.residual_saturation, material.saturated_saturation)
     new_saturation = np.array(saturation, dtype=np.float64)

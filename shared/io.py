@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -22,7 +22,7 @@ import xarray as xr
 
 from shared.provenance import code_sha256, code_version, config_sha256, inputs_record
 
-__all__ = ["OutputError", "read_dataset", "write_dataset", "netcdf_safe_attrs"]
+__all__ = ["OutputError", "read_dataset", "write_dataset", "netcdf_safe_attrs", "atomic_write"]
 
 _STAGE_SOURCES = {
     "imaging": ("imaging/*.py", "shared/*.py"),
@@ -125,8 +125,6 @@ def write_dataset(
         If a variable lacks ``units`` or ``long_name`` or a dimension is anonymous.
     """
     _check_contract(ds)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     now = datetime.now(timezone.utc).replace(microsecond=0).isoformat()
     version = code_version()
     sources = _STAGE_SOURCES.get(stage, ("shared",))
@@ -160,10 +158,22 @@ def write_dataset(
         for name, var in out.data_vars.items()
         if var.dtype.kind in "iuf" and var.ndim > 0
     }
+    return atomic_write(path, lambda tmp: out.to_netcdf(tmp, engine="netcdf4", encoding=encoding))
+
+
+def atomic_write(path: str | Path, write: Callable[[str], object]) -> Path:
+    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``.
+
+    The folder is created if missing. On any error the temporary file is removed and
+    ``path`` keeps its old content, so an interrupted run never leaves a readable but
+    wrong file.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     handle, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(handle)
     try:
-        out.to_netcdf(tmp_name, engine="netcdf4", encoding=encoding)
+        write(tmp_name)
         os.replace(tmp_name, path)
     except BaseException:
         Path(tmp_name).unlink(missing_ok=True)

@@ -23,12 +23,12 @@ Walls: a boundary (hull) facet belongs to the face of the points' bounding box
 nearest to its centroid, index ``2 * axis + side`` with side 0 for the lower and 1
 for the upper wall (:data:`WALLS` gives the names). Not to the face its normal points
 to most: on the jagged faces of a deformed specimen a hull triangle in the middle of
-the y- face can face -x, and a permeability measurement along x then imposed the
-inlet pressure there, 4 mm from the inlet wall, next to outlet cells. The hull of a packed or jittered point cloud has few,
-large triangles, so pressure boundary conditions use a boundary *layer* of cells
-(:func:`boundary_cell_mask`): cells with a vertex within half a point spacing of the
-wall plane, plus the cells owning the wall's hull triangles, whose centroids lie within
-one spacing of the plane.
+the y- face can face -x, and a permeability measurement along x would impose the
+inlet pressure there, next to outlet cells. The hull of a packed or jittered point
+cloud has few, large triangles, so pressure boundary conditions use a boundary *layer*
+of cells (:func:`boundary_cell_mask`): cells with a vertex within half a point spacing
+of the wall plane, plus the cells owning the wall's hull triangles, whose centroids lie
+within one spacing of the plane.
 
 All loops over cells and facets run in serial numba kernels or vectorised numpy.
 :func:`update_mesh` recomputes only the geometry of moved points on the facet lists
@@ -44,7 +44,7 @@ import numpy.typing as npt
 import xarray as xr
 from numba import njit, prange
 from scipy.interpolate import RegularGridInterpolator
-from scipy.spatial import ConvexHull, Delaunay, QhullError, cKDTree
+from scipy.spatial import Delaunay, QhullError
 
 __all__ = [
     "WALLS",
@@ -56,11 +56,8 @@ __all__ = [
     "wall_index",
     "boundary_cell_mask",
     "mean_spacing",
-    "convex_hull_volume",
-    "porosity_at_centroids",
     "porosity_at_points",
     "face_planes",
-    "point_average",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -597,9 +594,8 @@ def face_planes(points: npt.ArrayLike) -> FloatArray:
 
     Row 0 holds the lower faces (x-, y-, z-), row 1 the upper ones. A face's plane is
     the mean position of the N^(2/3) outermost points along its axis, not the outermost
-    one: a single point pushed out of a face would otherwise move the whole face (a
-    3 375-point specimen once loaded one such point with a whole face's membrane load,
-    2.1 kN; a 125-point one had no cell within a spacing of its y+ face).
+    one: a single point pushed out of a face would otherwise move the whole face, and
+    the face's membrane load would fall on that one point.
     """
     points = np.asarray(points, dtype=np.float64)
     n = points.shape[0]
@@ -607,60 +603,6 @@ def face_planes(points: npt.ArrayLike) -> FloatArray:
     lower = np.partition(points, face - 1, axis=0)[:face].mean(axis=0)
     upper = -np.partition(-points, face - 1, axis=0)[:face].mean(axis=0)
     return np.stack([lower, upper])
-
-
-def point_average(
-    mesh: Mesh, values: npt.ArrayLike, weights: npt.ArrayLike | None = None
-) -> FloatArray:
-    """Weighted mean of a cell field over the cells incident to each point.
-
-    Used to give DEM points the saturation or suction of the surrounding clay
-    (thesis Sec. 3.3.2). A point that is no vertex of any cell (Qhull may leave
-    coplanar or duplicated points out, REFERENCE_NOTES section 8.10) takes the value
-    of the cell with the nearest centroid instead of dividing by zero.
-
-    Parameters
-    ----------
-    mesh
-        The mesh.
-    values
-        Cell values, shape (n_cells,), any unit.
-    weights
-        Cell weights, shape (n_cells,), >= 0; default the cell volumes [m3].
-
-    Returns
-    -------
-    ndarray, shape (n_points,)
-        Point values, in the unit of ``values``.
-    """
-    values = np.asarray(values, dtype=np.float64)
-    weight = mesh.volumes if weights is None else np.asarray(weights, dtype=np.float64)
-    if values.shape != (mesh.n_cells,) or weight.shape != (mesh.n_cells,):
-        raise ValueError(f"values and weights must have shape ({mesh.n_cells},)")
-    n_points = mesh.points.shape[0]
-    corners = mesh.tetrahedra.ravel()
-    total = np.bincount(corners, np.repeat(weight * values, 4), minlength=n_points)
-    norm = np.bincount(corners, np.repeat(weight, 4), minlength=n_points)
-    result = np.empty(n_points)
-    has_cells = norm > 0.0
-    result[has_cells] = total[has_cells] / norm[has_cells]
-    if not np.all(has_cells):
-        nearest = cKDTree(mesh.centroids).query(mesh.points[~has_cells])[1]
-        result[~has_cells] = values[nearest]
-    return result
-
-
-def convex_hull_volume(points: npt.ArrayLike) -> float:
-    """Volume of the convex hull of points [m3] (Qhull), for checks."""
-    return float(ConvexHull(np.asarray(points, dtype=np.float64)).volume)
-
-
-def porosity_at_centroids(mesh: Mesh, porosity: xr.DataArray) -> FloatArray:
-    """Trilinear interpolation of a porosity grid at the cell centroids.
-
-    See :func:`porosity_at_points`, at ``mesh.centroids``.
-    """
-    return porosity_at_points(mesh.centroids, porosity)
 
 
 def porosity_at_points(points: npt.ArrayLike, porosity: xr.DataArray) -> FloatArray:

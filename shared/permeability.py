@@ -1,6 +1,7 @@
-"""Permeability laws: relative, intrinsic (porosity-dependent) and cubic-law cracks.
+"""Permeability laws of the clay: relative and intrinsic (porosity-dependent).
 
-DESIGN.md section 3 (thesis Eqs. 3.17, 3.18, 3.37). The effective saturation
+DESIGN.md section 3 (thesis Eqs. 3.17, 3.18; the cubic law of cracks, Eq. 3.37, is in
+:mod:`micro.cracks`). The effective saturation
 Se = (S - S_r)/(S_s - S_r) is clamped to [0, 1] (not floored at S_r: REFERENCE_NOTES
 section 8.8); the gas phase uses 1 - Se.
 """
@@ -19,7 +20,6 @@ __all__ = [
     "effective_saturation",
     "relative_permeability",
     "intrinsic_permeability",
-    "crack_conductivity",
     "phase_viscosity",
 ]
 
@@ -99,25 +99,6 @@ def intrinsic_permeability(
     return material.intrinsic_permeability_reference * np.exp(
         material.permeability_porosity_factor * (porosity - material.reference_porosity)
     )
-
-
-def crack_conductivity(aperture: npt.ArrayLike, viscosity: float) -> FloatArray:
-    """Cubic-law (parallel plate) conductivity w^3 / (12 mu) (thesis Eq. 3.37).
-
-    Parameters
-    ----------
-    aperture
-        Crack aperture w >= 0 [m]; negative apertures (closed) give 0.
-    viscosity
-        Dynamic viscosity of the flowing phase [Pa s].
-
-    Returns
-    -------
-    ndarray
-        Transmissivity per unit crack width [m3/(Pa s)], shape of ``aperture``.
-    """
-    aperture = np.maximum(np.asarray(aperture, dtype=np.float64), 0.0)
-    return aperture**3 / (12.0 * viscosity)
 
 
 def phase_viscosity(phase: Phase, material: ClayParameters) -> float:

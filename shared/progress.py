@@ -17,16 +17,16 @@ class Progress:
         Number of units of work.
     label
         Name of the loop in the log line.
-    logger
+    log
         Where the lines go.
     interval
         Minimum time between lines [s].
     """
 
-    def __init__(self, total: float, label: str, logger: logging.Logger, interval: float = 10.0):
+    def __init__(self, total: float, label: str, log: logging.Logger, interval: float = 10.0):
         self.total = float(total)
         self.label = label
-        self.logger = logger
+        self.log = log
         self.interval = interval
         self.start = time.monotonic()
         self._last = -float("inf")
@@ -40,7 +40,7 @@ class Progress:
         elapsed = now - self.start
         fraction = min(max(done / self.total, 0.0), 1.0) if self.total > 0 else 1.0
         eta = elapsed * (1.0 - fraction) / fraction if fraction > 0 else float("nan")
-        self.logger.info(
+        self.log.info(
             "%s: %g/%g (%.0f %%), elapsed %.1f s, ETA %.1f s",
             self.label, done, self.total, 100.0 * fraction, elapsed, eta,
         )

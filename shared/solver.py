@@ -1,45 +1,39 @@
 """Sparse Cholesky (CHOLMOD) solver that reuses its analysis and, within limits, its factor.
 
-Thesis Chap. 5.3.1: factorising dominates the flow solve, so the factor is reused
-while the matrix changes little. REFERENCE_NOTES section 8.2: Yade then silently
-solves a stale system. Here:
+Factorising dominates the flow solve (thesis Chap. 5.3.1), so the factor is reused while
+the matrix changes little. Yade then silently solves a stale system (REFERENCE_NOTES
+section 8.2); here every answer solves the current matrix to the stated tolerance:
 
 * the symbolic analysis (fill-reducing ordering) is kept while the sparsity pattern is
   unchanged, and redone only when it changes;
 * the old factor preconditions conjugate gradients on the *current* matrix, run until
   the row-wise backward error max_i |b - A x|_i / (|a_ii| ||x||_inf + |b_i|) of the
   current A is below ``residual_tolerance`` (for an increment x of a known ``offset``,
-  that of the system the whole unknown solves). The normwise ||b - A x|| / (||A|| ||x|| +
-  ||b||) is not enough once cracks put conductances 1e10 times the clay's in A: a
-  stale factor met it at 3e-12 after no iteration and lost 0.1 % of the water to
-  saturation clamps in the next update (``tests/shared/test_fv.py``);
-* the numeric factor is refreshed by a rent-or-buy rule: once the CG iterations
-  spent since the last factorisation reach ``refactor_iterations`` (about the cost of
-  one factorisation in substitutions), the solve refactors, in the middle of a solve
-  if need be, and finishes from the iterate it had. A solve also refactors at once
-  when the previous solve's stale iterations alone would exhaust what is left of that
-  budget (the drift only accumulates, so the next solve needs at least as many).
-  When even the first solve after a factorisation exhausts the budget, one step of
-  drift costs more than a factorisation: the next solves buy at once, 1, 2, 4, ...
-  up to 32 of them before the next such probe, until a probe converges within its
-  budget. At 15k points of a coupled step whose matrix changes much per step,
-  renting the whole budget before buying, step after step, cost up to twice as much
-  as always refactoring. The
+  that of the system the whole unknown solves). Row-wise, because once cracks put
+  conductances 1e10 times the clay's in A a normwise ||b - A x|| / (||A|| ||x|| + ||b||)
+  lets the largest rows excuse residuals that lose water to the saturation clamps
+  (``tests/shared/test_fv.py``);
+* the numeric factor is refreshed by a rent-or-buy rule: once the CG iterations spent
+  since the last factorisation reach ``refactor_iterations`` (about the cost of one
+  factorisation in substitutions), the solve refactors, in the middle of a solve if
+  need be, and finishes from the iterate it had. A solve also refactors at once when
+  the previous solve's stale iterations alone would exhaust what is left of that
+  budget (the drift only accumulates, so the next solve needs at least as many). When
+  even the first solve after a factorisation exhausts the budget, one step of drift
+  costs more than a factorisation: the next solves buy at once, 1, 2, 4, ... up to 32
+  of them before the next such probe, until a probe converges within its budget. The
   total work is then never more than about twice that of the better of always and
   never refactoring, whatever the drift does; a hydration front that jumps once and
   then moves slowly does not pay ten substitutions per step for ever;
 * a refactorisation can also be requested on demand, or (``refactor_tolerance``) when
   the largest symmetric-scaled entry change max |a_ij - a0_ij| / sqrt(a0_ii a0_jj)
-  exceeds a threshold. That trigger is off by default: measured on the coupled step
-  at 15k points, a few hundred of 215k entries change by up to 1e3-1e4 times their
-  scale from one step to the next (dual lengths of near-cospherical cell pairs,
-  sliver porosities). The CG iterations the stale factor needs depend on how many
-  entries changed, not on the largest change: a few entries changed a thousandfold
-  cost a few iterations (``tests/shared/test_solver.py``).
+  exceeds a threshold. That trigger is off by default: the CG iterations a stale
+  factor needs depend on how many entries changed, not on the largest change
+  (``tests/shared/test_solver.py``).
 
-So every answer solves the current matrix to the stated tolerance; the rules only
-trade factorisations against iterations, deterministically (iteration counts, not
-timings, decide). Counters in :class:`SolverStats` serve the benchmarks.
+The rules only trade factorisations against iterations, deterministically (iteration
+counts, not timings, decide). Counters in :class:`SolverStats` serve the benchmarks;
+the measurements behind the defaults are in ``benchmarks/reference/README.md``.
 """
 
 from __future__ import annotations
@@ -69,8 +63,7 @@ def set_cholmod_blas_threads(threads: int) -> bool:
     """Set the thread count of the OpenBLAS library CHOLMOD links (process-wide).
 
     Multithreaded BLAS slows the small dense blocks of the triangular solves down,
-    several-fold on an oversubscribed machine (measured: 23 ms single-threaded versus
-    80-170 ms with two threads for a 72k-unknown solve while other jobs ran).
+    several-fold on an oversubscribed machine.
 
     Parameters
     ----------
@@ -185,7 +178,7 @@ class SolverStats:
     ----------
     analyses
         Symbolic analyses (fill-reducing ordering), one per new sparsity pattern.
-    factorizations
+    factorisations
         Numeric factorisations.
     solves
         Calls of :meth:`CholeskySolver.solve`.
@@ -196,7 +189,7 @@ class SolverStats:
     """
 
     analyses: int = 0
-    factorizations: int = 0
+    factorisations: int = 0
     solves: int = 0
     factor_applications: int = 0
     iterations: int = 0
@@ -215,17 +208,15 @@ class CholeskySolver:
         of every solve [1] (with ``offset``, of the system the whole unknown solves).
         For the transient steps of :mod:`shared.fv` it bounds each cell's volume-rate
         imbalance by this fraction of its own diagonal times the largest pressure
-        (water is conserved to round-off anyway: the update is in flux form).
-        Measured on a relaxed coupled step at 15.6k points: 3 CG iterations per stale
-        solve (4 when the bound used the largest pressure *change*); 1e-7 already lets
-        the clay rows next to open cracks push saturations past their bounds
-        (``tests/shared/test_fv.py``).
+        (water is conserved to round-off anyway: the update is in flux form); 1e-7
+        already lets the clay rows next to open cracks push saturations past their
+        bounds (``tests/shared/test_fv.py``).
     max_iterations
         CG iterations allowed in one solve with a fresh factor (with a stale one the
         rent-or-buy budget also applies).
     refactor_iterations
-        CG iterations since the last factorisation after which the solve refactors [1];
-        measured: a factorisation costs 20-30 substitutions from 1.5k to 50k points.
+        CG iterations since the last factorisation after which the solve refactors [1]:
+        about the price of a factorisation in substitutions.
     ordering_method
         CHOLMOD fill-reducing ordering (``"metis"``, ``"amd"``, ``"natural"``, ...);
         ``None`` (default) uses ``"natural"`` for matrices passed with ``ordered=True``
@@ -236,10 +227,9 @@ class CholeskySolver:
     factor_blas_threads
         If given (and ``blas_threads`` too), the OpenBLAS thread count during numeric
         factorisations only, ``blas_threads`` being restored after: the large dense
-        supernodes of a factorisation gain from threads that the small blocks of the
-        substitutions lose to. Measured at 15k points on the shared 2-core machine: two
-        threads took 300-390 ms against 430-600 ms in some runs, but 350-590 ms against
-        330-510 ms in others (the other core busy); hence off by default.
+        supernodes of a factorisation may gain from threads that the small blocks of the
+        substitutions lose to. Off by default: on a shared 2-core machine the gain
+        was not reproducible.
 
     Notes
     -----
@@ -247,7 +237,7 @@ class CholeskySolver:
     matrix raises instead of being factored as LDL^T with negative or zero pivots.
     The CG vector work runs in numba kernels rather than numpy: numpy's dot products
     wake its own BLAS threads, which then compete with the CHOLMOD substitutions on a
-    loaded machine (measured: twice slower stale-factor solves).
+    loaded machine.
     """
 
     def __init__(
@@ -296,7 +286,7 @@ class CholeskySolver:
             and np.array_equal(matrix.indices, self._indices)
         )
 
-    def _factorize(self, matrix: sp.csc_matrix, ordered: bool) -> None:
+    def _factorise(self, matrix: sp.csc_matrix, ordered: bool) -> None:
         threaded = self.factor_blas_threads is not None
         try:
             if not self._same_pattern(matrix):
@@ -322,7 +312,7 @@ class CholeskySolver:
         self._factored_data = matrix.data.copy()
         self._stale_iterations = 0
         self._stale_solves = 0
-        self.stats.factorizations += 1
+        self.stats.factorisations += 1
 
     def drift(self, lower: sp.csc_matrix) -> float:
         """Largest scaled entry change of ``lower`` since the last factorisation [1].
@@ -396,7 +386,7 @@ class CholeskySolver:
             self.last_drift = self.drift(lower)
             refactor = refactor or self.last_drift > self.refactor_tolerance
         if refactor:
-            self._factorize(lower, ordered)
+            self._factorise(lower, ordered)
         diagonal = np.abs(lower.data[lower.indptr[:-1]])
         # A stale factor may only rent the iterations left before buying a new one.
         budget = self.max_iterations if refactor else min(self.max_iterations, remaining)
@@ -413,7 +403,7 @@ class CholeskySolver:
             self._backoff = 1 if converged else min(2 * self._backoff, _MAX_BACKOFF)
         if not converged and not refactor:
             # Buy: refactor and finish from the iterate reached with the old factor.
-            self._factorize(lower, ordered)
+            self._factorise(lower, ordered)
             solution, converged = self._corrected_solve(
                 lower, rhs, diagonal, self.max_iterations, offset, solution
             )

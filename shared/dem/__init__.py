@@ -17,11 +17,10 @@ from shared.dem.contacts import (
     pair_values,
     update_contacts,
 )
-from shared.dem.hertz import bond_tension, contact_forces
+from shared.dem.hertz import bond_stretches, bond_tension, contact_forces
 from shared.dem.integrator import (
     StepReport,
     integrate,
-    kinetic_energy,
     stable_time_step,
     step,
     unbalanced_force,
@@ -34,7 +33,6 @@ from shared.dem.walls import (
     Walls,
     servo_walls,
     wall_forces,
-    wall_stresses,
     walls_around,
 )
 
@@ -47,13 +45,13 @@ __all__ = [
     "WallLoads",
     "Walls",
     "bond_pairs",
+    "bond_stretches",
     "bond_tension",
     "contact_forces",
     "contacts_need_update",
     "cube_points",
     "detect_contacts",
     "integrate",
-    "kinetic_energy",
     "new_state",
     "pair_values",
     "servo_walls",
@@ -62,6 +60,5 @@ __all__ = [
     "unbalanced_force",
     "update_contacts",
     "wall_forces",
-    "wall_stresses",
     "walls_around",
 ]

@@ -1,4 +1,4 @@
-"""numba kernels of the DEM core: cell lists, Hertz-Mindlin contacts, walls, leapfrog.
+"""numba kernels of the DEM core: cell lists, Hertz-Mindlin contacts, bonds, walls, leapfrog.
 
 Arrays in, arrays out; no Python objects and no globals (the on-disk cache freezes them).
 Every kernel is serial: each loop scatters into shared per-point arrays, and a serial
@@ -95,17 +95,13 @@ def hertz_mindlin(positions, velocities, spins, radii, reference_radii, pairs,
     normal_forces = np.zeros(pairs.shape[0])
     for k in range(pairs.shape[0]):
         i, j = pairs[k, 0], pairs[k, 1]
-        dx = positions[j, 0] - positions[i, 0]
-        dy = positions[j, 1] - positions[i, 1]
-        dz = positions[j, 2] - positions[i, 2]
-        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+        dx, dy, dz, dist = _separation(positions, i, j)
         overlap = radii[i] + radii[j] - dist
         if overlap <= 0.0 or dist == 0.0:
             shear_forces[k, 0] = shear_forces[k, 1] = shear_forces[k, 2] = 0.0
             continue
-        loaded = overlap - reference_overlaps[k] * (
-            (radii[i] + radii[j]) / (reference_radii[i] + reference_radii[j])
-        )
+        loaded = -_stretch(overlap, reference_overlaps[k], radii[i], radii[j],
+                           reference_radii[i], reference_radii[j])
         nx, ny, nz = dx / dist, dy / dist, dz / dist
         # shear stiffness follows the contact's area (the whole overlap), the normal
         # force only the overlap beyond the stress-free one
@@ -198,24 +194,53 @@ def gershgorin_rates(positions, radii, pairs, masses, inertia, effective_modulus
 
 
 @njit(cache=True)
+def _separation(positions, i, j):
+    """Vector from point i to point j and its length [m]."""
+    dx = positions[j, 0] - positions[i, 0]
+    dy = positions[j, 1] - positions[i, 1]
+    dz = positions[j, 2] - positions[i, 2]
+    return dx, dy, dz, np.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@njit(cache=True)
+def _stretch(overlap, reference_overlap, r_i, r_j, r0_i, r0_j):
+    """Opening of a pair beyond its stress-free overlap [m]: > 0 stretched (a bond
+    opening, a crack's aperture), < 0 the overlap that loads the Hertz contact.
+
+    u = delta0 (r_i + r_j) / (r0_i + r0_j) - overlap, delta0 the stress-free overlap at
+    the reference radii r0 (0 for a pair without bond).
+    """
+    return reference_overlap * ((r_i + r_j) / (r0_i + r0_j)) - overlap
+
+
+@njit(cache=True)
+def bond_stretches(positions, radii, reference_radii, bonds, bond_overlaps):
+    """Stretch u of every bond (:func:`_stretch`) [m], broken or not."""
+    stretches = np.empty(bonds.shape[0])
+    for b in range(bonds.shape[0]):
+        i, j = bonds[b, 0], bonds[b, 1]
+        dx, dy, dz, dist = _separation(positions, i, j)
+        stretches[b] = _stretch(radii[i] + radii[j] - dist, bond_overlaps[b], radii[i],
+                                radii[j], reference_radii[i], reference_radii[j])
+    return stretches
+
+
+@njit(cache=True)
 def bond_tension(positions, radii, reference_radii, bonds, bond_overlaps, broken,
                  effective_modulus, strength, forces):
     """Add the tension of intact bonds stretched beyond their stress-free overlap.
 
-    Stretch u = (r_i + r_j) delta0 / (r0_i + r0_j) - overlap > 0; tension k u with
-    k = E* r_m (r_m the mean radius of the pair) while k u <= strength pi r_m^2, else the
-    bond breaks for good (``broken`` set) and carries nothing.
+    Stretch u > 0 (:func:`_stretch`); tension k u with k = E* r_m (r_m the mean radius
+    of the pair) while k u <= strength pi r_m^2, else the bond breaks for good
+    (``broken`` set) and carries nothing.
     """
     for b in range(bonds.shape[0]):
         if broken[b]:
             continue
         i, j = bonds[b, 0], bonds[b, 1]
-        dx = positions[j, 0] - positions[i, 0]
-        dy = positions[j, 1] - positions[i, 1]
-        dz = positions[j, 2] - positions[i, 2]
-        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
-        scale = (radii[i] + radii[j]) / (reference_radii[i] + reference_radii[j])
-        stretch = bond_overlaps[b] * scale - (radii[i] + radii[j] - dist)
+        dx, dy, dz, dist = _separation(positions, i, j)
+        stretch = _stretch(radii[i] + radii[j] - dist, bond_overlaps[b], radii[i], radii[j],
+                           reference_radii[i], reference_radii[j])
         mean_radius = 0.5 * (radii[i] + radii[j])
         k = effective_modulus * mean_radius
         if stretch <= 0.0 or dist == 0.0:

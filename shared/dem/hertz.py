@@ -9,7 +9,7 @@ from shared.dem import _kernels
 from shared.dem.parameters import DEMParameters
 from shared.dem.state import DEMState
 
-__all__ = ["contact_forces", "bond_tension"]
+__all__ = ["contact_forces", "bond_tension", "bond_stretches"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -112,9 +112,8 @@ def bond_tension(
     overlap beyond delta0 (:func:`contact_forces`). Why bonds at all: the thesis's
     points are cohesionless, and a cohesionless quasi-static assembly opens bonds
     wherever the Bishop confinement S s of the compacted state relaxes, with or
-    without a porosity field (measured on 1 000 points under a uniform suction, no
-    front: 571 open bonds at 1 MPa in a homogeneous specimen), which contradicts the
-    thesis's Sec. 3.5.5. With sigma_t > 0 only differential loads (a porosity
+    without a porosity field (README, Micro stage), which contradicts the thesis's
+    Sec. 3.5.5. With sigma_t > 0 only differential loads (a porosity
     field's differences of S s, hydration fronts) break bonds.
     """
     forces = _zeros_or_checked(forces, state.n_points, "forces")
@@ -124,6 +123,56 @@ def bond_tension(
         forces,
     )
     return forces
+
+
+def bond_stretches(
+    bonds: npt.ArrayLike,
+    positions: npt.ArrayLike,
+    radii: npt.ArrayLike,
+    bond_overlaps: npt.ArrayLike | None = None,
+    reference_radii: npt.ArrayLike | None = None,
+) -> FloatArray:
+    """Stretch u of each bond beyond its stress-free overlap [m]; > 0 means open.
+
+    u = |x_b - x_a| - (r_a + r_b) + delta0 (r_a + r_b) / (r0_a + r0_b): the value
+    :func:`bond_tension` loads and breaks bonds by (the same kernel function), and the
+    aperture of a crack.
+
+    Parameters
+    ----------
+    bonds
+        (n_bonds, 2) point indices.
+    positions
+        (n_points, 3) point centres [m].
+    radii
+        (n_points,) current interaction radii [m].
+    bond_overlaps
+        (n_bonds,) stress-free overlaps delta0 at the reference radii [m]
+        (``DEMState.bond_overlaps``), or None: 0, the stretch is the gap between the
+        two spheres.
+    reference_radii
+        (n_points,) reference radii r0 [m] (``DEMState.reference_radii``); needed with
+        ``bond_overlaps``.
+
+    Returns
+    -------
+    ndarray, shape (n_bonds,)
+        Stretch u [m].
+    """
+    bonds = np.ascontiguousarray(np.asarray(bonds, dtype=np.int64).reshape(-1, 2))
+    positions = np.ascontiguousarray(positions, dtype=np.float64)
+    radii = np.ascontiguousarray(radii, dtype=np.float64)
+    if bond_overlaps is None:
+        bond_overlaps, reference_radii = np.zeros(bonds.shape[0]), radii
+    elif reference_radii is None:
+        raise ValueError("reference_radii are needed with bond_overlaps")
+    bond_overlaps = np.ascontiguousarray(bond_overlaps, dtype=np.float64)
+    if bond_overlaps.shape != (bonds.shape[0],):
+        raise ValueError(f"bond_overlaps must have shape ({bonds.shape[0]},)")
+    return _kernels.bond_stretches(
+        positions, radii, np.ascontiguousarray(reference_radii, dtype=np.float64), bonds,
+        bond_overlaps,
+    )
 
 
 def _zeros_or_checked(array: FloatArray | None, n: int, name: str) -> FloatArray:

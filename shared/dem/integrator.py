@@ -19,7 +19,6 @@ __all__ = [
     "stable_time_step",
     "integrate",
     "unbalanced_force",
-    "kinetic_energy",
     "step",
 ]
 
@@ -184,13 +183,6 @@ def unbalanced_force(
     if carried.size == 0:
         return float("inf")
     return float(resultant.mean() / carried.mean())
-
-
-def kinetic_energy(state: DEMState) -> float:
-    """Kinetic energy sum 1/2 (m |v|^2 + I |omega|^2) [J] (half-step rates)."""
-    translation = (state.masses * (state.velocities**2).sum(axis=1)).sum()
-    rotation = (state.inertia * (state.spins**2).sum(axis=1)).sum()
-    return float(0.5 * (translation + rotation))
 
 
 def step(

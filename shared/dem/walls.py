@@ -16,7 +16,7 @@ from shared.dem import _kernels
 from shared.dem.parameters import DEMParameters
 from shared.dem.state import DEMState
 
-__all__ = ["Walls", "WallLoads", "walls_around", "wall_forces", "wall_stresses", "servo_walls"]
+__all__ = ["Walls", "WallLoads", "walls_around", "wall_forces", "servo_walls"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -132,11 +132,6 @@ def wall_forces(
         parameters.wall_effective_modulus, forces, per_point,
     )
     return WallLoads(force=force, stiffness=wall_stiffness)
-
-
-def wall_stresses(walls: Walls, loads: WallLoads) -> FloatArray:
-    """(6,) compressive stress on each wall [Pa]: force over current face area."""
-    return loads.force / walls.face_areas()
 
 
 def servo_walls(

@@ -52,7 +52,6 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from micro.consolidation import coupled_steps, saturated_flow, volume_gradient
 from micro.forces import SectorWeights, hydromechanical_forces
 from micro.permeability import measure_permeability
 from shared.dem import (
@@ -66,6 +65,8 @@ from shared.dem import (
 )
 from shared.mesh import boundary_cell_mask, build_mesh, mesh_from_tetrahedra
 from _defaults import DEM, dem
+
+from .terzaghi_setup import coupled_steps, saturated_flow, volume_gradient
 
 NEIGHBOUR_DISTANCE = 1e-3  # m
 PRELOAD = 1e6  # Pa on the top face of the lattice

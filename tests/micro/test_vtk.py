@@ -113,8 +113,12 @@ def test_collection_lists_the_snapshots_in_order_and_a_fresh_run_clears_them(sta
 
 
 def _config(**micro):
-    return {"samples": {"p": {"source": "phantom", "voxel_size_m": 3e-4}},
-            "micro": {"sample": "p", **micro}}
+    config = {"samples": {"p": {"source": "phantom", "voxel_size_m": 3e-4}},
+              "micro": {"sample": "p", **micro}}
+    if "cases" in micro:
+        case = next(iter(micro["cases"]))
+        config["upscaling"] = {"conditions": {"free": case, "confined": case}}
+    return config
 
 
 def test_config_key_defaults_to_false_and_must_be_boolean():

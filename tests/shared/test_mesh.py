@@ -5,15 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import xarray as xr
+from scipy.spatial import ConvexHull
 
 from shared.mesh import (
     WALLS,
     boundary_cell_mask,
     build_mesh,
-    convex_hull_volume,
     mesh_from_tetrahedra,
-    point_average,
-    porosity_at_centroids,
+    porosity_at_points,
     update_mesh,
 )
 
@@ -70,7 +69,7 @@ def test_mesh_volumes_sum_to_convex_hull(rng: np.random.Generator) -> None:
     points = jittered_grid(7, rng) * 7e-3
     mesh = build_mesh(points)
     assert np.all(mesh.volumes > 0.0)
-    assert mesh.volumes.sum() == pytest.approx(convex_hull_volume(points), rel=1e-12)
+    assert mesh.volumes.sum() == pytest.approx(ConvexHull(points).volume, rel=1e-12)
 
 
 def test_mesh_cells_are_closed_and_dual_lengths_positive(rng: np.random.Generator) -> None:
@@ -158,7 +157,7 @@ def test_mesh_porosity_trilinear_is_exact_for_linear_fields(rng: np.random.Gener
     z, y, x = np.meshgrid(axis, axis, axis, indexing="ij")
     grid = porosity_grid(0.3 + 0.05 * x - 0.03 * y + 0.02 * z)
     expected = 0.3 + mesh.centroids @ np.array([0.05, -0.03, 0.02])
-    np.testing.assert_allclose(porosity_at_centroids(mesh, grid), expected, rtol=1e-13)
+    np.testing.assert_allclose(porosity_at_points(mesh.centroids, grid), expected, rtol=1e-13)
 
 
 def test_mesh_porosity_grid_errors(rng: np.random.Generator) -> None:
@@ -167,27 +166,14 @@ def test_mesh_porosity_grid_errors(rng: np.random.Generator) -> None:
     bad = good.copy()
     bad[3, 3, 3] = np.nan
     with pytest.raises(ValueError, match="NaN"):
-        porosity_at_centroids(mesh, porosity_grid(bad))
+        porosity_at_points(mesh.centroids, porosity_grid(bad))
     bad[3, 3, 3] = 1.0
     with pytest.raises(ValueError, match=r"\(0, 1\)"):
-        porosity_at_centroids(mesh, porosity_grid(bad))
+        porosity_at_points(mesh.centroids, porosity_grid(bad))
     with pytest.raises(ValueError, match="does not cover"):
-        porosity_at_centroids(mesh, porosity_grid(good[:3, :3, :3]))
+        porosity_at_points(mesh.centroids, porosity_grid(good[:3, :3, :3]))
     with pytest.raises(ValueError, match="dims"):
-        porosity_at_centroids(mesh, porosity_grid(good).transpose("x", "y", "z"))
-
-
-def test_mesh_point_average_hand_values() -> None:
-    mesh = build_mesh(HAND_POINTS)
-    # Cells are (O, P, e_a, e_b) with equal volumes: O and P see all three cells,
-    # each e_k the two cells containing it.
-    values = np.array([1.0, 2.0, 6.0])
-    averaged = point_average(mesh, values)
-    np.testing.assert_allclose(averaged[[0, 4]], 3.0, rtol=1e-14)
-    contains = [np.flatnonzero(np.any(mesh.tetrahedra == k, axis=1)) for k in (1, 2, 3)]
-    expected = [values[cells].mean() for cells in contains]
-    np.testing.assert_allclose(averaged[1:4], expected, rtol=1e-14)
-    assert sorted(expected) == [1.5, 3.5, 4.0]
+        porosity_at_points(mesh.centroids, porosity_grid(good).transpose("x", "y", "z"))
 
 
 def test_mesh_update_with_moved_points_detects_inversion(rng: np.random.Generator) -> None:

@@ -1,4 +1,4 @@
-"""Relative, intrinsic and cubic-law permeability, and the swelling law."""
+"""Relative and intrinsic permeability, viscosities, and the swelling law."""
 
 from __future__ import annotations
 
@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from shared.permeability import (
-    crack_conductivity,
     intrinsic_permeability,
     phase_viscosity,
     relative_permeability,
@@ -35,10 +34,7 @@ def test_permeability_intrinsic_exponential_in_porosity() -> None:
     assert intrinsic_permeability(0.35, CLAY) == pytest.approx(1e-20 * np.exp(0.2), rel=1e-14)
 
 
-def test_permeability_cubic_law_hand_value() -> None:
-    # w = 10 um, mu = 1e-3 Pa s: 1e-15 / 12e-3 = 8.333e-14 m3/(Pa s).
-    assert crack_conductivity(1e-5, 1e-3) == pytest.approx(1e-15 / 12e-3, rel=1e-14)
-    assert crack_conductivity(-1e-6, 1e-3) == 0.0
+def test_permeability_phase_viscosity() -> None:
     assert phase_viscosity("gas", CLAY) == 1.8e-5
 
 

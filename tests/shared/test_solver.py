@@ -51,7 +51,7 @@ def test_solver_matches_dense_solve(rng: np.random.Generator) -> None:
     solver = CholeskySolver()
     solution = solver.solve(lower_of(matrix), rhs)
     np.testing.assert_allclose(solution, np.linalg.solve(matrix.toarray(), rhs), rtol=1e-10)
-    assert (solver.stats.analyses, solver.stats.factorizations) == (1, 1)
+    assert (solver.stats.analyses, solver.stats.factorisations) == (1, 1)
 
 
 def test_solver_reuses_factor_and_solves_the_current_matrix(rng: np.random.Generator) -> None:
@@ -64,7 +64,7 @@ def test_solver_reuses_factor_and_solves_the_current_matrix(rng: np.random.Gener
     drifted = (drifted + drifted.T) / 2.0
     expected = np.linalg.solve(drifted.toarray(), rhs)
     solution = solver.solve(lower_of(drifted), rhs)
-    assert solver.stats.factorizations == 1
+    assert solver.stats.factorisations == 1
     assert solver.stats.iterations > 0
     assert 0.0 < solver.last_drift < 0.05
     np.testing.assert_allclose(solution, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
@@ -79,9 +79,9 @@ def test_solver_refactors_beyond_drift_tolerance(rng: np.random.Generator) -> No
     solver = CholeskySolver(refactor_tolerance=0.05)
     solver.solve(lower_of(matrix), rhs)
     solver.solve(lower_of(matrix * 1.2), rhs)
-    assert (solver.stats.analyses, solver.stats.factorizations) == (1, 2)
+    assert (solver.stats.analyses, solver.stats.factorisations) == (1, 2)
     solver.solve(lower_of(matrix * 1.2), rhs, force_refactor=True)
-    assert solver.stats.factorizations == 3
+    assert solver.stats.factorisations == 3
     other = laplacian_system(60, np.random.default_rng(7))
     solution = solver.solve(lower_of(other), rhs)
     assert solver.stats.analyses == 2
@@ -147,18 +147,18 @@ def test_solver_buys_a_factor_once_the_rented_iterations_reach_its_price(
     drifted = drift_conductances(matrix, 0.3, rng)
     solution = solver.solve(lower_of(drifted), rhs)
     # The stale factor rents its 4 iterations, then the solve refactors and finishes.
-    assert solver.stats.factorizations == 2
+    assert solver.stats.factorisations == 2
     assert solver.stats.iterations >= 4
     np.testing.assert_allclose(solution, np.linalg.solve(drifted.toarray(), rhs), rtol=1e-9)
     # The last solve rented its whole budget: the next one buys at once, without
     # renting, since the drift only accumulates.
     iterations = solver.stats.iterations
     solver.solve(lower_of(drifted), rhs)
-    assert (solver.stats.factorizations, solver.stats.iterations) == (3, iterations)
+    assert (solver.stats.factorisations, solver.stats.iterations) == (3, iterations)
     # That one rented nothing: the next solve rents again, and this factor solves the
     # same matrix without any iteration.
     solver.solve(lower_of(drifted), rhs)
-    assert (solver.stats.factorizations, solver.stats.iterations) == (3, iterations)
+    assert (solver.stats.factorisations, solver.stats.iterations) == (3, iterations)
 
 
 def test_solver_rents_while_the_budget_lasts(rng: np.random.Generator) -> None:
@@ -178,7 +178,7 @@ def test_solver_rents_while_the_budget_lasts(rng: np.random.Generator) -> None:
     assert 0 < rent < 10
     reused = 20 // rent - (20 % rent == 0)
     assert rents[:reused] == [rent] * reused
-    assert solver.stats.factorizations == 2
+    assert solver.stats.factorisations == 2
     assert rents[reused] == 0
 
 
@@ -204,7 +204,7 @@ def test_solver_honours_its_tolerance_on_a_strongly_drifted_matrix(
         drifted[b, b] += weight
     drifted = drift_conductances(drifted.tocsc(), 0.01, rng)
     solution = solver.solve(lower_of(drifted), rhs)
-    assert solver.stats.factorizations == 1
+    assert solver.stats.factorisations == 1
     assert solver.stats.iterations > 0
     assert solver.drift(lower_of(drifted)) > 100.0
     dense = drifted.toarray()
@@ -230,7 +230,7 @@ def test_solver_buys_at_once_while_one_step_of_drift_costs_more_than_a_factor(
         before = dataclasses.replace(solver.stats)
         solution = solver.solve(lower, rhs)
         rents.append(solver.stats.iterations - before.iterations)
-        bought.append(solver.stats.factorizations - before.factorizations)
+        bought.append(solver.stats.factorisations - before.factorisations)
         dense = (lower + sp.tril(lower, -1).T).toarray()
         np.testing.assert_allclose(solution, np.linalg.solve(dense, rhs), rtol=1e-9)
     # Each probe of the stale factor rents its 3 iterations in vain and buys; then

@@ -1,5 +1,8 @@
 """Saturated poroelastic coupling of DEM points and their Delaunay finite volumes (DEM-PFV).
 
+Verification setup of ``test_terzaghi.py`` (Terzaghi consolidation, DESIGN 5.1): no
+stage runs it, so it lives beside its test, not in :mod:`micro`.
+
 The scheme of Catalano, Chareyre & Barthelemy (2014) for an incompressible pore fluid
 and an incompressible solid: the fluid a tetrahedron expels is its volume decrease, so
 in every free (undrained) cell i
