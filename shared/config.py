@@ -125,6 +125,15 @@ def _check_upscaling(config: Mapping[str, Any]) -> None:
     if not upscaling or not config.get("micro"):
         return
     for condition, source in upscaling["conditions"].items():
+        if isinstance(source, Mapping):
+            fractions = config["micro"]["studies"]["scale"]["fractions"]
+            if not any(abs(f - source["scale_fraction"]) < 1e-9 for f in fractions):
+                raise ConfigError(
+                    f"config key 'upscaling.conditions.{condition}.scale_fraction': "
+                    f"{source['scale_fraction']} is not a fraction of micro.studies.scale "
+                    f"(fractions: {fractions})"
+                )
+            continue
         for case in [source] if isinstance(source, str) else source:
             if case not in config["micro"]["cases"]:
                 raise ConfigError(

@@ -128,3 +128,16 @@ def test_config_names_unknown_sources_and_bad_ranges():
     bad["upscaling"]["suction_range_pa"] = [1e8, 1e6]
     with pytest.raises(ConfigError, match=r"upscaling\.suction_range_pa"):
         validate_config(bad)
+
+
+def test_a_scale_fraction_source_is_that_fractions_realizations():
+    config = copy.deepcopy(default_config())
+    scale = config["micro"]["studies"]["scale"]
+    config["upscaling"]["conditions"]["free"] = {"scale_fraction": 0.25}
+    sources = upscaling_run.source_names(validate_config(config))
+    assert sources["free"] == [("realization", f"f0p25_r{k:02d}")
+                               for k in range(scale["realizations"])]
+    assert sources["confined"] == [("case", config["upscaling"]["conditions"]["confined"])]
+    config["upscaling"]["conditions"]["free"] = {"scale_fraction": 0.5}
+    with pytest.raises(ConfigError, match=r"upscaling\.conditions\.free\.scale_fraction"):
+        validate_config(config)

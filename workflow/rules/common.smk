@@ -2,7 +2,7 @@
 import sys
 
 from imaging.deposition.config import check_packings
-from micro.upscaling.run import source_cases
+from micro.upscaling.run import source_names
 from micro.studies import (
     case_edge_length,
     check_studies,
@@ -94,9 +94,10 @@ def get_micro_materials(wildcards):
 
 def get_upscaling_sources(wildcards):
     """Per condition, the micro results the pellet permeability table comes from."""
+    folders = {"case": "results/micro", "realization": "results/studies/scale"}
     return {
-        condition: expand("results/micro/{case}.nc", case=cases)
-        for condition, cases in source_cases(config["upscaling"]).items()
+        condition: [f"{folders[kind]}/{name}.nc" for kind, name in sources]
+        for condition, sources in source_names(config).items()
     }
 
 

@@ -69,9 +69,6 @@ rule micro_scale_realization:
         materials=get_micro_materials,
     group:
         "scale"
-    resources:
-        mem_mb=2000,
-        runtime=30,
     conda:
         "../envs/claychain.yaml"
     log:
