@@ -590,19 +590,27 @@ def boundary_cell_mask(
 
 
 def face_planes(points: npt.ArrayLike) -> FloatArray:
-    """Positions of the six faces of a roughly cubic point cloud [m], shape (2, 3).
+    """Positions of the six faces of a box-shaped point cloud [m], shape (2, 3).
 
     Row 0 holds the lower faces (x-, y-, z-), row 1 the upper ones. A face's plane is
-    the mean position of the N^(2/3) outermost points along its axis, not the outermost
-    one: a single point pushed out of a face would otherwise move the whole face, and
-    the face's membrane load would fall on that one point.
+    the mean position of the outermost points along its axis, as many as one layer of
+    the cloud holds (N s / L along an axis of extent L, s = (V / N)^(1/3) the mean
+    spacing: N^(2/3) for a cube), not the outermost one: a single point pushed out of a
+    face would otherwise move the whole face, and the face's membrane load would fall
+    on that one point. Counting the layer per axis keeps an elongated cloud's end faces
+    on its end layers.
     """
     points = np.asarray(points, dtype=np.float64)
     n = points.shape[0]
-    face = min(max(round(n ** (2.0 / 3.0)), 1), n)
-    lower = np.partition(points, face - 1, axis=0)[:face].mean(axis=0)
-    upper = -np.partition(-points, face - 1, axis=0)[:face].mean(axis=0)
-    return np.stack([lower, upper])
+    extent = np.maximum(np.ptp(points, axis=0), np.finfo(np.float64).tiny)
+    spacing = (np.prod(extent) / n) ** (1.0 / 3.0)
+    planes = np.empty((2, 3))
+    for axis in range(3):
+        face = min(max(round(n * spacing / extent[axis]), 1), n)
+        coordinate = points[:, axis]
+        planes[0, axis] = np.partition(coordinate, face - 1)[:face].mean()
+        planes[1, axis] = -np.partition(-coordinate, face - 1)[:face].mean()
+    return planes
 
 
 def porosity_at_points(points: npt.ArrayLike, porosity: xr.DataArray) -> FloatArray:

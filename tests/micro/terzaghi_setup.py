@@ -57,7 +57,6 @@ interaction and emerging poromechanical effects. Int. J. Numer. Anal. Methods Ge
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,10 +70,10 @@ from shared.dem.parameters import DEMParameters
 from shared.dem.state import DEMState
 from shared.dem.walls import Walls, servo_walls, wall_forces
 from shared.fv import FlowPattern, assemble_matrix, flow_pattern
-from shared.mesh import Mesh, boundary_cell_mask, build_mesh
+from shared.mesh import Mesh, build_mesh
 from shared.solver import CholeskySolver
 
-__all__ = ["SaturatedFlow", "saturated_flow", "volume_gradient", "coupled_steps"]
+__all__ = ["SaturatedFlow", "drained_cells", "saturated_flow", "volume_gradient", "coupled_steps"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -196,9 +195,14 @@ def _hull_gradient(mesh: Mesh, n_points: int) -> sp.csr_matrix:
     )
 
 
+def drained_cells(mesh: Mesh, drained_points: npt.ArrayLike) -> npt.NDArray[np.bool_]:
+    """Cells with a vertex among the drained points: those resting on the drain."""
+    return np.any(np.asarray(drained_points, dtype=bool)[mesh.tetrahedra], axis=1)
+
+
 def saturated_flow(
     state: DEMState,
-    drained_walls: Sequence[str],
+    drained_points: npt.ArrayLike,
     permeability: float,
     viscosity: float,
     time_step: float,
@@ -213,10 +217,9 @@ def saturated_flow(
     ----------
     state
         Assembly (positions and masses; fixed points get no velocity).
-    drained_walls
-        Walls (names of :data:`shared.mesh.WALLS`) whose boundary layer of cells
-        (:func:`shared.mesh.boundary_cell_mask`) is drained; the other faces are
-        impervious.
+    drained_points
+        (n_points,) bool: the points at the drain (e.g. the top layer of a column);
+        the cells with a vertex among them are drained, the other faces impervious.
     permeability
         Intrinsic permeability k of the medium [m2].
     viscosity
@@ -240,9 +243,9 @@ def saturated_flow(
     if not (permeability > 0.0 and viscosity > 0.0 and time_step > 0.0):
         raise ValueError("permeability, viscosity and time_step must be > 0")
     mesh = build_mesh(state.positions)
-    drained = boundary_cell_mask(mesh, list(drained_walls))
+    drained = drained_cells(mesh, drained_points)
     if not np.any(drained) or np.all(drained):
-        raise ValueError("the drained walls must hold some but not all cells")
+        raise ValueError("the drained points must touch some but not all cells")
     pattern = flow_pattern(mesh, drained)
     conductance = permeability * mesh.facet_areas / (viscosity * mesh.facet_lengths)
     laplacian = assemble_matrix(mesh, pattern, conductance, np.zeros(mesh.n_cells))

@@ -24,7 +24,7 @@ from micro.cracks import (
 )
 from micro.fabric import crack_fabric, fabric_tensor
 from shared.mesh import build_mesh
-from _defaults import CLAY
+from tests._defaults import CLAY
 
 HALF_GAP, RING = 1e-4, 2e-4
 RADIUS = 0.99e-4  # aperture w = 2 (HALF_GAP - RADIUS) = 2 um

@@ -26,7 +26,7 @@ from shared.dem.integrator import step, unbalanced_force
 from shared.dem.state import new_state
 from shared.mesh import mesh_from_tetrahedra
 from shared.retention import saturation as retention_saturation
-from _defaults import CLAY, DEM, SETTINGS, settings
+from tests._defaults import CLAY, DEM, SETTINGS, settings
 
 SMALL = SpecimenSpec(edge_length=4e-3, n_points=125, seed=3)
 

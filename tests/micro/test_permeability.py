@@ -9,7 +9,7 @@ from micro.permeability import measure_permeability, permeability_tensor_axes
 from shared.fv import facet_conductance, facet_flux, flow_pattern, steady_pressure
 from shared.mesh import WALLS, Mesh, boundary_cell_mask, build_mesh
 from shared.solver import CholeskySolver
-from _defaults import clay
+from tests._defaults import clay
 
 K0 = 3e-20  # m2
 MATERIAL = clay(intrinsic_permeability_reference=K0, reference_porosity=0.3)

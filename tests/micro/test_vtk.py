@@ -17,7 +17,7 @@ from micro.hydration import update_cracks
 from micro.pellet import SpecimenSpec, initial_state
 from shared.config import ConfigError, validate_config
 from shared.io import write_dataset
-from _defaults import CLAY, DEM
+from tests._defaults import CLAY, DEM
 
 SMALL = SpecimenSpec(edge_length=4e-3, n_points=125, seed=3)
 

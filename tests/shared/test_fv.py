@@ -18,7 +18,7 @@ from shared.fv import (
 from shared.mesh import WALLS, Mesh, boundary_cell_mask, build_mesh
 from shared.retention import saturation, saturation_derivative
 from shared.solver import CholeskySolver, SolverError
-from _defaults import CLAY, clay
+from tests._defaults import CLAY, clay
 
 
 def jittered_mesh(per_side: int, rng: np.random.Generator, edge: float = 7e-3) -> Mesh:

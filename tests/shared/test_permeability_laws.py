@@ -11,7 +11,7 @@ from shared.permeability import (
     relative_permeability,
 )
 from shared.swelling import swollen_radius, volumetric_strain
-from _defaults import CLAY, clay
+from tests._defaults import CLAY, clay
 
 
 def test_permeability_relative_water_and_gas() -> None:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from shared.retention import retention_parameters, saturation, saturation_derivative, suction
-from _defaults import CLAY, clay
+from tests._defaults import CLAY, clay
 
 
 def test_retention_hand_value_at_reference_pressure() -> None:

@@ -1,7 +1,7 @@
 """Cell-list contact detection against a brute-force O(N^2) search; Verlet list upkeep."""
 
 import numpy as np
-from _defaults import DEM
+from tests._defaults import DEM
 
 from shared.dem import detect_contacts, new_state, update_contacts
 

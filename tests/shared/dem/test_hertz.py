@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from shared.dem import bond_tension, contact_forces, new_state
-from _defaults import DEM
+from tests._defaults import DEM
 
 E_STAR = 100e8 / (2.0 * (1.0 - 0.3**2))  # two identical points, Table 3.1 E and nu
 G = 100e8 / (2.0 * 1.3)

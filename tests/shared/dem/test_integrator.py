@@ -11,7 +11,7 @@ from shared.dem import (
     stable_time_step,
     step,
 )
-from _defaults import DEM
+from tests._defaults import DEM
 
 # Hertz contacts alone: the chain tests are about the contact stiffness
 UNDAMPED = replace(DEM, damping=0.0, bond_tensile_strength=0.0)

@@ -14,7 +14,7 @@ from shared.dem import (
     wall_forces,
     walls_around,
 )
-from _defaults import DEM
+from tests._defaults import DEM
 
 
 def wall_stresses(walls, loads):
