@@ -1,9 +1,9 @@
 """Grey value -> density -> porosity calibration (thesis Sec. 3.3.4).
 
-Grey values are taken linear in density, with black (air, 1.13 kg/m3) and the brightest
-grey (muscovite, 3900 kg/m3) as anchors. Porosity is taken linear in density, with the
-density of air at porosity 1 and the measured mean dry density of the pellet at its
-measured mean porosity (2120 kg/m3 and 0.25 for the MX80 pellet).
+Grey values are taken linear in density, with black (air) and the brightest grey
+(muscovite) as anchors. Porosity is taken linear in density, with the density of air at
+porosity 1 and the measured mean dry density of the pellet at its measured mean porosity.
+The values are in the configuration (``imaging.calibration``).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Packing of imaging results into the xarray datasets of the data contracts (DESIGN §2)."""
+"""The CT stage's results as the xarray datasets of the data contracts (DESIGN §2)."""
 
 from __future__ import annotations
 
@@ -6,10 +6,9 @@ import numpy as np
 import numpy.typing as npt
 import xarray as xr
 
-from imaging.calibration import Calibration
-from imaging.chords import ChordResult
-from imaging.grid import BlockGrid
-from imaging.rev import RevResult
+from imaging.ct.calibration import Calibration
+from imaging.ct.grid import BlockGrid
+from imaging.morphology import ChordResult, RevResult
 
 __all__ = ["image_dataset", "porosity_dataset", "rev_dataset", "voxel_coordinates"]
 
@@ -104,16 +103,16 @@ def rev_dataset(rev: RevResult, chords: ChordResult, voxel_size: float) -> xr.Da
     data = {
         "porosity_mean": ("window", rev.porosity_mean, {"units": "1", "long_name": "mean porosity over random windows"}),
         "porosity_std": ("window", rev.porosity_std, {"units": "1", "long_name": "std of porosity over random windows"}),
-        "porosity_centered": ("window", rev.porosity_centered, {"units": "1", "long_name": "porosity of the centred window"}),
+        "porosity_centred": ("window", rev.porosity_centred, {"units": "1", "long_name": "porosity of the centred window"}),
         "interface_mean": ("window", rev.interface_mean, {"units": "m-1", "long_name": "mean solid-pore interface density over random windows"}),
         "interface_std": ("window", rev.interface_std, {"units": "m-1", "long_name": "std of interface density over random windows"}),
-        "interface_centered": ("window", rev.interface_centered, {"units": "m-1", "long_name": "interface density of the centred window"}),
+        "interface_centred": ("window", rev.interface_centred, {"units": "m-1", "long_name": "interface density of the centred window"}),
         "porosity_total": ((), rev.porosity_total, {"units": "1", "long_name": "porosity of the analysed image"}),
         "interface_total": ((), rev.interface_total, {"units": "m-1", "long_name": "interface density of the analysed image"}),
         "w_rev_porosity": ((), rev.w_rev_porosity, {**scalar, "long_name": "REV edge for porosity (relative std criterion)"}),
         "w_rev_interface": ((), rev.w_rev_interface, {**scalar, "long_name": "REV edge for interface density (relative std criterion)"}),
-        "w_rev_porosity_centered": ((), rev.w_rev_porosity_centered, {**scalar, "long_name": "REV edge for porosity (centred window criterion, Ferrage 2015)"}),
-        "w_rev_interface_centered": ((), rev.w_rev_interface_centered, {**scalar, "long_name": "REV edge for interface density (centred window criterion)"}),
+        "w_rev_porosity_centred": ((), rev.w_rev_porosity_centred, {**scalar, "long_name": "REV edge for porosity (centred window criterion, Ferrage 2015)"}),
+        "w_rev_interface_centred": ((), rev.w_rev_interface_centred, {**scalar, "long_name": "REV edge for interface density (centred window criterion)"}),
         "chord_pore": (("direction", "length"), chords.f_pore, {"units": "m-1", "long_name": "pore chord-length probability density f_p(r)"}),
         "chord_solid": (("direction", "length"), chords.f_solid, {"units": "m-1", "long_name": "solid chord-length probability density f_s(r)"}),
         "chord_count_pore": (("direction", "length"), chords.count_pore, {"units": "1", "long_name": "number of pore chords"}),

@@ -1,4 +1,4 @@
-"""Figures of the imaging stage: what a user looks at before reading numbers."""
+"""Figures of the CT stage: what a user looks at before reading numbers."""
 
 from __future__ import annotations
 
@@ -51,7 +51,7 @@ def rev_figure(rev: xr.Dataset, path: str | Path) -> Path:
         mean, std = rev[f"{name}_mean"].values, rev[f"{name}_std"].values
         ax.fill_between(window_mm, mean - std, mean + std, alpha=0.3, label="random windows, +-1 std")
         ax.plot(window_mm, mean, "o-", label="mean")
-        ax.plot(window_mm, rev[f"{name}_centered"].values, "s--", label="centred window")
+        ax.plot(window_mm, rev[f"{name}_centred"].values, "s--", label="centred window")
         w_rev = float(rev[f"w_rev_{name}"])
         if np.isfinite(w_rev):
             ax.axvline(w_rev * 1e3, color="k", ls=":", label=f"REV {w_rev * 1e3:.2g} mm")

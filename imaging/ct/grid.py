@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from imaging.calibration import Calibration, density_to_porosity, grey_to_density
+from imaging.ct.calibration import Calibration, density_to_porosity, grey_to_density
 
 __all__ = ["BlockGrid", "block_average", "block_size_voxels"]
 

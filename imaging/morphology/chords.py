@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from imaging import _kernels
+from imaging.morphology import _kernels
 
 __all__ = ["ChordResult", "chord_lengths"]
 

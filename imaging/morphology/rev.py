@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from imaging import _kernels
+from imaging.morphology import _kernels
 
 __all__ = [
     "FACE_COUNT_CORRECTION",
@@ -45,13 +45,13 @@ class RevResult:
         Over window positions [-].
     interface_mean, interface_std : ndarray
         Interface density over window positions [1/m]; NaN when no binary image is given.
-    porosity_centered, interface_centered : ndarray
+    porosity_centred, interface_centred : ndarray
         Values in the centred window [-], [1/m].
     porosity_total, interface_total : float
         Whole-image values [-], [1/m].
     w_rev_porosity, w_rev_interface : float
         REV edges by the relative-std criterion [m]; NaN when not reached.
-    w_rev_porosity_centered, w_rev_interface_centered : float
+    w_rev_porosity_centred, w_rev_interface_centred : float
         REV edges by the centred-window criterion [m]; NaN when not reached.
     """
 
@@ -60,14 +60,14 @@ class RevResult:
     porosity_std: npt.NDArray[np.float64]
     interface_mean: npt.NDArray[np.float64]
     interface_std: npt.NDArray[np.float64]
-    porosity_centered: npt.NDArray[np.float64]
-    interface_centered: npt.NDArray[np.float64]
+    porosity_centred: npt.NDArray[np.float64]
+    interface_centred: npt.NDArray[np.float64]
     porosity_total: float
     interface_total: float
     w_rev_porosity: float
     w_rev_interface: float
-    w_rev_porosity_centered: float
-    w_rev_interface_centered: float
+    w_rev_porosity_centred: float
+    w_rev_interface_centred: float
 
 
 def window_sizes(max_edge: int, n_sizes: int, min_edge: int = 2) -> npt.NDArray[np.int64]:
@@ -199,14 +199,14 @@ def rev_analysis(
         porosity_std=stats[1],
         interface_mean=stats[2],
         interface_std=stats[3],
-        porosity_centered=stats[4],
-        interface_centered=stats[5],
+        porosity_centred=stats[4],
+        interface_centred=stats[5],
         porosity_total=porosity_total,
         interface_total=interface_total,
         w_rev_porosity=rev_size(edges_m, stats[1] / np.abs(stats[0]), tolerance),
         w_rev_interface=w_interface,
-        w_rev_porosity_centered=rev_size(
+        w_rev_porosity_centred=rev_size(
             edges_m, np.abs(stats[4] / porosity_total - 1.0), tolerance
         ),
-        w_rev_interface_centered=w_interface_c,
+        w_rev_interface_centred=w_interface_c,
     )

@@ -7,12 +7,13 @@ Reference implementation of Ferrage et al., Phys. Rev. E 91, 062210 (2015):
   and overlap geometry (:mod:`._contact_kernels`) and a spatial hash (:mod:`._bed`);
 - :mod:`.analysis`, :mod:`.voxels`, :mod:`.measures`: porosity and order profiles,
   Q tensor, rocking curve, surface areas, voxel image and overlap fraction (Secs. III-V);
-- :mod:`.config`, :mod:`.run`, :mod:`.figure`: the packing stage (config section, netCDF
-  file and figure). ``run`` is not imported here, to keep xarray and matplotlib out of
-  the import of the numerical API: ``from imaging.deposition.run import run``.
+- :mod:`.config`, :mod:`.run`, :mod:`.figures`: the packing stage (cross-field checks and
+  conversion of a config entry, netCDF file with the REV and chord lengths of
+  :mod:`imaging.morphology`, and figure). They are not imported here, to keep xarray and
+  matplotlib out of the import of the numerical API: ``from imaging.packing.run import run``.
 """
 
-from imaging.deposition.analysis import (
+from imaging.packing.analysis import (
     OrderParameters,
     basal_contact_area,
     legendre_order,
@@ -25,11 +26,11 @@ from imaging.deposition.analysis import (
     surface_areas,
     zone_porosity,
 )
-from imaging.deposition.deposition import DepositionParameters, Packing, deposit
-from imaging.deposition.measures import PackingMeasures, measure_packing
-from imaging.deposition.orientation import euler_angles, normals, rotation_matrices
-from imaging.deposition.population import Population, equivalent_diameter, sample_semi_axes, volumes
-from imaging.deposition.voxels import VoxelImage, overlap_fraction, voxel_counts, voxelize
+from imaging.packing.deposition import DepositionParameters, Packing, deposit
+from imaging.packing.measures import PackingMeasures, measure_packing
+from imaging.packing.orientation import euler_angles, normals, rotation_matrices
+from imaging.packing.population import Population, equivalent_diameter, sample_semi_axes, volumes
+from imaging.packing.voxels import VoxelImage, overlap_fraction, voxel_counts, voxelize
 
 __all__ = [
     "DepositionParameters",

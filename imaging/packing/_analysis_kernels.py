@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from imaging.deposition._contact_kernels import contains_point
-from imaging.deposition._grid_kernels import gather_levels
+from imaging.packing._contact_kernels import contains_point
+from imaging.packing._grid_kernels import gather_levels
 
 
 @njit(cache=True)

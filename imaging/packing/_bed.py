@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from imaging.deposition import _contact_kernels, _grid_kernels
-from imaging.deposition.population import volumes
+from imaging.packing import _contact_kernels, _grid_kernels
+from imaging.packing.population import volumes
 
 FINE_QUANTILE = 0.95
 """Particles whose bounding radius exceeds this quantile go to the coarse grid."""

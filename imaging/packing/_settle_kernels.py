@@ -12,13 +12,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from imaging.deposition._contact_kernels import (
+from imaging.packing._contact_kernels import (
     INFINITE_DROP,
     drop_to_contact,
     half_extents,
     support,
 )
-from imaging.deposition._grid_kernels import gather_levels
+from imaging.packing._grid_kernels import gather_levels
 
 MAX_CONTACTS = 8
 SLIDE = 0

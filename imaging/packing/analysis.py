@@ -16,9 +16,9 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from imaging.deposition import _analysis_kernels
-from imaging.deposition._bed import BedIndex
-from imaging.deposition.population import volumes
+from imaging.packing import _analysis_kernels
+from imaging.packing._bed import BedIndex
+from imaging.packing.population import volumes
 
 __all__ = [
     "HYDRATED_VERMICULITE_DENSITY",

@@ -28,19 +28,13 @@ Readings of Sec. II.A used here:
   falls vertically to a gap of d_cont/2; the move is rejected if the particle overlaps
   the bed at that altitude or does not end lower than before.
 
-Alternatives kept as options, each a defensible reading of the text:
+Alternatives kept as options, each a defensible reading of the text (config keys
+``two_contact_swivel``, ``slide_direction``, ``swivel_axis``):
 ``contact_line_swivel=False`` swivels about the steepest horizontal axis through the
 two-contact pivot point too (the paper names a point, not an axis); ``steepest_slide``
 / ``steepest_swivel`` set to False draw the slide direction or the swivel axis at random
-(the text gives the slide no direction). Against the paper (full-scale runs, paper in
-brackets): with the two-contact point rule, particles entering near edge-on
-(theta_ini >= 80 deg) stay wedged upright between two supports, as a tilt about a
-horizontal axis through the pivot pushes them into one of the two: the 10-20 um fraction
-gets S_part -0.25 (0.10) and porosity 0.77 (0.70), against 0.16 and 0.73 with the
-contact line. Random slide directions find the holes of the bed surface: Table II series
-2 reaches porosity 0.41 (about 0.51, the paper's densest being 0.46 with flat entry);
-random swivel axes flatten every bed (S_part 0.6-0.7 for all three fractions in runs of
-a fifth of the particles).
+(the text gives the slide no direction). How far each alternative moves the beds from
+the paper is measured in the README (section "Packing stage").
 
 References
 ----------
@@ -57,14 +51,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from imaging.deposition import _contact_kernels, _grid_kernels, _settle_kernels
-from imaging.deposition._bed import BedIndex
-from imaging.deposition.orientation import euler_angles, fold_upward, normals, rotation_matrices
-from imaging.deposition.population import volumes
+from imaging.packing import _contact_kernels, _grid_kernels, _settle_kernels
+from imaging.packing._bed import BedIndex
+from imaging.packing.orientation import euler_angles, fold_upward, normals, rotation_matrices
+from imaging.packing.population import volumes
 
 __all__ = ["DepositionParameters", "Packing", "deposit"]
 
-LOGGER = logging.getLogger("imaging.deposition")
+log = logging.getLogger("imaging.packing")
 
 
 @dataclass(frozen=True)
@@ -233,8 +227,8 @@ def deposit(
         wall[i] = now - t0
         if now - last_log >= params.log_interval or i == n - 1:
             rate = (i + 1) / (now - start)
-            LOGGER.info("placed %d/%d particles (%.2f particles/s, ETA %.0f s)",
-                        i + 1, n, rate, (n - i - 1) / rate)
+            log.info("placed %d/%d particles (%.2f particles/s, ETA %.0f s)",
+                     i + 1, n, rate, (n - i - 1) / rate)
             last_log = now
     return Packing(
         centers=bed.centers.copy(),

@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
-from imaging.deposition.voxels import VoxelImage  # noqa: E402
+from imaging.packing.voxels import VoxelImage  # noqa: E402
 
 __all__ = ["packing_figure"]
 
@@ -24,7 +24,7 @@ def packing_figure(ds: xr.Dataset, image: VoxelImage, path: str | Path) -> Path:
     Parameters
     ----------
     ds : xarray.Dataset
-        The packing dataset (:func:`imaging.deposition.run.packing_dataset`).
+        The packing dataset (:func:`imaging.packing.run.packing_dataset`).
     image : VoxelImage
         Its voxel image.
     path : str or Path

@@ -7,9 +7,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from imaging.deposition import analysis
-from imaging.deposition.deposition import Packing
-from imaging.deposition.voxels import VoxelImage, overlap_fraction, voxelize
+from imaging.packing import analysis
+from imaging.packing.deposition import Packing
+from imaging.packing.voxels import VoxelImage, overlap_fraction, voxelize
 
 __all__ = ["PackingMeasures", "measure_packing"]
 

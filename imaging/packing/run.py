@@ -1,9 +1,9 @@
-"""Entry point of the packing stage: build a bed from a config section, measure it, write it.
+"""Entry point of the packing stage: build a bed from a config entry, measure it, write it.
 
 ``run(section, "results/packing/<name>.nc")`` samples the population, deposits it, runs
-the analyses of :mod:`.measures`, the REV and chord-length analyses of the voxel image
-(:mod:`imaging.rev`, :mod:`imaging.chords`), writes the netCDF file of DESIGN.md section 2
-through :func:`shared.io.write_dataset`, and a figure ``<name>.png`` beside it.
+the analyses of :mod:`.measures` and the REV and chord-length analyses of the voxel image
+(:mod:`imaging.morphology`), and writes the netCDF file of DESIGN.md section 2 through
+:func:`shared.io.write_dataset`, with a figure ``<name>.png`` beside it.
 """
 
 from __future__ import annotations
@@ -16,17 +16,18 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from imaging.deposition.config import parameters_of, population_of, resolve
-from imaging.deposition.deposition import Packing, deposit
-from imaging.deposition.figure import packing_figure
-from imaging.deposition.measures import PackingMeasures, measure_packing
-from imaging.deposition.population import sample_semi_axes
-from imaging.deposition.voxels import VoxelImage
+from imaging.morphology import chord_lengths, rev_analysis, rev_size
+from imaging.packing.config import parameters_of, population_of
+from imaging.packing.deposition import Packing, deposit
+from imaging.packing.figures import packing_figure
+from imaging.packing.measures import PackingMeasures, measure_packing
+from imaging.packing.population import sample_semi_axes
+from imaging.packing.voxels import VoxelImage
 from shared.io import write_dataset
 
 __all__ = ["run", "packing_dataset"]
 
-LOGGER = logging.getLogger("imaging.deposition")
+log = logging.getLogger("imaging.packing")
 
 _FERRAGE = "E. Ferrage et al., Phys. Rev. E 91, 062210 (2015), doi:10.1103/PhysRevE.91.062210"
 
@@ -81,66 +82,61 @@ def _measure_variables(measures: PackingMeasures) -> dict[str, xr.Variable]:
     return out
 
 
-#: Relative tolerance of both REV criteria: the paper's +-1 % (Sec. V C).
-REV_TOLERANCE = 0.01
-#: Window edges of the centred-window criterion, up to the whole image.
-REV_CENTRED_SIZES = 32
 _NOT_REACHED = ("NaN: no window smaller than the image satisfies the criterion, so the REV "
                 "is not reached inside the image")
 
 
-def _centred_rev(edges: np.ndarray, deviation: np.ndarray, whole: bool) -> float:
+def _centred_rev(edges: np.ndarray, deviation: np.ndarray, whole: bool, tolerance: float) -> float:
     """Smallest window edge [m] from which the centred window stays within the tolerance of
     the whole image for every larger window; NaN when only the whole image does (it agrees
     with itself by construction, so reaching the REV there says nothing)."""
-    from imaging.rev import rev_size
-
     if whole:
         edges, deviation = edges[:-1], deviation[:-1]
     if edges.size == 0:
         return float("nan")
-    return rev_size(edges, deviation, REV_TOLERANCE)
+    return rev_size(edges, deviation, tolerance)
 
 
 def _image_analysis_variables(
-    image: VoxelImage, rng: np.random.Generator
+    image: VoxelImage, section: Mapping[str, Any], rng: np.random.Generator
 ) -> tuple[dict[str, xr.Variable], dict[str, xr.Variable]]:
-    """REV (imaging.rev) and chord-length (imaging.chords) analyses of the pore image,
-    as (data variables, coordinates); empty when those modules are missing.
+    """REV and chord-length analyses (:mod:`imaging.morphology`) of the pore image, as
+    (data variables, coordinates), with the entry's ``rev_*`` and ``chords_*`` settings;
+    empty when the image is too thin.
 
     Two REV criteria are stored: the spread of random windows (relative standard deviation
-    below 1 %, windows up to half the image so that they can differ) and the paper's
-    centred window (Sec. V C: a window centred in the image, grown in all directions, whose
-    porosity or interface density stays within 1 % of the whole image's for all larger
-    windows, windows up to the whole image).
+    below ``rev_tolerance``, windows up to ``rev_max_window_fraction`` of the image so that
+    they can differ) and the paper's centred window (Sec. V C: a window centred in the
+    image, grown in all directions, whose porosity or interface density stays within
+    ``rev_tolerance`` of the whole image's for all larger windows, up to the whole image).
     """
-    try:
-        from imaging.chords import chord_lengths
-        from imaging.rev import rev_analysis
-    except ImportError as err:
-        LOGGER.warning("REV and chord analyses skipped: %s", err)
-        return {}, {}
     pore = ~image.solid
     if min(pore.shape) < 8:
-        LOGGER.warning("REV and chord analyses skipped: image %s too thin", pore.shape)
+        log.warning("REV and chord analyses skipped: image %s too thin", pore.shape)
         return {}, {}
     field = pore.astype(np.float32)
-    rev = rev_analysis(field, image.voxel_size, rng, binary=pore, tolerance=REV_TOLERANCE)
+    tolerance = float(section["rev_tolerance"])
+    rev = rev_analysis(field, image.voxel_size, rng, binary=pore, tolerance=tolerance,
+                       n_sizes=int(section["rev_n_sizes"]),
+                       n_positions=int(section["rev_n_positions"]),
+                       max_window_fraction=float(section["rev_max_window_fraction"]))
     # One position per edge: only the centred window is used from this second pass (its
     # random-window spread, 0 / 0 in small all-solid windows, is discarded).
     with np.errstate(invalid="ignore", divide="ignore"):
-        centred = rev_analysis(field, image.voxel_size, rng, binary=pore,
-                               tolerance=REV_TOLERANCE, n_sizes=REV_CENTRED_SIZES,
-                               n_positions=1, max_window_fraction=1.0)
+        centred = rev_analysis(field, image.voxel_size, rng, binary=pore, tolerance=tolerance,
+                               n_sizes=int(section["rev_centred_n_sizes"]), n_positions=1,
+                               max_window_fraction=1.0)
     whole = bool(np.all(np.asarray(pore.shape) == centred.window[-1]))
     edges_c = centred.window * image.voxel_size
     with np.errstate(invalid="ignore", divide="ignore"):
-        dev_porosity = np.abs(centred.porosity_centered / centred.porosity_total - 1.0)
-        dev_interface = np.abs(centred.interface_centered / centred.interface_total - 1.0)
-    chords = chord_lengths(pore, image.voxel_size)
+        dev_porosity = np.abs(centred.porosity_centred / centred.porosity_total - 1.0)
+        dev_interface = np.abs(centred.interface_centred / centred.interface_total - 1.0)
+    chords = chord_lengths(pore, image.voxel_size, bool(section["chords_include_edges"]))
     cd = ("direction", "chord_length")
     random_note = ("NaN: the relative standard deviation over random windows exceeds the "
-                   "tolerance at the largest window (half the image)")
+                   "tolerance at the largest window (rev_max_window_fraction of the image)")
+    w_porosity_c = _centred_rev(edges_c, dev_porosity, whole, tolerance)
+    w_interface_c = _centred_rev(edges_c, dev_interface, whole, tolerance)
     out = {
         "rev_porosity_std": _var(("window",), rev.porosity_std, "1",
                                  "std of porosity over random windows"),
@@ -150,13 +146,13 @@ def _image_analysis_variables(
                                "REV edge for porosity, random-window criterion"),
         "w_rev_interface": _var((), rev.w_rev_interface, "m",
                                 "REV edge for interface density, random-window criterion"),
-        "rev_porosity_centred": _var(("window_centred",), centred.porosity_centered, "1",
+        "rev_porosity_centred": _var(("window_centred",), centred.porosity_centred, "1",
                                      "porosity of the centred window"),
-        "rev_interface_centred": _var(("window_centred",), centred.interface_centered, "m-1",
+        "rev_interface_centred": _var(("window_centred",), centred.interface_centred, "m-1",
                                       "interface density of the centred window"),
-        "w_rev_porosity_centred": _var((), _centred_rev(edges_c, dev_porosity, whole), "m",
+        "w_rev_porosity_centred": _var((), w_porosity_c, "m",
                                        "REV edge for porosity, centred-window criterion"),
-        "w_rev_interface_centred": _var((), _centred_rev(edges_c, dev_interface, whole), "m",
+        "w_rev_interface_centred": _var((), w_interface_c, "m",
                                         "REV edge for interface density, centred-window "
                                         "criterion"),
         "chord_pore": _var(cd, chords.f_pore, "m-1", "pore chord length distribution"),
@@ -167,9 +163,9 @@ def _image_analysis_variables(
         "R_s": _var((), chords.R_s, "1", "solid chord anisotropy l_z / l_xy"),
     }
     for name in ("w_rev_porosity", "w_rev_interface"):
-        out[name].attrs.update(tolerance=REV_TOLERANCE, missing_value_meaning=random_note)
+        out[name].attrs.update(tolerance=tolerance, missing_value_meaning=random_note)
     for name in ("w_rev_porosity_centred", "w_rev_interface_centred"):
-        out[name].attrs.update(tolerance=REV_TOLERANCE, missing_value_meaning=_NOT_REACHED)
+        out[name].attrs.update(tolerance=tolerance, missing_value_meaning=_NOT_REACHED)
     return out, {
         "window": _var(("window",), rev.window * image.voxel_size, "m", "REV window edge"),
         "window_centred": _var(("window_centred",), edges_c, "m",
@@ -222,13 +218,15 @@ def packing_dataset(
     return ds
 
 
-def run(config: Mapping[str, Any], output_path: str | Path) -> xr.Dataset:
+def run(section: Mapping[str, Any], output_path: str | Path) -> xr.Dataset:
     """Build, measure and write a virtual clay porous medium.
 
     Parameters
     ----------
-    config : mapping
-        The packing section (keys and defaults in :mod:`imaging.deposition.config`).
+    section : mapping
+        One entry of ``packings``, validated: every key of the schema's packing entry
+        (``workflow/schemas/config.schema.yaml``, defaults filled in), checked by
+        :func:`imaging.packing.config.check_packings`.
     output_path : str or Path
         Target ``.nc`` file; the figure is written beside it with suffix ``.png``.
 
@@ -240,13 +238,12 @@ def run(config: Mapping[str, Any], output_path: str | Path) -> xr.Dataset:
     Raises
     ------
     ValueError
-        For an invalid section, naming the key; ``box_width_m`` also when the largest
-        sampled particle (2 l_a) does not fit in the box.
+        Naming ``box_width_m`` when the largest sampled particle (2 l_a) does not fit in
+        the box (size laws without a bound, which the configuration checks cannot judge).
     """
-    section = resolve(config)
     population = population_of(section)
     rng = np.random.default_rng(section["seed"])
-    semi_axes = sample_semi_axes(population, section["n_particles"], rng)
+    semi_axes = sample_semi_axes(population, int(section["n_particles"]), rng)
     widest = 2.0 * float(semi_axes[:, 0].max())
     if widest >= section["box_width_m"]:
         raise ValueError(f"box_width_m: the largest sampled particle (2 l_a = {widest:.3g} m) "
@@ -257,8 +254,8 @@ def run(config: Mapping[str, Any], output_path: str | Path) -> xr.Dataset:
         packing,
         profile_bin_width=section["profile_bin_width_m"] or 0.5 * diameter,
         contact_grid=section["contact_grid_m"] or diameter / 40.0,
-        voxel_resolution=section["voxel_resolution"],
-        rocking_curve_bins=section["rocking_curve_bins"],
+        voxel_resolution=int(section["voxel_resolution"]),
+        rocking_curve_bins=int(section["rocking_curve_bins"]),
         density=section["density_kg_m3"],
         z_min=section["z_min_m"],
         z_max=section["z_max_m"],
@@ -266,13 +263,13 @@ def run(config: Mapping[str, Any], output_path: str | Path) -> xr.Dataset:
     )
     ds = packing_dataset(packing, measures, bool(section["store_voxel_image"]))
     if section["image_analyses"]:
-        data, coords = _image_analysis_variables(measures.image,
+        data, coords = _image_analysis_variables(measures.image, section,
                                                  np.random.default_rng([section["seed"], 1]))
         ds = ds.assign_coords(coords).assign(data)
     path = Path(output_path)
     write_dataset(ds, path, stage="packing", title=f"Sequential deposition packing {path.stem}",
-                  config=section, seed=int(section["seed"]), references=_FERRAGE)
+                  config=dict(section), seed=int(section["seed"]), references=_FERRAGE)
     packing_figure(ds, measures.image, path.with_suffix(".png"))
-    LOGGER.info("packing %s: porosity %.3f, S_part %.3f, f_o %.2e", path.stem, measures.porosity,
+    log.info("packing %s: porosity %.3f, S_part %.3f, f_o %.2e", path.stem, measures.porosity,
                 measures.S_part, measures.overlap_fraction)
     return ds

@@ -14,8 +14,8 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from imaging.deposition import _analysis_kernels
-from imaging.deposition._contact_kernels import bounding_half_extents
+from imaging.packing import _analysis_kernels
+from imaging.packing._contact_kernels import bounding_half_extents
 
 __all__ = ["VoxelImage", "voxel_counts", "voxelize", "overlap_fraction"]
 

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from imaging.calibration import Calibration, density_to_porosity, grey_anchors, grey_to_density
-from imaging.grid import block_average
-from imaging.mask import specimen_mask
-from imaging.phantom import PhantomSpec, pellet_phantom
+from imaging.ct.calibration import Calibration, density_to_porosity, grey_anchors, grey_to_density
+from imaging.ct.grid import block_average
+from imaging.ct.mask import specimen_mask
+from imaging.ct.phantom import PhantomSpec, pellet_phantom
 
 CAL = Calibration(grey_air=1000.0, grey_muscovite=61000.0)
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from imaging.datasets import image_dataset
-from imaging.io import (
+from imaging.ct.datasets import image_dataset
+from imaging.ct.io import (
     ImageError,
     read_raw,
     read_slice_folder,

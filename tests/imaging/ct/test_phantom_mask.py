@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from imaging.mask import inscribed_box, specimen_mask
-from imaging.phantom import PhantomSpec, pellet_phantom
-from imaging.run import grid_spacing
+from imaging.ct.mask import inscribed_box, specimen_mask
+from imaging.ct.phantom import PhantomSpec, pellet_phantom
+from imaging.ct.run import grid_spacing
 
 
 def test_phantom_is_deterministic_for_a_seed():
@@ -46,7 +46,6 @@ def test_mask_matches_the_cylinder():
 
 
 def test_grid_spacing_defaults_to_micro_point_spacing():
-    config = {"imaging": {"grid_spacing_m": None}, "micro": {"specimen_size_m": 8e-3, "n_points": 512}}
-    assert grid_spacing(config) == pytest.approx(1e-3)
-    config["imaging"]["grid_spacing_m"] = 3e-4
-    assert grid_spacing(config) == 3e-4
+    micro_spacing = (8e-3, 512)  # micro.specimen_size_m, micro.n_points
+    assert grid_spacing(None, micro_spacing) == pytest.approx(1e-3)
+    assert grid_spacing(3e-4, micro_spacing) == 3e-4

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from imaging.chords import chord_lengths
+from imaging.morphology.chords import chord_lengths
 
 
 def _slabs(thickness_pore: int, thickness_solid: int, repeats: int, lateral: int) -> np.ndarray:

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from imaging.rev import interface_area, rev_analysis, rev_size, window_sizes
+from imaging.morphology.rev import interface_area, rev_analysis, rev_size, window_sizes
 
 
 def test_random_structure_converges_to_its_porosity(rng):

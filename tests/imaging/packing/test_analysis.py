@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imaging.deposition import analysis
-from imaging.deposition.orientation import rotation_matrices
+from imaging.packing import analysis
+from imaging.packing.orientation import rotation_matrices
 
 RHO = 2180.0
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from imaging.deposition import _contact_kernels as contact
-from imaging.deposition.orientation import rotation_matrices
+from imaging.packing import _contact_kernels as contact
+from imaging.packing.orientation import rotation_matrices
 
 
 def _surface_points(center: np.ndarray, rot: np.ndarray, axes: np.ndarray, n: int) -> np.ndarray:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from imaging.deposition import (
+from imaging.packing import (
     DepositionParameters,
     Packing,
     deposit,
@@ -16,9 +16,9 @@ from imaging.deposition import (
     porosity_profile,
     zone_porosity,
 )
-from imaging.deposition import _contact_kernels, _settle_kernels
-from imaging.deposition.analysis import profile_edges
-from imaging.deposition.voxels import overlap_fraction, voxelize
+from imaging.packing import _contact_kernels, _settle_kernels
+from imaging.packing.analysis import profile_edges
+from imaging.packing.voxels import overlap_fraction, voxelize
 
 from .conftest import small_bed
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from imaging.deposition import (
+from imaging.packing import (
     Population,
     euler_angles,
     normals,

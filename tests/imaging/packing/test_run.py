@@ -1,4 +1,4 @@
-"""Stage entry point: the written file, config validation, and the paper presets."""
+"""Stage entry point: the written file, config checks of a packing entry, and the paper presets."""
 
 from __future__ import annotations
 
@@ -10,10 +10,13 @@ import pytest
 import xarray as xr
 import yaml
 
-from imaging.deposition.config import population_of, resolve
-from imaging.deposition.population import sample_semi_axes
-from imaging.deposition.run import _centred_rev, run
+from imaging.packing.config import population_of
+from imaging.packing.population import sample_semi_axes
+from imaging.packing.run import _centred_rev, run
+from shared.config import ConfigError
 from shared.io import read_dataset
+
+from .conftest import packing_section
 
 PRESETS = sorted((Path(__file__).parents[3] / "config" / "paper").glob("packing_*.yaml"))
 TINY = {"n_particles": 25, "box_width_m": 3e-6, "attempts_per_cycle": 150, "voxel_resolution": 64,
@@ -24,8 +27,8 @@ CONTRACT = ["center", "semi_axes", "euler", "normal", "porosity_profile", "order
 
 
 def test_run_writes_the_contract(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
-    with caplog.at_level(logging.INFO, logger="imaging.deposition"):
-        ds = run({**TINY, "store_voxel_image": True}, tmp_path / "tiny.nc")
+    with caplog.at_level(logging.INFO, logger="imaging.packing"):
+        ds = run(packing_section({**TINY, "store_voxel_image": True}), tmp_path / "tiny.nc")
     assert any("ETA" in record.message for record in caplog.records)
     back = read_dataset(tmp_path / "tiny.nc", required=CONTRACT)
     assert (tmp_path / "tiny.png").stat().st_size > 10_000
@@ -42,6 +45,7 @@ def test_run_writes_the_contract(tmp_path: Path, caplog: pytest.LogCaptureFixtur
     assert solid_fraction == pytest.approx(1 - float(back["porosity"]), abs=0.1)
     for name in ("w_rev_porosity_centred", "w_rev_interface_centred"):
         assert "not reached" in back[name].attrs["missing_value_meaning"]
+        assert back[name].attrs["tolerance"] == 0.01  # the schema's default rev_tolerance
         width = float(back[name])
         assert np.isnan(width) or 0.0 < width < float(back["window_centred"][-1])
     # the largest centred window, recomputed from the stored image
@@ -57,10 +61,12 @@ def test_centred_rev_ignores_the_whole_image() -> None:
     """The centred-window REV is the smallest edge from which every larger window is within
     the tolerance; the whole image matches itself, so it alone does not count."""
     edges = np.array([1.0, 2.0, 4.0, 8.0])
-    assert _centred_rev(edges, np.array([0.5, 0.005, 0.002, 0.0]), whole=True) == 2.0
-    assert _centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), whole=True) != 8.0
-    assert np.isnan(_centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), whole=True))
-    assert _centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), whole=False) == 8.0
+    assert _centred_rev(edges, np.array([0.5, 0.005, 0.002, 0.0]), True, 0.01) == 2.0
+    assert _centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), True, 0.01) != 8.0
+    assert np.isnan(_centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), True, 0.01))
+    assert _centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), False, 0.01) == 8.0
+    # the tolerance is the entry's rev_tolerance
+    assert _centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), True, 0.05) == 2.0
 
 
 @pytest.mark.parametrize(
@@ -84,8 +90,9 @@ def test_centred_rev_ignores_the_whole_image() -> None:
     ],
 )
 def test_invalid_config_names_the_key(key: str, value: object) -> None:
-    with pytest.raises(ValueError, match=key):
-        resolve({key: value})
+    """Refused by the schema (types, bounds, unknown keys) or by the checks across keys."""
+    with pytest.raises(ConfigError, match=rf"'packings\.tiny\.{key}'"):
+        packing_section({key: value})
 
 
 @pytest.mark.parametrize(
@@ -103,30 +110,31 @@ def test_box_narrower_than_the_largest_possible_particle_fails_at_validation(
     section: dict
 ) -> None:
     """(Monodisperse beds: the largest particle is the median one, checked first.)"""
-    resolve({**section, "box_width_m": 3.0 * section["box_width_m"]})
-    with pytest.raises(ValueError, match="box_width_m.*largest"):
-        resolve(section)
+    packing_section({**section, "box_width_m": 3.0 * section["box_width_m"]})
+    with pytest.raises(ConfigError, match=r"packings\.tiny\.box_width_m.*largest"):
+        packing_section(section)
 
 
 def test_unbounded_laws_are_left_to_the_sampled_check() -> None:
     """Without a cap (or with a spread axis ratio) the largest particle is not known before
-    sampling: resolve accepts the box, run checks the sampled particles."""
-    resolve({"box_width_m": 2.9e-6, "basal_surface_sigma": 0.5})
-    resolve({"box_width_m": 2.9e-6, "basal_surface_sigma": 0.5, "axis_ratio_sigma": 0.3,
-             "basal_surface_max_m2": np.pi / 4 * 9e-12})
-    resolve({"box_width_m": 3.1e-6, "basal_surface_sigma": 0.5,
-             "basal_surface_max_m2": np.pi / 4 * 9e-12})
+    sampling: the configuration checks accept the box, run checks the sampled particles."""
+    packing_section({"box_width_m": 2.9e-6, "basal_surface_sigma": 0.5})
+    packing_section({"box_width_m": 2.9e-6, "basal_surface_sigma": 0.5, "axis_ratio_sigma": 0.3,
+                     "basal_surface_max_m2": np.pi / 4 * 9e-12})
+    packing_section({"box_width_m": 3.1e-6, "basal_surface_sigma": 0.5,
+                     "basal_surface_max_m2": np.pi / 4 * 9e-12})
 
 
 def test_box_narrower_than_the_largest_sampled_particle(tmp_path: Path) -> None:
+    section = packing_section({**TINY, "basal_surface_sigma": 2.0, "n_particles": 200})
     with pytest.raises(ValueError, match="box_width_m"):
-        run({**TINY, "basal_surface_sigma": 2.0, "n_particles": 200}, tmp_path / "x.nc")
+        run(section, tmp_path / "x.nc")
 
 
 @pytest.mark.parametrize("preset", PRESETS, ids=lambda p: p.stem)
 def test_paper_presets_are_valid_and_fit_the_box(preset: Path) -> None:
-    (section,) = yaml.safe_load(preset.read_text())["packings"].values()
-    section = resolve(section)
+    ((name, section),) = yaml.safe_load(preset.read_text())["packings"].items()
+    section = packing_section(section, name)
     semi_axes = sample_semi_axes(population_of(section), section["n_particles"],
                                  np.random.default_rng(section["seed"]))
     assert 2 * semi_axes[:, 0].max() < section["box_width_m"]

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imaging.deposition.orientation import rotation_matrices
-from imaging.deposition.voxels import overlap_fraction, voxel_counts, voxelize
+from imaging.packing.orientation import rotation_matrices
+from imaging.packing.voxels import overlap_fraction, voxel_counts, voxelize
 
 
 @pytest.mark.parametrize("center_x", [0.8, 0.05])
