@@ -85,6 +85,18 @@ def test_forcerun_until_reruns_only_that_rule(finished):
     assert "imaging_rev" in stats and "imaging_porosity" not in stats
 
 
+@pytest.fixture(scope="module")
+def micro_finished(tmp_path_factory):
+    """The tiny run up to the micro cases: the CT rules and the micro cases that read the
+    porosity grid (no aggregate or upscaling rule, whose state is not at stake here)."""
+    workdir = _workdir(tmp_path_factory.mktemp("wf_micro"), TINY)
+    targets = ["results/rev/pellet.nc", "results/porosity/pellet.png",
+               *(f"results/micro/{case}.nc" for case in TINY["micro"]["cases"])]
+    result = _snakemake(workdir, *targets)
+    assert result.returncode == 0, result.stderr[-3000:]
+    return workdir
+
+
 _PHANTOM = {"results/phantom/pellet.tif"}
 _POROSITY = {"results/images/pellet.nc", "results/porosity/pellet.nc",
              "results/porosity/pellet.png"}
@@ -102,22 +114,24 @@ _REV = {"results/rev/pellet.nc", "results/rev/pellet.png"}
     ],
 )
 def test_a_config_edit_changes_the_params_of_its_readers_only(
-    finished, tmp_path, section, key, value, readers
+    micro_finished, tmp_path, section, key, value, readers
 ):
     """Editing an ``imaging`` key changes the params of the rules whose scripts read it,
     and of no other rule.
 
-    Run on a copy of the finished tiny run (results and ``.snakemake`` metadata, so every
-    output's recorded params are there), with ``snakemake --list-changes params``: it
-    lists the outputs whose recorded params differ from the rule's current ones, i.e. the
-    jobs that the params trigger reruns for the edit itself, and runs nothing. A dry run
+    Run on a copy of a finished tiny run of the CT rules and the micro cases (results and
+    ``.snakemake`` metadata, so every output's recorded params are there; the micro cases
+    read the porosity grid but no ``imaging`` key), with ``snakemake --list-changes
+    params``: it lists the outputs whose recorded params differ from the rule's current
+    ones, i.e. the jobs that the params trigger reruns for the edit itself, and runs
+    nothing. A dry run
     (``-n``) would also list the jobs downstream of those (they rerun because their
     inputs change), so it cannot tell a rule that reads the key from one that consumes
     the reader's file. The unedited copy lists nothing, so the recorded params are those
     of the current rules.
     """
     workdir = tmp_path / "wf"
-    shutil.copytree(finished, workdir, symlinks=True)
+    shutil.copytree(micro_finished, workdir, symlinks=True)
     unchanged = _snakemake(workdir, "--list-changes", "params")
     assert unchanged.returncode == 0, unchanged.stderr[-3000:]
     assert not [line for line in unchanged.stdout.splitlines() if line.startswith("results/")]
