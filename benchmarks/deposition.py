@@ -16,7 +16,7 @@
 Reduced-N sweeps keep the Table II bed height: N particles in a box of
 w = 7.5 d sqrt(N / 2500), the particles per unit floor area of the paper's runs.
 Porosity and S_part are those of the linear zone, detected as in
-:func:`imaging.deposition.measures.measure_packing` (slices d / 2 thick), without the
+:func:`imaging.packing.measures.measure_packing` (slices d / 2 thick), without the
 voxel image.
 """
 
@@ -37,14 +37,14 @@ import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first
 import numpy as np  # noqa: E402
 import numpy.typing as npt  # noqa: E402
 
-from imaging.deposition import (  # noqa: E402
+from imaging.packing import (  # noqa: E402
     DepositionParameters,
     Packing,
     Population,
     deposit,
     sample_semi_axes,
 )
-from imaging.deposition.analysis import (  # noqa: E402
+from imaging.packing.analysis import (  # noqa: E402
     legendre_order,
     linear_zone,
     porosity_profile,

@@ -1,7 +1,7 @@
 """Paper-target validation table of the sequential deposition (issue 3; Ferrage et al. 2015).
 
 Runs the six presets of ``config/paper/packing_*.yaml`` (Table II series 1-3, and the three
-vermiculite size fractions of Table III) through :func:`imaging.deposition.run.run`, and
+vermiculite size fractions of Table III) through :func:`imaging.packing.run.run`, and
 compares what the packing file holds with the paper: Table IV for the fractions, the
 porosity ranges of Sec. III for the Table II series. Writes, in ``results/benchmarks/``:
 
@@ -15,7 +15,7 @@ porosity ranges of Sec. III for the Table II series. Writes, in ``results/benchm
 - ``deposition_validation.png``: a Fig. 6a analogue, porosity vs S_part of every run and
   of the deposition freedom sweep;
 - ``deposition_validation/<preset>_s<scale>.nc`` and ``.png``: the packing files of
-  :func:`~imaging.deposition.run.run`.
+  :func:`~imaging.packing.run.run`.
 
 :func:`write_report` rewrites the last two from the JSON files without running anything
 (after a sweep of :mod:`benchmarks.deposition`, say).
@@ -53,10 +53,11 @@ import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
-from imaging.deposition.analysis import surface_areas  # noqa: E402
-from imaging.deposition.config import population_of, resolve  # noqa: E402
-from imaging.deposition.population import sample_semi_axes, volumes  # noqa: E402
-from imaging.deposition.run import run  # noqa: E402
+from imaging.packing.analysis import surface_areas  # noqa: E402
+from imaging.packing.config import check_packings, population_of  # noqa: E402
+from imaging.packing.population import sample_semi_axes, volumes  # noqa: E402
+from imaging.packing.run import run  # noqa: E402
+from shared.config import DEFAULT_CONFIG_PATH, validate_config  # noqa: E402
 from shared.figures import save_figure  # noqa: E402
 
 PRESET_DIR = Path("config/paper")
@@ -160,7 +161,8 @@ def preset_section(name: str, scale: float = 1.0) -> dict[str, Any]:
     Returns
     -------
     dict
-        The section (unresolved; :func:`~imaging.deposition.run.run` fills defaults).
+        The section as a preset file gives it (:func:`packing_section` fills in the
+        schema's defaults).
     """
     text = (PRESET_DIR / f"packing_{name}.yaml").read_text()
     (section,) = yaml.safe_load(text)["packings"].values()
@@ -182,6 +184,17 @@ def preset_section(name: str, scale: float = 1.0) -> dict[str, Any]:
         preset = section.get("basal_surface_max_m2")
         section["basal_surface_max_m2"] = bound if preset is None else min(bound, preset)
     return section
+
+
+def packing_section(section: Mapping[str, Any], name: str = "preset") -> dict[str, Any]:
+    """A packing entry as the workflow hands it to :func:`~imaging.packing.run.run`:
+    validated against the configuration schema (defaults filled in) and checked across
+    keys, in place of the packings of the default configuration."""
+    config = yaml.safe_load(DEFAULT_CONFIG_PATH.read_text())
+    config["packings"] = {name: dict(section)}
+    validate_config(config)
+    check_packings(config)
+    return config["packings"][name]
 
 
 def _paper(name: str) -> dict[str, Any]:
@@ -228,7 +241,7 @@ def validate_preset(name: str, scale: float, directory: Path) -> dict[str, Any]:
     """
     section = preset_section(name, scale)
     start = time.perf_counter()
-    ds = run(section, directory / f"{name}_s{scale:g}.nc")
+    ds = run(packing_section(section, name), directory / f"{name}_s{scale:g}.nc")
     wall = time.perf_counter() - start
     ours = {key: float(ds[var]) * factor if var in ds else float("nan")
             for key, _, _, var, factor in QUANTITIES}
@@ -280,13 +293,13 @@ def expected_areas(section: Mapping[str, Any]) -> tuple[float, float]:
     g = sqrt((e + 1 / e) / 2) from the perimeter pi sqrt(2 (l_a^2 + l_b^2)) = pi d g; E[g]
     is taken by quadrature over the axis-ratio law truncated below 1.
     """
-    sigma = float(section.get("basal_surface_sigma", 0.0))
+    sigma = float(section["basal_surface_sigma"])
     d_m = 2.0 * math.sqrt(section["basal_surface_median_m2"] / math.pi)
-    rho_g = 1000.0 * section.get("density_kg_m3", 2180.0)
-    r_mean = section["aspect_ratio_median"] * math.exp(section.get("aspect_ratio_sigma", 0.0) ** 2
+    rho_g = 1000.0 * section["density_kg_m3"]
+    r_mean = section["aspect_ratio_median"] * math.exp(section["aspect_ratio_sigma"] ** 2
                                                         / 2.0)
-    e_median = section.get("axis_ratio_median", 1.0)
-    e_sigma = section.get("axis_ratio_sigma", 0.0)
+    e_median = section["axis_ratio_median"]
+    e_sigma = section["axis_ratio_sigma"]
     if e_sigma > 0.0:
         # ln e = ln(median) + e_sigma x, x standard normal restricted to e >= 1
         x = np.linspace(-math.log(e_median) / e_sigma, 10.0, 20001)
@@ -330,7 +343,8 @@ def truncation_table(name: str, seeds: int = 5) -> list[dict[str, Any]]:
         largest = None if fraction is None else fraction * width
         if largest is not None:
             section["basal_surface_max_m2"] = math.pi * largest**2 / 4.0
-        population = population_of(resolve(section))
+        section = packing_section(section, name)
+        population = population_of(section)
         samples = [sample_semi_axes(population, section["n_particles"],
                                     np.random.default_rng([seed, 7])) for seed in range(seeds)]
         areas = np.array([surface_areas(semi_axes) for semi_axes in samples])
@@ -380,7 +394,7 @@ def truncation_markdown(name: str, rows: Iterable[Mapping[str, Any]]) -> str:
 
 
 #: Paragraph of the report on how exact the contacts are (numbers from
-#: tests/imaging/deposition/test_deposition.py::test_every_particle_rests_on_a_support).
+#: tests/imaging/packing/test_deposition.py::test_every_particle_rests_on_a_support).
 CONTACT_ACCURACY = (
     "**Contact accuracy.** Contacts and overlaps are computed exactly on the disk shape "
     "(GJK distance and conservative advancement on the support function), instead of the "

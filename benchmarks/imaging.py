@@ -7,13 +7,12 @@ from pathlib import Path
 
 import numpy as np
 
-from imaging.calibration import Calibration
-from imaging.chords import chord_lengths
-from imaging.grid import block_average
-from imaging.io import read_raw
-from imaging.mask import specimen_mask
-from imaging.phantom import PhantomSpec, pellet_phantom
-from imaging.rev import rev_analysis
+from imaging.ct.calibration import Calibration
+from imaging.ct.grid import block_average
+from imaging.ct.io import read_raw
+from imaging.ct.mask import specimen_mask
+from imaging.ct.phantom import PhantomSpec, pellet_phantom
+from imaging.morphology import chord_lengths, rev_analysis
 
 CACHE = Path("results/benchmarks/cache")
 

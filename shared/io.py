@@ -25,8 +25,8 @@ from shared.provenance import code_sha256, code_version, config_sha256, inputs_r
 __all__ = ["OutputError", "read_dataset", "write_dataset", "netcdf_safe_attrs", "atomic_write"]
 
 _STAGE_SOURCES = {
-    "imaging": ("imaging/*.py", "shared/*.py"),
-    "packing": ("imaging", "shared/*.py"),
+    "imaging": ("imaging/__init__.py", "imaging/ct", "imaging/morphology", "shared/*.py"),
+    "packing": ("imaging/__init__.py", "imaging/packing", "imaging/morphology", "shared/*.py"),
     "micro": ("micro", "shared"),
     "studies": ("micro", "shared"),
     "upscaling": ("micro", "shared"),

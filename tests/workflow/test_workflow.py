@@ -85,6 +85,66 @@ def test_forcerun_until_reruns_only_that_rule(finished):
     assert "imaging_rev" in stats and "imaging_porosity" not in stats
 
 
+@pytest.fixture(scope="module")
+def micro_finished(tmp_path_factory):
+    """The tiny run up to the micro cases: the CT rules and the micro cases that read the
+    porosity grid (no aggregate or upscaling rule, whose state is not at stake here)."""
+    workdir = _workdir(tmp_path_factory.mktemp("wf_micro"), TINY)
+    targets = ["results/rev/pellet.nc", "results/porosity/pellet.png",
+               *(f"results/micro/{case}.nc" for case in TINY["micro"]["cases"])]
+    result = _snakemake(workdir, *targets)
+    assert result.returncode == 0, result.stderr[-3000:]
+    return workdir
+
+
+_PHANTOM = {"results/phantom/pellet.tif"}
+_POROSITY = {"results/images/pellet.nc", "results/porosity/pellet.nc",
+             "results/porosity/pellet.png"}
+_REV = {"results/rev/pellet.nc", "results/rev/pellet.png"}
+
+
+@pytest.mark.parametrize(
+    ("section", "key", "value", "readers"),
+    [
+        ("calibration", "air_density_kg_m3", 1.2, _PHANTOM | _POROSITY),
+        ("calibration", "muscovite_density_kg_m3", 3800.0, _PHANTOM | _POROSITY),
+        ("calibration", "dry_density_kg_m3", 2000.0, _POROSITY),
+        ("calibration", "grey_air", 100.0, _POROSITY),
+        ("rev", "tolerance", 0.1, _REV),
+    ],
+)
+def test_a_config_edit_changes_the_params_of_its_readers_only(
+    micro_finished, tmp_path, section, key, value, readers
+):
+    """Editing an ``imaging`` key changes the params of the rules whose scripts read it,
+    and of no other rule.
+
+    Run on a copy of a finished tiny run of the CT rules and the micro cases (results and
+    ``.snakemake`` metadata, so every output's recorded params are there; the micro cases
+    read the porosity grid but no ``imaging`` key), with ``snakemake --list-changes
+    params``: it lists the outputs whose recorded params differ from the rule's current
+    ones, i.e. the jobs that the params trigger reruns for the edit itself, and runs
+    nothing. A dry run
+    (``-n``) would also list the jobs downstream of those (they rerun because their
+    inputs change), so it cannot tell a rule that reads the key from one that consumes
+    the reader's file. The unedited copy lists nothing, so the recorded params are those
+    of the current rules.
+    """
+    workdir = tmp_path / "wf"
+    shutil.copytree(micro_finished, workdir, symlinks=True)
+    unchanged = _snakemake(workdir, "--list-changes", "params")
+    assert unchanged.returncode == 0, unchanged.stderr[-3000:]
+    assert not [line for line in unchanged.stdout.splitlines() if line.startswith("results/")]
+    config_path = workdir / "config" / "config.yaml"
+    config = yaml.safe_load(config_path.read_text())
+    config["imaging"].setdefault(section, {})[key] = value
+    config_path.write_text(yaml.safe_dump(config))
+    result = _snakemake(workdir, "--list-changes", "params")
+    assert result.returncode == 0, result.stderr[-3000:]
+    listed = {line.strip() for line in result.stdout.splitlines() if line.startswith("results/")}
+    assert listed == readers
+
+
 def _fails_with(tmp: Path, config: dict, message: str) -> None:
     workdir = _workdir(tmp, config)
     result = _snakemake(workdir)

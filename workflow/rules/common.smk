@@ -1,7 +1,7 @@
 # Shared helpers of the rules: validation, sample sheet, code hash, input functions.
 import sys
 
-from imaging.deposition.config import check_packings
+from imaging.packing.config import check_packings
 from micro.upscaling.run import source_names
 from micro.studies import (
     case_edge_length,
@@ -180,12 +180,14 @@ def get_final_outputs():
 
 
 # The sources each stage's rules run; their hash is a param so that edits rerun the rules.
+# CT rules: imaging/ct and imaging/morphology with the shared modules they import.
 IMAGING_CODE = code_hash(
-    "imaging/*.py",
+    "imaging/__init__.py",
+    "imaging/ct",
+    "imaging/morphology",
     "shared/io.py",
     "shared/provenance.py",
     "shared/figures.py",
-    "shared/config.py",
 )
 MICRO_CODE = code_hash("micro", "shared")
 STUDIES_CODE = code_hash(
@@ -196,8 +198,14 @@ STUDIES_CODE = code_hash(
     "shared/figures.py",
     "shared/config.py",
 )
+# Packing rule: imaging/packing and imaging/morphology (a CT edit reruns no packing).
 PACKING_CODE = code_hash(
-    "imaging", "shared/io.py", "shared/provenance.py", "shared/figures.py"
+    "imaging/__init__.py",
+    "imaging/packing",
+    "imaging/morphology",
+    "shared/config.py",
+    "shared/io.py",
+    "shared/provenance.py",
 )
 UPSCALING_CODE = code_hash(
     "micro/upscaling",

@@ -1,4 +1,5 @@
-# Imaging stage: CT greyscale -> calibrated density -> porosity grid; REV and chord lengths.
+# CT stage (imaging/ct): greyscale -> calibrated density -> porosity grid; REV and chord
+# lengths (imaging/morphology). Each rule's params hold every config key its script reads.
 
 
 rule imaging_phantom:
@@ -7,6 +8,12 @@ rule imaging_phantom:
     params:
         code=IMAGING_CODE,
         phantom=config["phantom"],
+        sample=get_sample_config,
+        # the phantom maps density to grey with the anchors that calibration inverts
+        calibration={
+            key: config["imaging"]["calibration"][key]
+            for key in ("air_density_kg_m3", "muscovite_density_kg_m3")
+        },
     conda:
         "../envs/claychain.yaml"
     log:
@@ -27,7 +34,15 @@ rule imaging_porosity:
     params:
         code=IMAGING_CODE,
         sample=get_sample_config,
-        imaging=config["imaging"],
+        imaging={
+            key: config["imaging"][key]
+            for key in (
+                "calibration",
+                "mask",
+                "grid_spacing_m",
+                "min_specimen_fraction",
+            )
+        },
         micro_spacing=[config["micro"]["specimen_size_m"], config["micro"]["n_points"]],
     conda:
         "../envs/claychain.yaml"
@@ -48,7 +63,8 @@ rule imaging_rev:
         figure="results/rev/{sample}.png",
     params:
         code=IMAGING_CODE,
-        imaging=config["imaging"],
+        rev=config["imaging"]["rev"],
+        chords=config["imaging"]["chords"],
     conda:
         "../envs/claychain.yaml"
     log:

@@ -6,7 +6,11 @@ from pathlib import Path
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
 import _logging  # noqa: E402
 
-from imaging import run  # noqa: E402
+from imaging.ct import run  # noqa: E402
 
-_logging.setup(snakemake.log[0])  # noqa: F821
-run.phantom(snakemake.config, snakemake.wildcards.sample, snakemake.output[0])  # noqa: F821
+sm = snakemake  # noqa: F821
+_logging.setup(sm.log[0])
+run.phantom(
+    sm.params.phantom, sm.params.calibration, sm.wildcards.sample, sm.params.sample,
+    sm.output[0],
+)

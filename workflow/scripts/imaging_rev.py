@@ -6,11 +6,11 @@ from pathlib import Path
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
 import _logging  # noqa: E402
 
-from imaging import run  # noqa: E402
+from imaging.ct import run  # noqa: E402
 
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
 run.rev(
-    sm.config, sm.wildcards.sample, sm.input.image, sm.input.porosity, sm.output.rev,
-    sm.output.figure, rule=sm.rule,
+    sm.wildcards.sample, sm.params.rev, sm.params.chords, sm.input.image, sm.input.porosity,
+    sm.output.rev, sm.output.figure, rule=sm.rule,
 )

@@ -6,7 +6,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
 import _logging  # noqa: E402
 
-from imaging.deposition import run  # noqa: E402
+from imaging.packing import run  # noqa: E402
 
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])

@@ -1,0 +1,130 @@
+"""The CT stage's results as the xarray datasets of the data contracts (DESIGN §2)."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+import xarray as xr
+
+from imaging.ct.calibration import Calibration
+from imaging.ct.grid import BlockGrid
+from imaging.morphology import ChordResult, RevResult
+
+__all__ = ["image_dataset", "porosity_dataset", "rev_dataset", "voxel_coordinates"]
+
+
+def _coord(values: npt.ArrayLike, name: str, units: str, long_name: str) -> xr.Variable:
+    return xr.Variable((name,), np.asarray(values, dtype=np.float64), {"units": units, "long_name": long_name})
+
+
+def voxel_coordinates(shape: tuple[int, ...], voxel_size: float) -> dict[str, xr.Variable]:
+    """Voxel-centre coordinates ``z, y, x`` [m], voxel ``i`` spanning ``[i, i+1) * voxel_size``."""
+    return {
+        axis: _coord((np.arange(n) + 0.5) * voxel_size, axis, "m", f"{axis} position of voxel centre")
+        for axis, n in zip("zyx", shape)
+    }
+
+
+def image_dataset(
+    grey: npt.NDArray[np.unsignedinteger], specimen: npt.NDArray[np.bool_], voxel_size: float
+) -> xr.Dataset:
+    """Greyscale volume and specimen mask with coordinates in metres."""
+    return xr.Dataset(
+        {
+            "grey": (("z", "y", "x"), grey, {"units": "1", "long_name": "CT grey value"}),
+            "specimen": (
+                ("z", "y", "x"),
+                specimen.astype(np.uint8),
+                {"units": "1", "long_name": "specimen mask (1 inside, 0 air)"},
+            ),
+        },
+        coords=voxel_coordinates(grey.shape, voxel_size),
+        attrs={"voxel_size": voxel_size, "voxel_size_units": "m"},
+    )
+
+
+def porosity_dataset(
+    grid: BlockGrid,
+    calibration: Calibration,
+    porosity_bounds: tuple[float, float],
+    voxel_size: float,
+) -> xr.Dataset:
+    """Block-averaged density and porosity, with calibration anchors as attributes.
+
+    Porosity is clamped to ``porosity_bounds``; the fraction of clamped blocks is recorded.
+    """
+    finite = np.isfinite(grid.porosity)
+    low, high = porosity_bounds
+    clamped = finite & ((grid.porosity < low) | (grid.porosity > high))
+    porosity = np.where(finite, np.clip(grid.porosity, low, high), np.nan)
+    coords = {
+        axis: _coord(values, axis, "m", f"{axis} position of grid block centre")
+        for axis, values in zip("zyx", (grid.z, grid.y, grid.x))
+    }
+    dims = ("z", "y", "x")
+    return xr.Dataset(
+        {
+            "porosity": (dims, porosity, {
+                "units": "1",
+                "long_name": "porosity (block average; NaN outside the specimen)",
+                "valid_min": low,
+                "valid_max": high,
+            }),
+            "density": (dims, grid.density, {
+                "units": "kg m-3",
+                "long_name": "dry density (block average of specimen voxels)",
+            }),
+            "specimen_fraction": (dims, grid.specimen_fraction, {
+                "units": "1",
+                "long_name": "fraction of the block's voxels inside the specimen",
+            }),
+        },
+        coords=coords,
+        attrs={
+            "voxel_size": voxel_size,
+            "grid_spacing": grid.block[0] * voxel_size,
+            "block_voxels": grid.block[0],
+            "grey_air": calibration.grey_air,
+            "grey_muscovite": calibration.grey_muscovite,
+            "air_density": calibration.air_density,
+            "muscovite_density": calibration.muscovite_density,
+            "dry_density": calibration.dry_density,
+            "mean_porosity_anchor": calibration.mean_porosity,
+            "clamped_fraction": float(clamped.sum() / max(finite.sum(), 1)),
+            "porosity_mean": float(np.nanmean(porosity)),
+        },
+    )
+
+
+def rev_dataset(rev: RevResult, chords: ChordResult, voxel_size: float) -> xr.Dataset:
+    """REV statistics and chord-length distributions (DESIGN §2, ``results/rev``)."""
+    window = _coord(rev.window * voxel_size, "window", "m", "window edge")
+    scalar = {"units": "m"}
+    data = {
+        "porosity_mean": ("window", rev.porosity_mean, {"units": "1", "long_name": "mean porosity over random windows"}),
+        "porosity_std": ("window", rev.porosity_std, {"units": "1", "long_name": "std of porosity over random windows"}),
+        "porosity_centred": ("window", rev.porosity_centred, {"units": "1", "long_name": "porosity of the centred window"}),
+        "interface_mean": ("window", rev.interface_mean, {"units": "m-1", "long_name": "mean solid-pore interface density over random windows"}),
+        "interface_std": ("window", rev.interface_std, {"units": "m-1", "long_name": "std of interface density over random windows"}),
+        "interface_centred": ("window", rev.interface_centred, {"units": "m-1", "long_name": "interface density of the centred window"}),
+        "porosity_total": ((), rev.porosity_total, {"units": "1", "long_name": "porosity of the analysed image"}),
+        "interface_total": ((), rev.interface_total, {"units": "m-1", "long_name": "interface density of the analysed image"}),
+        "w_rev_porosity": ((), rev.w_rev_porosity, {**scalar, "long_name": "REV edge for porosity (relative std criterion)"}),
+        "w_rev_interface": ((), rev.w_rev_interface, {**scalar, "long_name": "REV edge for interface density (relative std criterion)"}),
+        "w_rev_porosity_centred": ((), rev.w_rev_porosity_centred, {**scalar, "long_name": "REV edge for porosity (centred window criterion, Ferrage 2015)"}),
+        "w_rev_interface_centred": ((), rev.w_rev_interface_centred, {**scalar, "long_name": "REV edge for interface density (centred window criterion)"}),
+        "chord_pore": (("direction", "length"), chords.f_pore, {"units": "m-1", "long_name": "pore chord-length probability density f_p(r)"}),
+        "chord_solid": (("direction", "length"), chords.f_solid, {"units": "m-1", "long_name": "solid chord-length probability density f_s(r)"}),
+        "chord_count_pore": (("direction", "length"), chords.count_pore, {"units": "1", "long_name": "number of pore chords"}),
+        "chord_count_solid": (("direction", "length"), chords.count_solid, {"units": "1", "long_name": "number of solid chords"}),
+        "mean_chord_pore": ("direction", chords.mean_pore, {**scalar, "long_name": "mean pore chord length (Eq. 13)"}),
+        "mean_chord_solid": ("direction", chords.mean_solid, {**scalar, "long_name": "mean solid chord length (Eq. 14)"}),
+        "R_p": ((), chords.R_p, {"units": "1", "long_name": "pore chord anisotropy l_z/l_xy (Eq. 15)"}),
+        "R_s": ((), chords.R_s, {"units": "1", "long_name": "solid chord anisotropy l_z/l_xy (Eq. 16)"}),
+    }
+    coords = {
+        "window": window,
+        "length": _coord(chords.length, "length", "m", "chord length"),
+        "direction": xr.Variable(("direction",), np.array(chords.direction), {"long_name": "lattice direction"}),
+    }
+    return xr.Dataset(data, coords=coords)

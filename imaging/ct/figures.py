@@ -1,0 +1,69 @@
+"""Figures of the CT stage: what a user looks at before reading numbers."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from shared.figures import new_figure, save_figure
+
+__all__ = ["porosity_figure", "rev_figure"]
+
+
+def _mid(n: int) -> int:
+    return n // 2
+
+
+def porosity_figure(image: xr.Dataset, porosity: xr.Dataset, path: str | Path) -> Path:
+    """Grey and porosity slices (xy and xz through the centre) and the porosity histogram."""
+    fig, axes = new_figure(2, 3)
+    grey, phi = image["grey"], porosity["porosity"]
+    mm = 1e3
+    panels = [
+        (axes[0, 0], grey.isel(z=_mid(grey.sizes["z"])), "x", "y", "grey, xy (mid z)", "gray"),
+        (axes[0, 1], grey.isel(y=_mid(grey.sizes["y"])), "x", "z", "grey, xz (mid y)", "gray"),
+        (axes[1, 0], phi.isel(z=_mid(phi.sizes["z"])), "x", "y", "porosity, xy (mid z)", "viridis"),
+        (axes[1, 1], phi.isel(y=_mid(phi.sizes["y"])), "x", "z", "porosity, xz (mid y)", "viridis"),
+    ]
+    for ax, field, h, v, title, cmap in panels:
+        extent = [field[h].min() * mm, field[h].max() * mm, field[v].min() * mm, field[v].max() * mm]
+        shown = ax.imshow(np.asarray(field.transpose(v, h)), origin="lower", extent=extent, cmap=cmap)
+        fig.colorbar(shown, ax=ax, shrink=0.8)
+        ax.set(title=title, xlabel=f"{h} [mm]", ylabel=f"{v} [mm]")
+    values = phi.values[np.isfinite(phi.values)]
+    axes[1, 2].hist(values, bins=40, color="tab:blue")
+    axes[1, 2].axvline(values.mean(), color="k", ls="--", label=f"mean {values.mean():.3f}")
+    axes[1, 2].set(title="porosity of grid blocks", xlabel="porosity [-]", ylabel="blocks")
+    axes[1, 2].legend()
+    density = porosity["density"].values
+    axes[0, 2].hist(density[np.isfinite(density)], bins=40, color="tab:brown")
+    axes[0, 2].set(title="block dry density", xlabel="density [kg/m3]", ylabel="blocks")
+    return save_figure(fig, path)
+
+
+def rev_figure(rev: xr.Dataset, path: str | Path) -> Path:
+    """REV curves (mean +- std and centred window) and chord-length distributions r f(r)."""
+    fig, axes = new_figure(2, 2)
+    window_mm = rev["window"].values * 1e3
+    for ax, name, unit in ((axes[0, 0], "porosity", "-"), (axes[0, 1], "interface", "1/m")):
+        mean, std = rev[f"{name}_mean"].values, rev[f"{name}_std"].values
+        ax.fill_between(window_mm, mean - std, mean + std, alpha=0.3, label="random windows, +-1 std")
+        ax.plot(window_mm, mean, "o-", label="mean")
+        ax.plot(window_mm, rev[f"{name}_centred"].values, "s--", label="centred window")
+        w_rev = float(rev[f"w_rev_{name}"])
+        if np.isfinite(w_rev):
+            ax.axvline(w_rev * 1e3, color="k", ls=":", label=f"REV {w_rev * 1e3:.2g} mm")
+        ax.set(xscale="log", xlabel="window edge [mm]", ylabel=f"{name} [{unit}]", title=f"REV: {name}")
+        ax.legend(fontsize="small")
+    length_um = rev["length"].values * 1e6
+    for ax, phase in ((axes[1, 0], "pore"), (axes[1, 1], "solid")):
+        for direction in rev["direction"].values:
+            f = rev[f"chord_{phase}"].sel(direction=direction).values
+            ax.plot(length_um, rev["length"].values * f, label=f"{direction}")
+        ratio = float(rev["R_p" if phase == "pore" else "R_s"])
+        ax.set(xscale="log", xlabel="chord length r [um]", ylabel="r f(r) [-]",
+               title=f"{phase} chords (R = {ratio:.3g})")
+        ax.legend()
+    return save_figure(fig, path)

@@ -1,0 +1,257 @@
+"""Entry points of the CT stage, called by the Snakemake scripts and by the tests.
+
+``phantom`` writes the synthetic scan, ``porosity`` turns a greyscale scan into a porosity
+grid, ``rev`` runs the REV and chord-length analyses (:mod:`imaging.morphology`) on the
+calibrated voxels. Each takes the config sections it reads, and nothing else, so that a
+rule passes exactly those as its params.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from imaging.ct import figures
+from imaging.ct.calibration import Calibration, density_to_porosity, grey_anchors, grey_to_density
+from imaging.ct.datasets import image_dataset, porosity_dataset, rev_dataset
+from imaging.ct.grid import block_average, block_size_voxels
+from imaging.ct.io import read_volume, write_tiff_stack
+from imaging.ct.mask import inscribed_box, specimen_mask
+from imaging.ct.phantom import PhantomSpec, pellet_phantom
+from imaging.morphology import chord_lengths, rev_analysis
+from shared.io import read_dataset, write_dataset
+
+__all__ = ["phantom", "porosity", "rev", "grid_spacing", "phantom_spec"]
+
+log = logging.getLogger("imaging.ct")
+
+_REFERENCE = "Caulk (2022), PhD thesis, Univ. Grenoble Alpes, Sec. 3.3.4"
+
+
+def phantom_spec(
+    section: Mapping[str, Any], calibration: Mapping[str, Any], voxel_size: float
+) -> PhantomSpec:
+    """Phantom parameters.
+
+    Parameters
+    ----------
+    section
+        The ``phantom`` config section.
+    calibration
+        ``air_density_kg_m3`` and ``muscovite_density_kg_m3`` of ``imaging.calibration``:
+        the phantom maps density to grey with the anchors that calibration inverts.
+    voxel_size
+        Voxel edge [m].
+    """
+    return PhantomSpec(
+        shape=tuple(section["shape"]),
+        voxel_size=voxel_size,
+        mean_density=section["mean_density_kg_m3"],
+        density_std=section["density_std_kg_m3"],
+        correlation_length_xy=section["correlation_length_xy_m"],
+        correlation_length_z=section["correlation_length_z_m"],
+        n_flaws=section["n_flaws"],
+        flaw_thickness=section["flaw_thickness_m"],
+        flaw_density=section["flaw_density_kg_m3"],
+        n_muscovite_grains=section["n_muscovite_grains"],
+        air_density=calibration["air_density_kg_m3"],
+        muscovite_density=calibration["muscovite_density_kg_m3"],
+        blur_sigma=section["blur_sigma_voxels"],
+        noise_std=section["noise_std_grey"],
+        seed=section["seed"],
+    )
+
+
+def grid_spacing(spacing: float | None, micro_spacing: Sequence[float]) -> float:
+    """Porosity grid spacing [m]: ``imaging.grid_spacing_m``, else the mean micro point
+    spacing ``micro.specimen_size_m / micro.n_points^(1/3)``.
+
+    Parameters
+    ----------
+    spacing
+        ``imaging.grid_spacing_m`` [m], or None.
+    micro_spacing
+        ``(micro.specimen_size_m, micro.n_points)``.
+    """
+    if spacing is not None:
+        return float(spacing)
+    size, n_points = micro_spacing
+    return float(size / n_points ** (1.0 / 3.0))
+
+
+def phantom(
+    section: Mapping[str, Any],
+    calibration: Mapping[str, Any],
+    sample: str,
+    entry: Mapping[str, Any],
+    output: str | Path,
+) -> Path:
+    """Write the synthetic pellet scan of a sample as a 16-bit multi-page TIFF.
+
+    Parameters
+    ----------
+    section, calibration
+        The ``phantom`` section and the density anchors of ``imaging.calibration`` (see
+        :func:`phantom_spec`).
+    sample, entry
+        The sample's name and its ``samples`` entry (its ``voxel_size_m`` is read).
+    output
+        Target TIFF.
+    """
+    spec = phantom_spec(section, calibration, float(entry["voxel_size_m"]))
+    grey, _ = pellet_phantom(spec)
+    log.info("phantom %s: shape %s, voxel %.3g m", sample, grey.shape, spec.voxel_size)
+    return write_tiff_stack(grey, output)
+
+
+def _calibration(section: Mapping[str, Any], grey: np.ndarray, specimen: np.ndarray) -> Calibration:
+    grey_air, grey_muscovite = section["grey_air"], section["grey_muscovite"]
+    if grey_air is None or grey_muscovite is None:
+        auto_air, auto_muscovite = grey_anchors(grey, specimen, section["muscovite_percentile"])
+        grey_air = auto_air if grey_air is None else grey_air
+        grey_muscovite = auto_muscovite if grey_muscovite is None else grey_muscovite
+    return Calibration(
+        grey_air=float(grey_air),
+        grey_muscovite=float(grey_muscovite),
+        air_density=section["air_density_kg_m3"],
+        muscovite_density=section["muscovite_density_kg_m3"],
+        dry_density=section["dry_density_kg_m3"],
+        mean_porosity=section["mean_porosity"],
+    )
+
+
+def porosity(
+    sample: str,
+    entry: Mapping[str, Any],
+    imaging: Mapping[str, Any],
+    micro_spacing: Sequence[float],
+    scan: str | Path,
+    image_output: str | Path,
+    porosity_output: str | Path,
+    figure_output: str | Path,
+    rule: str | None = None,
+) -> xr.Dataset:
+    """Greyscale scan -> specimen mask -> calibrated density -> block-averaged porosity grid.
+
+    Parameters
+    ----------
+    sample
+        Sample name.
+    entry
+        The sample's ``samples`` entry (validated).
+    imaging
+        The keys of the ``imaging`` section that this step reads: ``calibration``,
+        ``mask``, ``grid_spacing_m`` and ``min_specimen_fraction``.
+    micro_spacing
+        ``(micro.specimen_size_m, micro.n_points)``, for the default grid spacing.
+    scan
+        The scan's file or folder (the phantom's TIFF for a phantom sample).
+    image_output, porosity_output, figure_output
+        Paths of ``results/images/<sample>.nc``, ``results/porosity/<sample>.nc`` and its PNG.
+    rule
+        Snakemake rule name, for provenance.
+
+    Returns
+    -------
+    xarray.Dataset
+        The porosity dataset as written.
+    """
+    source = "tiff" if entry["source"] == "phantom" else entry["source"]
+    voxel_size = float(entry["voxel_size_m"])
+    raw = entry.get("raw", {})
+    grey = read_volume(
+        source,
+        scan,
+        raw_shape=tuple(raw["shape"]) if "shape" in raw else None,
+        raw_dtype=raw.get("dtype", "uint16"),
+        raw_byte_order=raw.get("byte_order", "little"),
+    )
+    log.info("%s: read %s volume %s from %s", sample, grey.dtype, grey.shape, scan)
+    mask_cfg = imaging["mask"]
+    specimen = specimen_mask(grey, mask_cfg["threshold"], mask_cfg["min_slice_fraction"])
+    calibration = _calibration(imaging["calibration"], grey, specimen)
+    block = block_size_voxels(grid_spacing(imaging["grid_spacing_m"], micro_spacing), voxel_size)
+    grid = block_average(
+        grey, specimen, calibration, block, voxel_size, imaging["min_specimen_fraction"]
+    )
+    if not np.isfinite(grid.porosity).any():
+        raise ValueError(f"{scan}: no grid block lies inside the specimen; check the mask settings")
+    section = {"sample": dict(entry), "imaging": dict(imaging)}
+    image_ds = image_dataset(grey, specimen, voxel_size)
+    write_dataset(image_ds, image_output, stage="imaging", title=f"CT scan of {sample}",
+                  config=section, inputs=[scan] if Path(scan).is_file() else [], rule=rule)
+    bounds = tuple(imaging["calibration"]["porosity_bounds"])
+    ds = porosity_dataset(grid, calibration, bounds, voxel_size)
+    write_dataset(ds, porosity_output, stage="imaging", title=f"porosity grid of {sample}",
+                  config=section, inputs=[image_output], rule=rule, references=_REFERENCE)
+    figures.porosity_figure(image_ds, ds, figure_output)
+    log.info("%s: grid %s of %.3g m, mean porosity %.4f, clamped %.2g",
+             sample, ds["porosity"].shape, ds.attrs["grid_spacing"],
+             ds.attrs["porosity_mean"], ds.attrs["clamped_fraction"])
+    return ds
+
+
+def rev(
+    sample: str,
+    rev_settings: Mapping[str, Any],
+    chords_settings: Mapping[str, Any],
+    image_input: str | Path,
+    porosity_input: str | Path,
+    rev_output: str | Path,
+    figure_output: str | Path,
+    rule: str | None = None,
+) -> xr.Dataset:
+    """REV and chord-length analyses of the calibrated voxels inside the specimen.
+
+    The analysed region is the largest cube inside the specimen mask, so that outside
+    air does not enter any window. The calibration is read from the porosity file.
+
+    Parameters
+    ----------
+    sample
+        Sample name.
+    rev_settings, chords_settings
+        The ``imaging.rev`` and ``imaging.chords`` sections (validated).
+    image_input, porosity_input
+        ``results/images/<sample>.nc`` and ``results/porosity/<sample>.nc``.
+    rev_output, figure_output
+        ``results/rev/<sample>.nc`` and its PNG.
+    rule
+        Snakemake rule name, for provenance.
+    """
+    image = read_dataset(image_input, ["grey", "specimen"])
+    attrs = read_dataset(porosity_input, ["porosity"]).attrs
+    calibration = Calibration(
+        grey_air=attrs["grey_air"], grey_muscovite=attrs["grey_muscovite"],
+        air_density=attrs["air_density"], muscovite_density=attrs["muscovite_density"],
+        dry_density=attrs["dry_density"], mean_porosity=attrs["mean_porosity_anchor"],
+    )
+    voxel_size = float(image.attrs["voxel_size"])
+    box = inscribed_box(image["specimen"].values.astype(bool))
+    grey = image["grey"].values[box].astype(np.float32)
+    voxel_porosity = np.clip(density_to_porosity(grey_to_density(grey, calibration), calibration), 0, 1)
+    threshold = chords_settings["pore_porosity_threshold"]
+    pore = voxel_porosity > threshold
+    result = rev_analysis(
+        voxel_porosity, voxel_size, np.random.default_rng(rev_settings["seed"]), binary=pore,
+        n_sizes=rev_settings["n_sizes"], n_positions=rev_settings["n_positions"],
+        tolerance=rev_settings["tolerance"], max_window_fraction=rev_settings["max_window_fraction"],
+    )
+    chords = chord_lengths(pore, voxel_size, chords_settings["include_edges"])
+    ds = rev_dataset(result, chords, voxel_size)
+    ds.attrs.update(analysed_cube_edge=voxel_porosity.shape[0] * voxel_size,
+                    pore_porosity_threshold=threshold,
+                    rev_tolerance=rev_settings["tolerance"])
+    write_dataset(ds, rev_output, stage="imaging", title=f"REV and chord lengths of {sample}",
+                  config={"rev": dict(rev_settings), "chords": dict(chords_settings)},
+                  seed=rev_settings["seed"], inputs=[image_input, porosity_input],
+                  rule=rule, references="Ferrage et al. (2015), Phys. Rev. E 91, 062210, Sec. V.C")
+    figures.rev_figure(ds, figure_output)
+    log.info("%s: REV porosity %.3g m, interface %.3g m; R_p %.3g, R_s %.3g", sample,
+             result.w_rev_porosity, result.w_rev_interface, chords.R_p, chords.R_s)
+    return ds

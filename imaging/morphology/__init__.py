@@ -1,0 +1,26 @@
+"""Morphology of a 3-D image: REV, solid-pore interface density and chord lengths.
+
+Pure functions on arrays (numba kernels in :mod:`._kernels`), shared by the CT stage
+(calibrated voxels of a scan) and the packing stage (voxel image of a bed).
+"""
+
+from imaging.morphology.chords import ChordResult, chord_lengths
+from imaging.morphology.rev import (
+    FACE_COUNT_CORRECTION,
+    RevResult,
+    interface_area,
+    rev_analysis,
+    rev_size,
+    window_sizes,
+)
+
+__all__ = [
+    "FACE_COUNT_CORRECTION",
+    "ChordResult",
+    "RevResult",
+    "chord_lengths",
+    "interface_area",
+    "rev_analysis",
+    "rev_size",
+    "window_sizes",
+]

@@ -1,0 +1,63 @@
+"""Virtual clay porous media by 3D sequential deposition of flat elliptic disks.
+
+Reference implementation of Ferrage et al., Phys. Rev. E 91, 062210 (2015):
+
+- :mod:`.population`: particle sizes and shapes (log-normal laws of Table I);
+- :mod:`.deposition`: the sequential deposition algorithm (Sec. II), with exact contact
+  and overlap geometry (:mod:`._contact_kernels`) and a spatial hash (:mod:`._bed`);
+- :mod:`.analysis`, :mod:`.voxels`, :mod:`.measures`: porosity and order profiles,
+  Q tensor, rocking curve, surface areas, voxel image and overlap fraction (Secs. III-V);
+- :mod:`.config`, :mod:`.run`, :mod:`.figures`: the packing stage (cross-field checks and
+  conversion of a config entry, netCDF file with the REV and chord lengths of
+  :mod:`imaging.morphology`, and figure). They are not imported here, to keep xarray and
+  matplotlib out of the import of the numerical API: ``from imaging.packing.run import run``.
+"""
+
+from imaging.packing.analysis import (
+    OrderParameters,
+    basal_contact_area,
+    legendre_order,
+    linear_zone,
+    order_parameters,
+    order_profile,
+    order_tensor,
+    porosity_profile,
+    rocking_curve,
+    surface_areas,
+    zone_porosity,
+)
+from imaging.packing.deposition import DepositionParameters, Packing, deposit
+from imaging.packing.measures import PackingMeasures, measure_packing
+from imaging.packing.orientation import euler_angles, normals, rotation_matrices
+from imaging.packing.population import Population, equivalent_diameter, sample_semi_axes, volumes
+from imaging.packing.voxels import VoxelImage, overlap_fraction, voxel_counts, voxelize
+
+__all__ = [
+    "DepositionParameters",
+    "OrderParameters",
+    "Packing",
+    "PackingMeasures",
+    "Population",
+    "VoxelImage",
+    "basal_contact_area",
+    "deposit",
+    "equivalent_diameter",
+    "euler_angles",
+    "legendre_order",
+    "linear_zone",
+    "measure_packing",
+    "normals",
+    "order_parameters",
+    "order_profile",
+    "order_tensor",
+    "overlap_fraction",
+    "porosity_profile",
+    "rocking_curve",
+    "rotation_matrices",
+    "sample_semi_axes",
+    "surface_areas",
+    "voxel_counts",
+    "voxelize",
+    "volumes",
+    "zone_porosity",
+]

@@ -1,0 +1,81 @@
+"""Calibration and block averaging against values known by construction."""
+
+import numpy as np
+import pytest
+
+from imaging.ct.calibration import Calibration, density_to_porosity, grey_anchors, grey_to_density
+from imaging.ct.grid import block_average
+from imaging.ct.mask import specimen_mask
+from imaging.ct.phantom import PhantomSpec, pellet_phantom
+
+CAL = Calibration(grey_air=1000.0, grey_muscovite=61000.0)
+
+
+def _grey_of(density: np.ndarray, cal: Calibration) -> np.ndarray:
+    """Invert the grey -> density law by hand (the law's definition, Sec. 3.3.4)."""
+    fraction = (density - cal.air_density) / (cal.muscovite_density - cal.air_density)
+    return cal.grey_air + fraction * (cal.grey_muscovite - cal.grey_air)
+
+
+def test_known_density_gives_its_porosity(rng):
+    porosity_true = rng.uniform(0.05, 0.9, size=(6, 7, 8))
+    # porosity = 1 - (1 - n_mean) (rho - rho_air) / (rho_dry - rho_air), solved for rho
+    density = CAL.air_density + (1 - porosity_true) * (CAL.dry_density - CAL.air_density) / (
+        1 - CAL.mean_porosity
+    )
+    recovered = density_to_porosity(grey_to_density(_grey_of(density, CAL), CAL), CAL)
+    np.testing.assert_allclose(recovered, porosity_true, rtol=0, atol=1e-9)
+
+
+def test_anchor_points():
+    assert grey_to_density(CAL.grey_air, CAL) == pytest.approx(1.13, abs=1e-12)
+    assert grey_to_density(CAL.grey_muscovite, CAL) == pytest.approx(3900.0, rel=1e-12)
+    assert density_to_porosity(2120.0, CAL) == pytest.approx(0.25, abs=1e-12)
+    assert density_to_porosity(1.13, CAL) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_invalid_calibration_is_refused():
+    with pytest.raises(ValueError, match="grey_muscovite"):
+        Calibration(grey_air=5.0, grey_muscovite=5.0)
+    with pytest.raises(ValueError, match="mean_porosity"):
+        Calibration(grey_air=0.0, grey_muscovite=1.0, mean_porosity=1.2)
+
+
+def test_block_average_conserves_the_mean(rng):
+    volume = rng.integers(5000, 50000, size=(20, 18, 17), dtype=np.uint16)
+    everywhere = np.ones(volume.shape, dtype=bool)
+    grid = block_average(volume, everywhere, CAL, block=4, voxel_size=1e-4)
+    sizes = np.multiply.outer(np.multiply.outer([4] * 5, [4] * 4 + [2]), [4] * 4 + [1])
+    weights = sizes / sizes.sum()
+    voxel_mean = grey_to_density(volume.astype(np.float64), CAL).mean()
+    assert (grid.density * weights).sum() == pytest.approx(voxel_mean, rel=1e-6)
+    np.testing.assert_allclose(grid.z, (np.array([0, 4, 8, 12, 16]) + 2) * 1e-4)
+    np.testing.assert_allclose(grid.x[-1], 16.5e-4)
+
+
+def test_block_average_ignores_air():
+    volume = np.full((8, 8, 8), 1000, dtype=np.uint16)
+    volume[:, :, :4] = 31000
+    specimen = volume > 2000
+    grid = block_average(volume, specimen, CAL, block=4, voxel_size=1.0, min_specimen_fraction=0.5)
+    expected = float(grey_to_density(31000.0, CAL))
+    np.testing.assert_allclose(grid.density[:, :, 0], expected, rtol=1e-6)
+    assert np.isnan(grid.density[:, :, 1]).all()
+
+
+def test_phantom_calibration_recovers_true_block_porosity():
+    """Cross-check: porosity from the phantom's grey values vs from its true density."""
+    spec = PhantomSpec(shape=(48, 48, 48), voxel_size=2e-4, noise_std=200.0, seed=3)
+    grey, density = pellet_phantom(spec)
+    specimen = specimen_mask(grey)
+    cal = Calibration(grey_air=spec.grey_air, grey_muscovite=spec.grey_muscovite)
+    grid = block_average(grey, specimen, cal, block=4, voxel_size=spec.voxel_size)
+    true = np.full(grid.porosity.shape, np.nan)
+    sums = density.reshape(12, 4, 12, 4, 12, 4) * specimen.reshape(12, 4, 12, 4, 12, 4)
+    counts = specimen.reshape(12, 4, 12, 4, 12, 4).sum(axis=(1, 3, 5))
+    interior = counts == 64
+    true[interior] = density_to_porosity(sums.sum(axis=(1, 3, 5))[interior] / 64, cal)
+    # blur mixes neighbouring blocks, noise averages out over 64 voxels
+    error = np.abs(grid.porosity[interior] - true[interior])
+    assert np.median(error) < 0.01
+    assert grey_anchors(grey, specimen)[0] == pytest.approx(spec.grey_air, abs=3 * 200.0)
