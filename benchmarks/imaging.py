@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.parameters import CONFIG
 from imaging.ct.calibration import Calibration
 from imaging.ct.grid import block_average
 from imaging.ct.io import read_raw
@@ -39,7 +40,13 @@ def bench_imaging_calibration(size: int = 512) -> dict:
     phases["mask"] = time.perf_counter() - start
     start = time.perf_counter()
     voxel = 12.8e-3 / size
-    grid = block_average(grey, specimen, Calibration(2000.0, 60000.0), round(6e-4 / voxel), voxel)
+    anchors, material = CONFIG["imaging"]["calibration"], CONFIG["materials"]["pellet"]
+    calibration = Calibration(
+        2000.0, 60000.0, air_density=anchors["air_density_kg_m3"],
+        muscovite_density=anchors["muscovite_density_kg_m3"],
+        dry_density=material["dry_density_kg_m3"], mean_porosity=material["reference_porosity"],
+    )
+    grid = block_average(grey, specimen, calibration, round(6e-4 / voxel), voxel)
     phases["calibrate_block_average"] = time.perf_counter() - start
     return {"voxels": size**3, "volume_bytes": grey.nbytes, "grid": list(grid.porosity.shape),
             "phases_s": phases, "total_s": sum(phases.values()) - phases["read"]}

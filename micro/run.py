@@ -26,14 +26,24 @@ from micro.checkpoint import load_checkpoint, save_checkpoint
 from micro.hydration import DivergenceError, FlowSystem, HydrationSettings, advance_to_balance
 from micro.pellet import POROSITY_BINS, SpecimenSpec, initial_state, measure_checkpoint, settle
 from shared.config import ConfigError
-from shared.dem.parameters import DEMParameters, dem_parameters
+from shared.dem.parameters import DEM_MATERIAL_KEYS, DEMParameters, dem_parameters
 from shared.io import read_dataset, write_dataset
-from shared.materials import ClayParameters, clay_parameters
+from shared.materials import CLAY_CONFIG_KEYS, ClayParameters, clay_parameters
 from shared.mesh import mesh_from_tetrahedra
 from shared.progress import Progress
 from shared.provenance import config_sha256
 
-__all__ = ["run", "case_settings", "hydration_settings", "case_material", "case_parameters"]
+__all__ = [
+    "MATERIAL_KEYS",
+    "run",
+    "case_settings",
+    "hydration_settings",
+    "case_material",
+    "case_parameters",
+]
+
+MATERIAL_KEYS = (*CLAY_CONFIG_KEYS.values(), *DEM_MATERIAL_KEYS)
+"""Keys of ``materials.pellet`` the micro model reads (its rules' params hold these)."""
 
 log = logging.getLogger("micro")
 

@@ -29,15 +29,15 @@ class Calibration:
     dry_density
         Measured mean dry density of the specimen [kg/m3].
     mean_porosity
-        Measured mean porosity of the specimen [-].
+        Measured mean porosity of the specimen [-] (the material's reference porosity).
     """
 
     grey_air: float
     grey_muscovite: float
-    air_density: float = 1.13
-    muscovite_density: float = 3900.0
-    dry_density: float = 2120.0
-    mean_porosity: float = 0.25
+    air_density: float
+    muscovite_density: float
+    dry_density: float
+    mean_porosity: float
 
     def __post_init__(self) -> None:
         if not self.grey_muscovite > self.grey_air:

@@ -109,7 +109,8 @@ def phantom(
     return write_tiff_stack(grey, output)
 
 
-def _calibration(section: Mapping[str, Any], grey: np.ndarray, specimen: np.ndarray) -> Calibration:
+def _calibration(section: Mapping[str, Any], material: Mapping[str, Any], grey: np.ndarray,
+                 specimen: np.ndarray) -> Calibration:
     grey_air, grey_muscovite = section["grey_air"], section["grey_muscovite"]
     if grey_air is None or grey_muscovite is None:
         auto_air, auto_muscovite = grey_anchors(grey, specimen, section["muscovite_percentile"])
@@ -120,8 +121,8 @@ def _calibration(section: Mapping[str, Any], grey: np.ndarray, specimen: np.ndar
         grey_muscovite=float(grey_muscovite),
         air_density=section["air_density_kg_m3"],
         muscovite_density=section["muscovite_density_kg_m3"],
-        dry_density=section["dry_density_kg_m3"],
-        mean_porosity=section["mean_porosity"],
+        dry_density=material["dry_density_kg_m3"],
+        mean_porosity=material["reference_porosity"],
     )
 
 
@@ -129,6 +130,7 @@ def porosity(
     sample: str,
     entry: Mapping[str, Any],
     imaging: Mapping[str, Any],
+    material: Mapping[str, Any],
     micro_spacing: Sequence[float],
     scan: str | Path,
     image_output: str | Path,
@@ -147,6 +149,10 @@ def porosity(
     imaging
         The keys of the ``imaging`` section that this step reads: ``calibration``,
         ``mask``, ``grid_spacing_m`` and ``min_specimen_fraction``.
+    material
+        ``dry_density_kg_m3`` and ``reference_porosity`` of ``materials.pellet``: the
+        calibration maps the measured mean dry density to the reference porosity, the
+        same phi_0 as the retention and permeability laws'.
     micro_spacing
         ``(micro.specimen_size_m, micro.n_points)``, for the default grid spacing.
     scan
@@ -174,7 +180,7 @@ def porosity(
     log.info("%s: read %s volume %s from %s", sample, grey.dtype, grey.shape, scan)
     mask_cfg = imaging["mask"]
     specimen = specimen_mask(grey, mask_cfg["threshold"], mask_cfg["min_slice_fraction"])
-    calibration = _calibration(imaging["calibration"], grey, specimen)
+    calibration = _calibration(imaging["calibration"], material, grey, specimen)
     block = block_size_voxels(grid_spacing(imaging["grid_spacing_m"], micro_spacing), voxel_size)
     grid = block_average(
         grey, specimen, calibration, block, voxel_size, imaging["min_specimen_fraction"]

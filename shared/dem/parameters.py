@@ -11,7 +11,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["DEMParameters", "dem_parameters"]
+__all__ = ["DEMParameters", "dem_parameters", "DEM_MATERIAL_KEYS"]
+
+DEM_MATERIAL_KEYS = (
+    "young_modulus_pa", "poisson_ratio", "point_density_kg_m3", "bond_tensile_strength_pa"
+)
+"""Keys of ``materials.pellet`` that :func:`dem_parameters` reads."""
 
 
 @dataclass(frozen=True)

@@ -103,21 +103,32 @@ _POROSITY = {"results/images/pellet.nc", "results/porosity/pellet.nc",
 _REV = {"results/rev/pellet.nc", "results/rev/pellet.png"}
 
 
+_MICRO = {f"results/micro/{case}.{suffix}" for case in TINY["micro"]["cases"]
+          for suffix in ("nc", "png")}
+
+
 @pytest.mark.parametrize(
-    ("section", "key", "value", "readers"),
+    ("key", "value", "readers"),
     [
-        ("calibration", "air_density_kg_m3", 1.2, _PHANTOM | _POROSITY),
-        ("calibration", "muscovite_density_kg_m3", 3800.0, _PHANTOM | _POROSITY),
-        ("calibration", "dry_density_kg_m3", 2000.0, _POROSITY),
-        ("calibration", "grey_air", 100.0, _POROSITY),
-        ("rev", "tolerance", 0.1, _REV),
+        ("imaging.calibration.air_density_kg_m3", 1.2, _PHANTOM | _POROSITY),
+        ("imaging.calibration.muscovite_density_kg_m3", 3800.0, _PHANTOM | _POROSITY),
+        ("imaging.calibration.grey_air", 100.0, _POROSITY),
+        ("imaging.rev.tolerance", 0.1, _REV),
+        # the calibration's mean dry density and phi_0 are the pellet's
+        ("materials.pellet.dry_density_kg_m3", 2000.0, _POROSITY),
+        ("materials.pellet.reference_porosity", 0.3, _POROSITY | _MICRO),
+        # a Table 3.1 parameter reruns the micro cases alone
+        ("materials.pellet.retention_pressure_reference_pa", 4.0e4, _MICRO),
+        ("materials.pellet.swelling_beta_per_pa", 1.0e-8, _MICRO),
+        # the mock-up's parameters rerun no micro or imaging rule
+        ("materials.mixture_powder.retention_exponent_reference", 0.3, set()),
     ],
 )
 def test_a_config_edit_changes_the_params_of_its_readers_only(
-    micro_finished, tmp_path, section, key, value, readers
+    micro_finished, tmp_path, key, value, readers
 ):
-    """Editing an ``imaging`` key changes the params of the rules whose scripts read it,
-    and of no other rule.
+    """Editing a config key changes the params of the rules whose scripts read it, and
+    of no other rule.
 
     Run on a copy of a finished tiny run of the CT rules and the micro cases (results and
     ``.snakemake`` metadata, so every output's recorded params are there; the micro cases
@@ -137,7 +148,11 @@ def test_a_config_edit_changes_the_params_of_its_readers_only(
     assert not [line for line in unchanged.stdout.splitlines() if line.startswith("results/")]
     config_path = workdir / "config" / "config.yaml"
     config = yaml.safe_load(config_path.read_text())
-    config["imaging"].setdefault(section, {})[key] = value
+    *sections, name = key.split(".")
+    node = config
+    for section in sections:
+        node = node.setdefault(section, {})
+    node[name] = value
     config_path.write_text(yaml.safe_dump(config))
     result = _snakemake(workdir, "--list-changes", "params")
     assert result.returncode == 0, result.stderr[-3000:]

@@ -2,6 +2,7 @@
 import sys
 
 from imaging.packing.config import check_packings
+from micro.run import MATERIAL_KEYS
 from micro.upscaling.run import source_names
 from micro.studies import (
     case_edge_length,
@@ -89,7 +90,8 @@ def get_scale_realization_config(wildcards):
 
 def get_micro_materials(wildcards):
     """The pellet's material section (a param: editing it reruns every micro case)."""
-    return {"pellet": config["materials"]["pellet"]}
+    pellet = config["materials"]["pellet"]
+    return {"pellet": {key: pellet[key] for key in MATERIAL_KEYS}}
 
 
 def get_upscaling_sources(wildcards):

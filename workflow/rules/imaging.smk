@@ -43,6 +43,12 @@ rule imaging_porosity:
                 "min_specimen_fraction",
             )
         },
+        # one phi_0: the calibration anchors the mean dry density at the pellet's
+        # reference porosity, that of the retention and permeability laws
+        material={
+            key: config["materials"]["pellet"][key]
+            for key in ("dry_density_kg_m3", "reference_porosity")
+        },
         micro_spacing=[config["micro"]["specimen_size_m"], config["micro"]["n_points"]],
     conda:
         "../envs/claychain.yaml"

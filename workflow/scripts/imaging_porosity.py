@@ -11,6 +11,6 @@ from imaging.ct import run  # noqa: E402
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
 run.porosity(
-    sm.wildcards.sample, sm.params.sample, sm.params.imaging, sm.params.micro_spacing,
+    sm.wildcards.sample, sm.params.sample, sm.params.imaging, sm.params.material, sm.params.micro_spacing,
     sm.input.scan, sm.output.image, sm.output.porosity, sm.output.figure, rule=sm.rule,
 )

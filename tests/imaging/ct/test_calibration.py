@@ -8,7 +8,9 @@ from imaging.ct.grid import block_average
 from imaging.ct.mask import specimen_mask
 from imaging.ct.phantom import PhantomSpec, pellet_phantom
 
-CAL = Calibration(grey_air=1000.0, grey_muscovite=61000.0)
+ANCHORS = {"air_density": 1.13, "muscovite_density": 3900.0, "dry_density": 2120.0,
+           "mean_porosity": 0.25}
+CAL = Calibration(grey_air=1000.0, grey_muscovite=61000.0, **ANCHORS)
 
 
 def _grey_of(density: np.ndarray, cal: Calibration) -> np.ndarray:
@@ -36,9 +38,9 @@ def test_anchor_points():
 
 def test_invalid_calibration_is_refused():
     with pytest.raises(ValueError, match="grey_muscovite"):
-        Calibration(grey_air=5.0, grey_muscovite=5.0)
+        Calibration(grey_air=5.0, grey_muscovite=5.0, **ANCHORS)
     with pytest.raises(ValueError, match="mean_porosity"):
-        Calibration(grey_air=0.0, grey_muscovite=1.0, mean_porosity=1.2)
+        Calibration(grey_air=0.0, grey_muscovite=1.0, **{**ANCHORS, "mean_porosity": 1.2})
 
 
 def test_block_average_conserves_the_mean(rng):
@@ -68,7 +70,7 @@ def test_phantom_calibration_recovers_true_block_porosity():
     spec = PhantomSpec(shape=(48, 48, 48), voxel_size=2e-4, noise_std=200.0, seed=3)
     grey, density = pellet_phantom(spec)
     specimen = specimen_mask(grey)
-    cal = Calibration(grey_air=spec.grey_air, grey_muscovite=spec.grey_muscovite)
+    cal = Calibration(grey_air=spec.grey_air, grey_muscovite=spec.grey_muscovite, **ANCHORS)
     grid = block_average(grey, specimen, cal, block=4, voxel_size=spec.voxel_size)
     true = np.full(grid.porosity.shape, np.nan)
     sums = density.reshape(12, 4, 12, 4, 12, 4) * specimen.reshape(12, 4, 12, 4, 12, 4)
