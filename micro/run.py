@@ -25,6 +25,7 @@ from micro import figures, vtk
 from micro.checkpoint import load_checkpoint, save_checkpoint
 from micro.hydration import DivergenceError, FlowSystem, HydrationSettings, advance_to_balance
 from micro.pellet import POROSITY_BINS, SpecimenSpec, initial_state, measure_checkpoint, settle
+from micro.permeability import principal_permeability
 from shared.config import ConfigError
 from shared.dem.parameters import DEM_MATERIAL_KEYS, DEMParameters, dem_parameters
 from shared.io import read_dataset, write_dataset
@@ -132,6 +133,7 @@ def _dataset(records: list[dict[str, Any]], checkpoints: np.ndarray) -> xr.Datas
         {"units": "m2", "long_name": "intrinsic x relative permeability, measured by a steady "
                                      "solve with a linear boundary pressure"},
     )
+    data.update(_tensor_variables(records))
     for suffix, label in (("", "all"), ("_imbibed", "water-filled"), ("_gas", "gas-filled")):
         data[f"crack_fabric{suffix}"] = (
             ("checkpoint", "i", "j"), np.stack([r[f"crack_fabric{suffix}"] for r in records]),
@@ -149,8 +151,53 @@ def _dataset(records: list[dict[str, Any]], checkpoints: np.ndarray) -> xr.Datas
         "i": ("i", np.arange(3), {"units": "1", "long_name": "tensor row (x, y, z)"}),
         "j": ("j", np.arange(3), {"units": "1", "long_name": "tensor column (x, y, z)"}),
         "bin": ("bin", centres, {"units": "1", "long_name": "porosity bin centre"}),
+        "principal": ("principal", np.arange(3),
+                      {"units": "1", "long_name": "principal axis, by ascending principal value"}),
     }
     return xr.Dataset(data, coords=coords)
+
+
+def _tensor_variables(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """The permeability tensors of the records and their principal values and directions.
+
+    A record without a tensor (from a checkpoint file of an older version) gives NaN.
+    """
+    missing = np.full((2, 3, 3), np.nan)
+    if any("permeability_tensor" not in r for r in records):
+        log.warning("records without a permeability tensor (resumed from an older checkpoint "
+                    "file): stored as NaN")
+    tensor = np.stack([np.asarray(r.get("permeability_tensor", missing), dtype=float)
+                       for r in records])
+    derived = principal_permeability(tensor)
+    how = ("linear pressure on all six walls along x, y and z in turn (one factorisation per "
+           "phase), Darcy velocity averaged over the inner 80 % of the box")
+    return {
+        "permeability_tensor": (
+            ("checkpoint", "phase", "i", "j"), tensor,
+            {"units": "m2", "long_name": "permeability tensor K_ij = -mu <v_i> / (grad p)_j, "
+                                         f"{how}"},
+        ),
+        "permeability_tensor_symmetric": (
+            ("checkpoint", "phase", "i", "j"), derived.symmetric,
+            {"units": "m2", "long_name": "symmetric part (K + K^T)/2 of the permeability tensor"},
+        ),
+        "permeability_principal": (
+            ("checkpoint", "phase", "principal"), derived.values,
+            {"units": "m2", "long_name": "principal permeabilities: eigenvalues of the symmetric "
+                                         "part, ascending"},
+        ),
+        "permeability_principal_direction": (
+            ("checkpoint", "phase", "i", "principal"), derived.directions,
+            {"units": "1", "long_name": "principal directions: unit eigenvectors (components "
+                                        "i = x, y, z) of the symmetric part, largest component "
+                                        "positive"},
+        ),
+        "permeability_asymmetry": (
+            ("checkpoint", "phase"), derived.asymmetry,
+            {"units": "1", "long_name": "relative asymmetry ||K - K^T||_F / ||K||_F of the "
+                                        "permeability tensor"},
+        ),
+    }
 
 
 def run(
