@@ -254,8 +254,12 @@ def measure_checkpoint(
     phases = {phase: conductances(state, phase, material, cracks) for phase in ("water", "gas")}
     permeability = permeability_tensor_axes(state.mesh, state.saturation, state.porosity,
                                             suction, material, conductances=phases)
+    # the tensor's wall layers leave the crack mouths free (no boundary short circuit)
+    mouths = np.zeros(state.mesh.n_cells, dtype=bool)
+    if cracks and state.cracks is not None:
+        mouths[state.mesh.facet_cells[state.cracks.patch_facets].ravel()] = True
     tensor = permeability_tensor(state.mesh, state.saturation, state.porosity, suction, material,
-                                 conductances=phases)
+                                 conductances=phases, sealed=mouths)
     volumes = state.mesh.volumes
     fabric = crack_fabric(state.cracks.normals, state.cracks.areas, state.cracks.apertures,
                           state.cracks.imbibed)

@@ -413,6 +413,7 @@ def measure_permeability_tensor(
     inner_fraction: float = 0.8,
     conductance_floor: float = 1e-16,
     balance_tolerance: float = 1e-3,
+    sealed: npt.NDArray[np.bool_] | None = None,
     solver: CholeskySolver | None = None,
     label: str = "permeability tensor",
 ) -> FloatArray:
@@ -460,6 +461,12 @@ def measure_permeability_tensor(
     balance_tolerance
         Largest relative difference of the rates entering and leaving the inner
         region [1]; beyond it after refinement the column is NaN.
+    sealed
+        Cells (n_cells,) bool that stay free even in a wall layer: the mouths of
+        cracks. A crack joining two wall cells would otherwise carry, between their
+        imposed pressures, a flux as large as its conductance (up to 1e16 times the
+        clay's) through the averaged region: a short circuit of the boundary condition,
+        not a property of the specimen.
     solver
         Solver to use; default a fresh one (a factor kept from other conductances
         would only precondition these solves, see ``_measurement_solver``).
@@ -489,6 +496,8 @@ def measure_permeability_tensor(
         return np.zeros((3, 3))
     floored = np.maximum(conductance, conductance_floor * largest)
     dirichlet = boundary_cell_mask(mesh, list(WALLS))
+    if sealed is not None:
+        dirichlet &= ~np.asarray(sealed, dtype=bool)
     inner = _inner_cells(mesh, dirichlet, inner_fraction)
     if not np.any(inner):
         log.warning("%s: no free cell in the inner region (mesh too coarse); tensor set to NaN",
@@ -559,6 +568,7 @@ def permeability_tensor(
     conductances: Mapping[str, FloatArray] | None = None,
     drop_fraction: float = 0.1,
     inner_fraction: float = 0.8,
+    sealed: npt.NDArray[np.bool_] | None = None,
 ) -> FloatArray:
     """Water and gas permeability tensors of a frozen state (DESIGN §2, ``permeability_tensor``).
 
@@ -585,6 +595,9 @@ def permeability_tensor(
         Pressure drop as a fraction of the suction [1].
     inner_fraction
         Central fraction of the box averaged [1] (thesis: 0.8).
+    sealed
+        Cells that stay free in the wall layers (crack mouths), see
+        :func:`measure_permeability_tensor`.
 
     Returns
     -------
@@ -602,7 +615,7 @@ def permeability_tensor(
             conductance = facet_conductance(mesh, saturation, porosity, phase, material)
         result[index] = measure_permeability_tensor(
             mesh, conductance, phase_viscosity(phase, material),
-            pressure_drop=drop_fraction * suction, inner_fraction=inner_fraction,
+            pressure_drop=drop_fraction * suction, inner_fraction=inner_fraction, sealed=sealed,
             label=f"{phase} permeability tensor at {suction:.4g} Pa",
         )
     return result

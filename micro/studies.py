@@ -40,7 +40,7 @@ __all__ = [
 ]
 
 # coordinates the cases share; they must agree exactly between cases
-_SHARED_COORDS = ("checkpoint", "phase", "axis", "i", "j", "bin")
+_SHARED_COORDS = ("checkpoint", "phase", "axis", "i", "j", "bin", "principal")
 # per-case attributes that vary along the convergence study, kept as variables
 _CASE_ATTRS = {
     "n_cells": ("1", "number of tetrahedra of the mesh"),
