@@ -167,8 +167,11 @@ def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
                     values = np.where(values > 0, values, np.nan)
                 axes[row, column].plot(fraction, values, "o-", ms=3, color=colour, label=legend)
         for row, stat in enumerate(("mu", "sigma")):
-            axes[row, column].set(xscale="log", yscale="log" if log else "linear",
-                                  xlabel="domain fraction [-]", ylabel=f"{stat} of {label}")
+            ax = axes[row, column]
+            ax.set(xscale="log", yscale="log" if log else "linear",
+                   xlabel="domain fraction [-]", ylabel=f"{stat} of {label}")
+            ax.set_xticks(fraction, labels=[f"{f:.3g}" for f in fraction])
+            ax.xaxis.set_minor_locator(plt.NullLocator())
     axes[0, 0].legend(fontsize="x-small")
     counts = ", ".join(f"{f:.3g}: {int(n)}" for f, n in zip(fraction, ds["n_realizations"].values))
     fig.suptitle(f"scale study, realizations per domain fraction ({counts})", fontsize="small")
