@@ -79,13 +79,14 @@ def upscaling_table(
         Naming the source, if it lacks a variable, misses the suction range, has a
         non-positive or NaN permeability, or has other checkpoints than the first.
     """
+    for condition, members in sources.items():
+        if not members:
+            raise ConfigError(f"config key 'upscaling.conditions.{condition}': no source")
     reference_name, reference = next(iter(sources.values()))[0]
     suction = np.asarray(reference["suction"].values, dtype=float)
     order = np.argsort(suction)
     per_condition: dict[str, dict[str, np.ndarray]] = {}
     for condition, members in sources.items():
-        if not members:
-            raise ConfigError(f"config key 'upscaling.conditions.{condition}': no source")
         stacks: dict[str, list[np.ndarray]] = {v: [] for v in SOURCE_VARIABLES[1:]}
         for name, ds in members:
             _check_source(ds, name, suction_range)

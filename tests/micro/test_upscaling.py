@@ -141,3 +141,8 @@ def test_a_scale_fraction_source_is_that_fractions_realizations():
     config["upscaling"]["conditions"]["free"] = {"scale_fraction": 0.5}
     with pytest.raises(ConfigError, match=r"upscaling\.conditions\.free\.scale_fraction"):
         validate_config(config)
+
+
+def test_a_condition_without_source_is_refused():
+    with pytest.raises(ConfigError, match=r"upscaling\.conditions\.free': no source"):
+        upscaling_table({"free": [], "confined": [("c", _micro(1))]}, RANGE)
