@@ -98,10 +98,19 @@ def validate_config(
     if errors:
         first = errors[0]
         raise ConfigError(f"{_key_path(first)}: {first.message}")
-    for check in (_check_micro, _check_upscaling, *checks):
+    for check in (_check_samples, _check_micro, _check_upscaling, *checks):
         check(config)
     _check_case_materials(config, schema)
     return config
+
+
+def _check_samples(config: Mapping[str, Any]) -> None:
+    """A scan that is not the phantom needs its file or folder."""
+    for name, entry in config["samples"].items():
+        if entry["source"] != "phantom" and not entry["path"]:
+            raise ConfigError(
+                f"config key 'samples.{name}.path': required for a {entry['source']} scan"
+            )
 
 
 def _check_micro(config: Mapping[str, Any]) -> None:

@@ -37,3 +37,10 @@ def test_errors_name_the_key(default_config, edit, key):
 def test_missing_file(tmp_path):
     with pytest.raises(ConfigError, match="no such configuration file"):
         load_config(tmp_path / "absent.yaml")
+
+
+def test_a_scan_without_path_is_refused_naming_the_key(default_config):
+    config = copy.deepcopy(default_config)
+    config["samples"]["scan"] = {"source": "tiff", "voxel_size_m": 1e-5}
+    with pytest.raises(ConfigError, match=r"samples\.scan\.path.*tiff"):
+        validate_config(config)

@@ -51,8 +51,6 @@ def get_scan(wildcards):
     entry = config["samples"][wildcards.sample]
     if entry["source"] == "phantom":
         return f"results/phantom/{wildcards.sample}.tif"
-    if not entry["path"]:
-        sys.exit(f"claychain: config key 'samples.{wildcards.sample}.path' is empty")
     return entry["path"]
 
 
