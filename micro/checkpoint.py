@@ -8,7 +8,6 @@ history are saved too). Files are written to a temporary name and renamed.
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +17,7 @@ from micro.hydration import FlowSystem, PelletState, update_cracks
 from shared.dem.state import ContactList, DEMState
 from shared.dem.walls import Walls
 from shared.materials import ClayParameters
+from shared.io import atomic_write
 from shared.mesh import mesh_from_tetrahedra
 
 __all__ = ["save_checkpoint", "load_checkpoint"]
@@ -53,10 +53,7 @@ def save_checkpoint(
                "reference_volume": reference_volume,
                "walls_servo": None if state.walls is None else bool(state.walls.servo),
                "records": [_jsonable(r) for r in records]}
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.npz")
-    np.savez(tmp, meta=np.array(json.dumps(scalars)), **arrays)
-    os.replace(tmp, path)
+    atomic_write(path, lambda tmp: np.savez(tmp, meta=np.array(json.dumps(scalars)), **arrays))
 
 
 def load_checkpoint(

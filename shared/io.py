@@ -161,19 +161,32 @@ def write_dataset(
     return atomic_write(path, lambda tmp: out.to_netcdf(tmp, engine="netcdf4", encoding=encoding))
 
 
+def _umask() -> int:
+    """The process's file-creation mask (read by setting and restoring it)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write(path: str | Path, write: Callable[[str], object]) -> Path:
     """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``.
 
     The folder is created if missing. On any error the temporary file is removed and
     ``path`` keeps its old content, so an interrupted run never leaves a readable but
-    wrong file.
+    wrong file. The temporary name keeps ``path``'s suffix (writers that choose the
+    format by it, or append one, write the file named), and the file gets the
+    permissions of a newly created one under the process's umask, not the owner-only
+    mode of a temporary file, so that a group shares the results.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    handle, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    handle, tmp_name = tempfile.mkstemp(
+        prefix=f".{path.name}.", suffix=f".tmp{path.suffix}", dir=path.parent
+    )
     os.close(handle)
     try:
         write(tmp_name)
+        os.chmod(tmp_name, 0o666 & ~_umask())
         os.replace(tmp_name, path)
     except BaseException:
         Path(tmp_name).unlink(missing_ok=True)

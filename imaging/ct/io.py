@@ -15,6 +15,8 @@ import numpy as np
 import numpy.typing as npt
 import xarray as xr
 
+from shared.io import atomic_write
+
 __all__ = [
     "ImageError",
     "read_volume",
@@ -186,12 +188,12 @@ def write_tiff_stack(volume: np.ndarray, path: str | Path) -> Path:
     """Write a ``(z, y, x)`` 8/16-bit volume as one multi-page TIFF, atomically."""
     path = Path(path)
     _check_volume(volume, path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.tif")
-    if not cv2.imwritemulti(str(tmp), list(volume)):
-        raise ImageError(f"{path}: OpenCV could not write the TIFF stack")
-    tmp.replace(path)
-    return path
+
+    def write(tmp: str) -> None:
+        if not cv2.imwritemulti(tmp, list(volume)):
+            raise ImageError(f"{path}: OpenCV could not write the TIFF stack")
+
+    return atomic_write(path, write)
 
 
 def write_slice_folder(volume: np.ndarray, folder: str | Path, stem: str = "slice") -> Path:

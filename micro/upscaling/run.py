@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import csv
 import logging
-import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -22,7 +20,7 @@ from micro.studies import scale_realizations
 from micro.upscaling.figures import table_figure
 from micro.upscaling.table import SOURCE_VARIABLES, table_rows, upscaling_table
 from shared.config import ConfigError
-from shared.io import OutputError, read_dataset, write_dataset
+from shared.io import OutputError, atomic_write, read_dataset, write_dataset
 
 __all__ = ["run", "source_names"]
 
@@ -49,17 +47,14 @@ def source_names(config: Mapping[str, Any]) -> dict[str, list[tuple[str, str]]]:
 
 
 def _write_csv(table: xr.Dataset, path: Path) -> None:
-    handle, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(handle, "w", newline="") as stream:
+    def write(tmp: str) -> None:
+        with open(tmp, "w", newline="") as stream:
             writer = csv.writer(stream)
             writer.writerow(["condition", "suction_pa", "phase", "axis", "k_m2"])
             for condition, suction, phase, axis, k in table_rows(table):
                 writer.writerow([condition, f"{suction:.10g}", phase, axis, f"{k:.10g}"])
-        os.replace(tmp_name, path)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
+
+    atomic_write(path, write)
 
 
 def run(

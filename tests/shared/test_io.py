@@ -1,11 +1,14 @@
 """netCDF writer: round trip, contract checks, provenance and atomicity."""
 
 import json
+import os
+import stat
 
 import numpy as np
 import pytest
 import xarray as xr
 
+from shared.figures import new_figure, save_figure
 from shared.io import OutputError, read_dataset, write_dataset
 from shared.provenance import config_sha256, file_sha256
 
@@ -74,3 +77,22 @@ def test_unreadable_file_is_named(tmp_path):
     with pytest.raises(OutputError, match="missing variable"):
         read_dataset(write_dataset(_dataset(), tmp_path / "o.nc", stage="imaging", title="t"),
                      ["permeability"])
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o002, 0o077])
+def test_outputs_get_the_permissions_the_umask_gives(tmp_path, umask):
+    """Written through a temporary file, an output still gets 0666 & ~umask (a plain
+    open() would), not the temporary file's owner-only 0600."""
+    old = os.umask(umask)
+    try:
+        path = write_dataset(
+            xr.Dataset({"a": ("x", np.arange(3.0), {"units": "1", "long_name": "a"})},
+                       coords={"x": ("x", np.arange(3), {"units": "1", "long_name": "x"})}),
+            tmp_path / "out.nc", stage="micro", title="t")
+        figure, _ = new_figure(1, 1)
+        png = save_figure(figure, tmp_path / "out.png")
+    finally:
+        os.umask(old)
+    for written in (path, png):
+        assert stat.S_IMODE(written.stat().st_mode) == 0o666 & ~umask
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.nc", "out.png"]
