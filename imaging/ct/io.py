@@ -8,6 +8,7 @@ netCDF file of the same scan give identical arrays.
 from __future__ import annotations
 
 import re
+import struct
 from pathlib import Path
 
 import cv2
@@ -48,6 +49,79 @@ def _check_volume(volume: np.ndarray, source: str | Path) -> np.ndarray:
     return volume
 
 
+def _require_file(path: Path) -> None:
+    if path.is_dir():
+        raise ImageError(f"{path}: is a folder, expected a file (use source: slices for a "
+                         "folder of 2-D slices)")
+    if not path.is_file():
+        raise ImageError(f"{path}: no such file")
+
+
+# TIFF field types -> item size in bytes; tags locating a page's pixels (offsets, counts)
+_TYPE_SIZES = {1: 1, 2: 1, 3: 2, 4: 4, 5: 8, 6: 1, 7: 1, 8: 2, 9: 4, 10: 8, 11: 4, 12: 8,
+               13: 4, 16: 8, 17: 8, 18: 8}
+_INTEGER_TYPES = {3: "H", 4: "I", 13: "I", 16: "Q"}
+_DATA_TAGS = ((273, 279), (324, 325))  # strips, tiles
+
+
+def _tiff_truncation(path: Path) -> str | None:
+    """Walk a TIFF's chain of page directories (IFDs) and check it against the file size.
+
+    Returns what lies beyond the end of the file (the first such page directory, field
+    or pixel data), or None if every page is complete. OpenCV (libtiff) silently stops
+    at the first page it cannot read, so a cut-off stack would read as a shorter one.
+    """
+    data = path.read_bytes()
+    size = len(data)
+    if size < 8 or data[:2] not in (b"II", b"MM"):
+        return None  # not a TIFF header: OpenCV's own error applies
+    order = "<" if data[:2] == b"II" else ">"
+    magic = struct.unpack_from(order + "H", data, 2)[0]
+    if magic == 42:
+        word, count_word, entry_size = "I", "H", 12
+        offset = struct.unpack_from(order + "I", data, 4)[0]
+    elif magic == 43 and size >= 16:  # BigTIFF
+        word, count_word, entry_size = "Q", "Q", 20
+        offset = struct.unpack_from(order + "Q", data, 8)[0]
+    else:
+        return None
+    word_size, count_size = struct.calcsize(word), struct.calcsize(count_word)
+    seen: set[int] = set()
+    page = 0
+    while offset != 0:
+        page += 1
+        if offset in seen:
+            return f"page {page} repeats an earlier page directory (corrupt file)"
+        seen.add(offset)
+        if offset + count_size > size:
+            return f"page {page} starts at byte {offset}, beyond the file's {size} bytes"
+        n_entries = struct.unpack_from(order + count_word, data, offset)[0]
+        end = offset + count_size + n_entries * entry_size + word_size
+        if end > size:
+            return f"the directory of page {page} runs past the file's {size} bytes"
+        fields = {}
+        for k in range(n_entries):
+            at = offset + count_size + k * entry_size
+            tag, kind = struct.unpack_from(order + "HH", data, at)
+            count = struct.unpack_from(order + word, data, at + 4)[0]
+            value_at = at + 4 + word_size
+            if count * _TYPE_SIZES.get(kind, 1) > word_size:
+                value_at = struct.unpack_from(order + word, data, value_at)[0]
+                if value_at + count * _TYPE_SIZES.get(kind, 1) > size:
+                    return f"field {tag} of page {page} lies beyond the file's {size} bytes"
+            if kind in _INTEGER_TYPES:
+                fields[tag] = struct.unpack_from(f"{order}{count}{_INTEGER_TYPES[kind]}",
+                                                 data, value_at)
+        for offsets_tag, counts_tag in _DATA_TAGS:
+            if fields.get(offsets_tag) and fields.get(counts_tag):
+                stop = max(o + c for o, c in zip(fields[offsets_tag], fields[counts_tag]))
+                if stop > size:
+                    return (f"the pixels of page {page} end at byte {stop}, beyond the file's "
+                            f"{size} bytes")
+        offset = struct.unpack_from(order + word, data, end - word_size)[0]
+    return None
+
+
 def _as_grey_page(page: np.ndarray, source: str | Path) -> np.ndarray:
     if page.ndim != 2:
         raise ImageError(
@@ -63,8 +137,10 @@ def read_tiff_stack(path: str | Path) -> npt.NDArray[np.unsignedinteger]:
     pages to 8-bit three-channel images.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ImageError(f"{path}: no such file")
+    _require_file(path)
+    truncation = _tiff_truncation(path)
+    if truncation is not None:
+        raise ImageError(f"{path}: truncated TIFF: {truncation}")
     ok, pages = cv2.imreadmulti(str(path), flags=cv2.IMREAD_UNCHANGED)
     if not ok or len(pages) == 0:
         raise ImageError(f"{path}: not a readable TIFF stack (truncated or corrupt?)")
@@ -83,6 +159,9 @@ def _natural_key(name: str) -> list[int | str]:
 def read_slice_folder(folder: str | Path) -> npt.NDArray[np.unsignedinteger]:
     """Read a folder of 2-D greyscale slices (TIFF or PNG), ordered by natural name sort."""
     folder = Path(folder)
+    if folder.is_file():
+        raise ImageError(f"{folder}: is a file, expected a folder of 2-D slices (use source: "
+                         "tiff for a multi-page file)")
     if not folder.is_dir():
         raise ImageError(f"{folder}: no such folder")
     files = sorted(
@@ -120,8 +199,7 @@ def read_raw(
         ``"little"`` or ``"big"``.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ImageError(f"{path}: no such file")
+    _require_file(path)
     if len(shape) != 3:
         raise ImageError(f"{path}: raw shape must have 3 entries (z, y, x), got {list(shape)}")
     file_dtype = np.dtype(dtype).newbyteorder("<" if byte_order == "little" else ">")
@@ -138,8 +216,7 @@ def read_raw(
 def read_netcdf_volume(path: str | Path, variable: str = "grey") -> npt.NDArray[np.unsignedinteger]:
     """Read the greyscale variable of a netCDF file written by this project."""
     path = Path(path)
-    if not path.is_file():
-        raise ImageError(f"{path}: no such file")
+    _require_file(path)
     try:
         with xr.open_dataset(path) as ds:
             if variable not in ds:

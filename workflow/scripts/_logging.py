@@ -1,22 +1,82 @@
-"""Route a rule's Python logging and uncaught errors to its ``log:`` file."""
+"""Route a rule's Python logging and uncaught errors to its ``log:`` file.
+
+An expected failure (a bad input, a bad config value, a diverging run, a results folder
+that cannot be written) reaches the user as one line ``claychain: <message>`` on stderr;
+its traceback goes to the job's log file only, for debugging. Expected are the
+project's own error types (``ConfigError``, ``OutputError``, ``ImageError``,
+``DivergenceError``: any exception class defined in our packages), a ``ValueError``
+raised by our own validation code, and an ``OSError`` that says a file cannot be
+written (permission, read-only or full file system). Any other exception is a bug: it
+keeps its traceback on stderr, and in the log file.
+"""
 
 from __future__ import annotations
 
+import errno
 import logging
 import sys
+from types import TracebackType
+
+_PACKAGES = ("imaging", "micro", "macro", "shared")
+_WRITE_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOSPC, errno.EDQUOT}
+_TRACEBACK_LOGGER = "claychain.traceback"
+
+
+def _ours(module: str | None) -> bool:
+    return bool(module) and str(module).split(".")[0] in _PACKAGES
+
+
+def _raised_by_us(traceback: TracebackType | None) -> bool:
+    """Whether the innermost frame of a traceback runs code of our packages."""
+    frame = None
+    while traceback is not None:
+        frame, traceback = traceback.tb_frame, traceback.tb_next
+    return frame is not None and _ours(frame.f_globals.get("__name__"))
+
+
+def expected_message(value: BaseException) -> str | None:
+    """The one-line message of an expected failure, or None for an unexpected one."""
+    text = " ".join(str(value).split()) or type(value).__name__
+    if isinstance(value, OSError) and value.errno in _WRITE_ERRNOS:
+        target = value.filename or "a results file"
+        reason = value.strerror or text
+        return f"cannot write {target}: {reason} (is the results folder read-only or full?)"
+    if isinstance(value, Exception) and _ours(type(value).__module__):
+        return text
+    if isinstance(value, ValueError) and _raised_by_us(value.__traceback__):
+        return text
+    return None
 
 
 def setup(log_path: str) -> None:
-    """Send INFO logs to the rule's log file and to stderr; log uncaught exceptions too."""
-    handlers = [logging.FileHandler(log_path, mode="w"), logging.StreamHandler(sys.stderr)]
-    logging.basicConfig(
-        level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s",
-        handlers=handlers, force=True,
-    )
-    logging.getLogger("matplotlib").setLevel(logging.WARNING)
+    """Send INFO logs to the rule's log file and to stderr; report uncaught exceptions.
+
+    An expected failure prints ``claychain: <message>`` on stderr and its traceback to
+    the log file only; an unexpected one prints its traceback to both.
+    """
+    traceback_log = logging.getLogger(_TRACEBACK_LOGGER)
+    traceback_log.propagate = False
 
     def excepthook(kind, value, traceback):  # type: ignore[no-untyped-def]
-        logging.getLogger("claychain").error("%s: %s", kind.__name__, value)
-        sys.__excepthook__(kind, value, traceback)
+        message = expected_message(value)
+        traceback_log.error("%s: %s", kind.__name__, value, exc_info=(kind, value, traceback))
+        if message is None:
+            sys.__excepthook__(kind, value, traceback)
+        else:
+            print(f"claychain: {message}", file=sys.stderr, flush=True)
 
     sys.excepthook = excepthook
+    try:
+        file_handler = logging.FileHandler(log_path, mode="w")
+    except OSError as err:
+        message = expected_message(err) or f"cannot write the log {log_path}: {err}"
+        print(f"claychain: {message}", file=sys.stderr, flush=True)
+        raise SystemExit(1) from None
+    formatter = logging.Formatter("%(asctime)s %(name)s %(levelname)s %(message)s")
+    file_handler.setFormatter(formatter)
+    traceback_log.handlers[:] = [file_handler]
+    logging.basicConfig(
+        level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s",
+        handlers=[file_handler, logging.StreamHandler(sys.stderr)], force=True,
+    )
+    logging.getLogger("matplotlib").setLevel(logging.WARNING)
