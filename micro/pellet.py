@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 import xarray as xr
+from scipy import ndimage
 
 from micro.fabric import crack_fabric
 from micro.hydration import (
@@ -72,6 +73,23 @@ class SpecimenSpec:
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
+def _grid_name(porosity: xr.DataArray) -> str:
+    """The grid's file (``encoding['source']`` of a grid read from disk), for messages."""
+    source = porosity.encoding.get("source")
+    return f"porosity grid {source}" if source else "porosity grid (micro.sample)"
+
+
+def _outside_specimen(nan: np.ndarray, blocks: tuple[np.ndarray, ...]) -> np.ndarray:
+    """Which of the given NaN blocks belong to a NaN region reaching the grid's border
+    (the air around the specimen), rather than to a hole inside the specimen."""
+    labels, _ = ndimage.label(nan)
+    border = np.zeros_like(nan)
+    for axis in range(nan.ndim):
+        border[(slice(None),) * axis + (0,)] = True
+        border[(slice(None),) * axis + (-1,)] = True
+    return np.isin(labels[blocks], labels[border & nan])
+
+
 def centred_grid(
     porosity: xr.DataArray,
     edge_length: float,
@@ -87,12 +105,21 @@ def centred_grid(
     Raises
     ------
     ValueError
-        If the cropped grid holds NaN (the cube reaches outside the specimen) or does
-        not span the cube.
+        If the grid is not ``(z, y, x)``, holds no finite value, does not span the cube,
+        or holds NaN around it (the cube reaches outside the specimen, or the grid has a
+        hole inside it); the message names the grid file and the config key to change.
     """
+    name = _grid_name(porosity)
+    if porosity.ndim != 3 or set(porosity.dims) != {"z", "y", "x"}:
+        raise ValueError(
+            f"{name}: dims {tuple(porosity.dims)}; expected ('z', 'y', 'x') in m, as "
+            "rule imaging_porosity writes them (micro.sample names the grid)"
+        )
     finite = np.isfinite(porosity.values)
     if not finite.any():
-        raise ValueError("the porosity grid holds no finite value")
+        raise ValueError(f"{name}: no finite value (no block inside the specimen; see "
+                         "imaging.mask and imaging.min_specimen_fraction)")
+    keys = "micro.specimen_size_m (or the case's specimen_size_m and offset_m)"
     shifted = {}
     for axis_index, axis in enumerate(porosity.dims):
         coordinate = porosity[axis].values
@@ -103,17 +130,37 @@ def centred_grid(
     crop = {}
     for axis in porosity.dims:
         coordinate = moved[axis].values
-        if coordinate.min() > 0 or coordinate.max() < edge_length:
+        # a grid that spans exactly the cube must not be refused by a rounding unit
+        slack = 1e-9 * max(edge_length, float(np.ptp(coordinate)))
+        if coordinate.min() > slack or coordinate.max() < edge_length - slack:
             raise ValueError(
-                f"the porosity grid does not span the {edge_length * 1e3:g} mm specimen along {axis}"
+                f"{name}: does not span the {edge_length * 1e3:g} mm cube along {axis} (grid "
+                f"from {coordinate.min() * 1e3:.4g} to {coordinate.max() * 1e3:.4g} mm, cube "
+                f"from 0 to {edge_length * 1e3:g} mm, centred in the specimen): use a "
+                f"smaller {keys}"
             )
-        low, high = coordinate[coordinate <= 0].max(), coordinate[coordinate >= edge_length].min()
+        low = coordinate[coordinate <= slack].max()
+        high = coordinate[coordinate >= edge_length - slack].min()
         crop[axis] = (coordinate >= low) & (coordinate <= high)
     cropped = moved.isel(crop)
-    if not np.isfinite(cropped.values).all():
+    missing = ~np.isfinite(cropped.values)
+    if missing.any():
+        local = np.nonzero(missing)
+        blocks = tuple(np.flatnonzero(crop[axis])[k] for axis, k in zip(cropped.dims, local))
+        outside = _outside_specimen(~finite, blocks)
+        first = int(np.argmax(outside)) if outside.any() else 0
+        position = ", ".join(f"{axis} = {float(cropped[axis][k[first]]) * 1e3:.4g} mm"
+                             for axis, k in zip(cropped.dims, local))
+        if outside.any():
+            raise ValueError(
+                f"{name}: the {edge_length * 1e3:g} mm cube reaches outside the scanned "
+                f"pellet (NaN at {position} of the cube, {int(missing.sum())} block(s)): "
+                f"use a smaller {keys}"
+            )
         raise ValueError(
-            f"the {edge_length * 1e3:g} mm specimen reaches outside the scanned pellet "
-            "(NaN in the porosity grid around it): use a smaller micro.specimen_size_m"
+            f"{name}: NaN at {position} of the {edge_length * 1e3:g} mm cube, inside the "
+            f"specimen ({int(missing.sum())} block(s)): a hole in the grid, e.g. blocks below "
+            "imaging.min_specimen_fraction; check imaging.mask and imaging.min_specimen_fraction"
         )
     return cropped
 

@@ -635,25 +635,33 @@ def porosity_at_points(points: npt.ArrayLike, porosity: xr.DataArray) -> FloatAr
         If the grid is not (z, y, x), holds NaN or values outside (0, 1), or does not
         cover every point.
     """
+    source = porosity.encoding.get("source")
+    name = f"porosity grid {source}" if source else "porosity grid"
     if tuple(porosity.dims) != ("z", "y", "x"):
-        raise ValueError(f"porosity grid must have dims ('z', 'y', 'x'), got {porosity.dims}")
+        raise ValueError(
+            f"{name}: dims {tuple(porosity.dims)}; expected ('z', 'y', 'x') in m"
+        )
     values = np.asarray(porosity.values, dtype=np.float64)
     if not np.all(np.isfinite(values)):
-        raise ValueError("porosity grid contains NaN or inf")
+        where = ", ".join(f"{axis} = {float(porosity[axis][int(k[0])]):.4g} m" for axis, k in
+                          zip(("z", "y", "x"), np.nonzero(~np.isfinite(values))))
+        raise ValueError(f"{name}: NaN or inf at {where} "
+                         f"({int((~np.isfinite(values)).sum())} value(s)) where the mesh needs it")
     if not np.all((values > 0.0) & (values < 1.0)):
         raise ValueError(
-            f"porosity grid values must lie in (0, 1); range [{values.min()}, {values.max()}]"
+            f"{name}: values must lie in (0, 1), range [{values.min():.4g}, {values.max():.4g}] "
+            "(see imaging.calibration.porosity_bounds)"
         )
-    axes = tuple(np.asarray(porosity[name].values, dtype=np.float64) for name in ("z", "y", "x"))
+    axes = tuple(np.asarray(porosity[axis].values, dtype=np.float64) for axis in ("z", "y", "x"))
     query = np.asarray(points, dtype=np.float64)[:, ::-1]
-    for k, name in enumerate(("z", "y", "x")):
+    for k, axis in enumerate(("z", "y", "x")):
         low, high = min(axes[k][0], axes[k][-1]), max(axes[k][0], axes[k][-1])
         outside = (query[:, k] < low) | (query[:, k] > high)
         if np.any(outside):
             raise ValueError(
-                f"porosity grid does not cover the mesh along {name}: grid [{low}, {high}] m, "
-                f"cells [{query[:, k].min()}, {query[:, k].max()}] m "
-                f"({int(outside.sum())} cells outside)"
+                f"{name} does not cover the mesh along {axis}: grid [{low:.6g}, {high:.6g}] m, "
+                f"cells [{query[:, k].min():.6g}, {query[:, k].max():.6g}] m "
+                f"({int(outside.sum())} cells outside; see micro.specimen_size_m)"
             )
     interpolator = RegularGridInterpolator(axes, values, method="linear", bounds_error=True)
     return interpolator(query)

@@ -32,6 +32,9 @@ log = logging.getLogger("imaging.ct")
 
 _REFERENCE = "Caulk (2022), PhD thesis, Univ. Grenoble Alpes, Sec. 3.3.4"
 
+CLAMPED_WARNING_FRACTION = 0.1
+"""A porosity grid with more of its blocks clamped to the bounds than this is warned about."""
+
 
 def phantom_spec(
     section: Mapping[str, Any], calibration: Mapping[str, Any], voxel_size: float
@@ -126,6 +129,62 @@ def _calibration(section: Mapping[str, Any], material: Mapping[str, Any], grey: 
     )
 
 
+def _grid_warnings(
+    sample: str,
+    scan: str | Path,
+    porosity: np.ndarray,
+    bounds: tuple[float, float],
+    spacing: float,
+    voxel_size: float,
+    shape: tuple[int, ...],
+) -> list[str]:
+    """Warnings about a suspicious porosity grid, each also logged.
+
+    A grid spacing below the voxel size (one voxel per block) or a grid of a single
+    block along an axis usually means a voxel size in the wrong unit; many blocks
+    clamped to the porosity bounds, a wrong calibration or voxel size.
+
+    Raises
+    ------
+    ValueError
+        If every block inside the specimen lies outside the porosity bounds.
+    """
+    key = f"samples.{sample}.voxel_size_m"
+    finite = porosity[np.isfinite(porosity)]
+    low, high = bounds
+    clamped = float(np.count_nonzero((finite < low) | (finite > high)) / finite.size)
+    if clamped == 1.0:
+        raise ValueError(
+            f"{scan}: every block of the porosity grid lies outside "
+            f"imaging.calibration.porosity_bounds [{low:g}, {high:g}] (porosity "
+            f"{finite.min():.3g} to {finite.max():.3g}): check {key} "
+            f"({voxel_size:g} m) and the imaging.calibration anchors"
+        )
+    warnings = []
+    if spacing < voxel_size:
+        warnings.append(
+            f"the grid spacing {spacing:.3g} m is finer than the voxel size {voxel_size:.3g} m "
+            f"({key}): every block is one voxel; is the voxel size in metres?"
+        )
+    blocks = [int(np.ceil(n * voxel_size / max(spacing, voxel_size) - 1e-9)) for n in shape]
+    if min(blocks) < 2:
+        axis = "zyx"[int(np.argmin(blocks))]
+        warnings.append(
+            f"the scan ({shape[0]} x {shape[1]} x {shape[2]} voxels of {voxel_size:.3g} m, "
+            f"{key}) is at most one grid spacing ({spacing:.3g} m) long along {axis}: "
+            "is the voxel size in metres?"
+        )
+    if clamped > CLAMPED_WARNING_FRACTION:
+        warnings.append(
+            f"{clamped:.0%} of the grid blocks are clamped to "
+            f"imaging.calibration.porosity_bounds [{low:g}, {high:g}]: check {key} and the "
+            "imaging.calibration anchors"
+        )
+    for warning in warnings:
+        log.warning("%s (%s): %s", sample, scan, warning)
+    return warnings
+
+
 def porosity(
     sample: str,
     entry: Mapping[str, Any],
@@ -181,18 +240,24 @@ def porosity(
     mask_cfg = imaging["mask"]
     specimen = specimen_mask(grey, mask_cfg["threshold"], mask_cfg["min_slice_fraction"])
     calibration = _calibration(imaging["calibration"], material, grey, specimen)
-    block = block_size_voxels(grid_spacing(imaging["grid_spacing_m"], micro_spacing), voxel_size)
+    spacing = grid_spacing(imaging["grid_spacing_m"], micro_spacing)
+    block = block_size_voxels(spacing, voxel_size)
     grid = block_average(
         grey, specimen, calibration, block, voxel_size, imaging["min_specimen_fraction"]
     )
     if not np.isfinite(grid.porosity).any():
-        raise ValueError(f"{scan}: no grid block lies inside the specimen; check the mask settings")
+        raise ValueError(
+            f"{scan}: no grid block lies inside the specimen; check imaging.mask and "
+            "imaging.min_specimen_fraction"
+        )
+    bounds = tuple(imaging["calibration"]["porosity_bounds"])
+    warnings = _grid_warnings(sample, scan, grid.porosity, bounds, spacing, voxel_size, grey.shape)
     section = {"sample": dict(entry), "imaging": dict(imaging)}
     image_ds = image_dataset(grey, specimen, voxel_size)
     write_dataset(image_ds, image_output, stage="imaging", title=f"CT scan of {sample}",
                   config=section, inputs=[scan] if Path(scan).is_file() else [], rule=rule)
-    bounds = tuple(imaging["calibration"]["porosity_bounds"])
     ds = porosity_dataset(grid, calibration, bounds, voxel_size)
+    ds.attrs["warnings"] = "; ".join(warnings)
     write_dataset(ds, porosity_output, stage="imaging", title=f"porosity grid of {sample}",
                   config=section, inputs=[image_output], rule=rule, references=_REFERENCE)
     figures.porosity_figure(image_ds, ds, figure_output)
