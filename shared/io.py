@@ -203,12 +203,15 @@ def read_dataset(path: str | Path, required: Iterable[str] = ()) -> xr.Dataset:
         If the file is missing, unreadable, or lacks a required variable.
     """
     path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"{path}: is a folder, expected a netCDF file")
     if not path.is_file():
         raise OutputError(f"{path}: no such file")
     try:
         ds = xr.load_dataset(path, engine="netcdf4")
     except (OSError, ValueError) as err:
-        raise OutputError(f"{path}: not a readable netCDF file ({err})") from err
+        reason = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise OutputError(f"{path}: not a readable netCDF file ({reason})") from err
     missing = [name for name in required if name not in ds.variables]
     if missing:
         raise OutputError(f"{path}: missing variable(s) {missing}")

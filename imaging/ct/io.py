@@ -218,14 +218,15 @@ def read_netcdf_volume(path: str | Path, variable: str = "grey") -> npt.NDArray[
     path = Path(path)
     _require_file(path)
     try:
-        with xr.open_dataset(path) as ds:
+        with xr.open_dataset(path, engine="netcdf4") as ds:
             if variable not in ds:
                 raise ImageError(f"{path}: no variable {variable!r}")
             volume = ds[variable].values
     except (OSError, ValueError) as err:
         if isinstance(err, ImageError):
             raise
-        raise ImageError(f"{path}: not a readable netCDF file ({err})") from err
+        reason = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise ImageError(f"{path}: not a readable netCDF file ({reason})") from err
     return _check_volume(volume, path)
 
 

@@ -238,8 +238,17 @@ def porosity(
     )
     log.info("%s: read %s volume %s from %s", sample, grey.dtype, grey.shape, scan)
     mask_cfg = imaging["mask"]
-    specimen = specimen_mask(grey, mask_cfg["threshold"], mask_cfg["min_slice_fraction"])
-    calibration = _calibration(imaging["calibration"], material, grey, specimen)
+    try:
+        specimen = specimen_mask(grey, mask_cfg["threshold"], mask_cfg["min_slice_fraction"])
+    except ValueError as err:
+        raise ValueError(f"{scan}: {err}; check imaging.mask") from err
+    try:
+        calibration = _calibration(imaging["calibration"], material, grey, specimen)
+    except ValueError as err:
+        raise ValueError(
+            f"{scan}: {err}; check imaging.calibration (grey_air, grey_muscovite, densities) "
+            "and materials.pellet"
+        ) from err
     spacing = grid_spacing(imaging["grid_spacing_m"], micro_spacing)
     block = block_size_voxels(spacing, voxel_size)
     grid = block_average(

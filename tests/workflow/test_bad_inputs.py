@@ -1,0 +1,620 @@
+"""A corpus of bad inputs: each is refused in one line that names the file or the key.
+
+Every case runs through a stage's entry point (the function its rule script calls:
+:func:`imaging.ct.run.porosity`, :func:`micro.run.run`, or the config validation of
+``common.smk``) and asserts the error type, that the message names the file or the
+config key, and that the results folder holds no new file afterwards. The user sees the
+message through ``workflow/scripts/_logging.py``: the last tests check that an expected
+failure prints one ``claychain:`` line and no traceback (which goes to the job's log),
+in a plain Python process and in a real ``snakemake`` run of a tiny configuration.
+"""
+
+from __future__ import annotations
+
+import copy
+import errno
+import importlib.util
+import logging
+import shutil
+import subprocess
+import sys
+import textwrap
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+import xarray as xr
+import yaml
+
+from imaging.ct import run as ct_run
+from imaging.ct.io import ImageError, write_tiff_stack
+from imaging.packing.config import check_packings
+from micro import run as micro_run
+from micro.hydration import DivergenceError
+from micro.studies import check_studies
+from shared.config import ConfigError, default_config, load_config, validate_config
+from shared.io import OutputError, write_dataset
+
+ROOT = Path(__file__).resolve().parents[2]
+SCRIPTS = ROOT / "workflow" / "scripts"
+CONFIG = default_config()
+VOXEL = 3.0e-4
+
+
+def _files(folder: Path) -> set[Path]:
+    return {p for p in folder.rglob("*") if p.is_file()} if folder.exists() else set()
+
+
+def _phantom_volume() -> np.ndarray:
+    """A small 16-bit pellet scan (the project's phantom, 32^3 voxels of 0.3 mm)."""
+    entry = {"source": "phantom", "voxel_size_m": VOXEL}
+    spec = ct_run.phantom_spec(dict(CONFIG["phantom"], shape=[32, 32, 32], seed=3),
+                               CONFIG["imaging"]["calibration"], VOXEL)
+    from imaging.ct.phantom import pellet_phantom
+
+    del entry
+    return pellet_phantom(spec)[0]
+
+
+@pytest.fixture(scope="module")
+def volume() -> np.ndarray:
+    return _phantom_volume()
+
+
+# ------------------------------------------------------------------------ CT scans
+
+
+def _truncated(pages_kept: float) -> Callable[[Path, np.ndarray], tuple[str, Path]]:
+    def make(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+        scan = write_tiff_stack(volume, tmp / "cut.tif")
+        data = scan.read_bytes()
+        scan.write_bytes(data[: int(len(data) * pages_kept)])
+        return "tiff", scan
+    return make
+
+
+def _one_page(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    cv2.imwrite(str(tmp / "flat.tif"), volume[0])
+    return "tiff", tmp / "flat.tif"
+
+
+def _garbage(name: str, source: str) -> Callable[[Path, np.ndarray], tuple[str, Path]]:
+    def make(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+        (tmp / name).write_bytes(b"II*\x00 this is not an image" * 10 if name.endswith("tif")
+                                 else b"not a netCDF file at all")
+        return source, tmp / name
+    return make
+
+
+def _folder_as_tiff(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    (tmp / "stack.tif").mkdir()
+    return "tiff", tmp / "stack.tif"
+
+
+def _file_as_slices(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    return "slices", write_tiff_stack(volume, tmp / "stack.tif")
+
+
+def _empty_folder(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    (tmp / "slices").mkdir()
+    (tmp / "slices" / "notes.txt").write_text("no images here")
+    return "slices", tmp / "slices"
+
+
+def _colour_slices(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    folder = tmp / "colour"
+    folder.mkdir()
+    for k, page in enumerate(volume[:4]):
+        cv2.imwrite(str(folder / f"s{k}.png"), np.dstack([(page >> 8).astype(np.uint8)] * 3))
+    return "slices", folder
+
+
+def _mixed_slices(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    folder = tmp / "mixed"
+    folder.mkdir()
+    for k, page in enumerate(volume[:4]):
+        cv2.imwrite(str(folder / f"s{k}.tif"), page if k else page[:-2])
+    return "slices", folder
+
+
+def _uniform(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    black = np.zeros((8, 16, 16), np.uint16)
+    cv2.imwritemulti(str(tmp / "black.tif"), list(black))
+    return "tiff", tmp / "black.tif"
+
+
+def _float_tiff(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    cv2.imwritemulti(str(tmp / "float.tif"), list(volume.astype(np.float32)))
+    return "tiff", tmp / "float.tif"
+
+
+def _short_raw(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    volume[:-1].tofile(tmp / "short.raw")
+    return "raw", tmp / "short.raw"
+
+
+def _netcdf_without_grey(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    ds = xr.Dataset({"density": (("z", "y", "x"), volume.astype(float),
+                                 {"units": "kg m-3", "long_name": "d"})})
+    return "netcdf", write_dataset(ds, tmp / "nogrey.nc", stage="imaging", title="t")
+
+
+def _missing(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    return "tiff", tmp / "absent.tif"
+
+
+def _missing_folder(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    return "slices", tmp / "absent_slices"
+
+
+SCANS = {
+    # (how the bad scan is made, words the message must hold besides the file's name)
+    "tiff_22_of_32_pages_missing": (_truncated(10.5 / 32), "truncated"),
+    "tiff_cut_in_a_page_directory": (_truncated(0.5), "truncated"),
+    "tiff_missing_its_last_byte": (_truncated(0.99999), "truncated"),
+    "tiff_cut_inside_the_first_page": (_truncated(0.01), "truncated"),
+    "tiff_single_page": (_one_page, "3-D"),
+    "tiff_not_an_image": (_garbage("junk.tif", "tiff"), "TIFF"),
+    "tiff_is_a_folder": (_folder_as_tiff, "is a folder"),
+    "tiff_missing": (_missing, "no such file"),
+    "tiff_uniform_black": (_uniform, "uniform"),
+    "tiff_32_bit_float": (_float_tiff, "8- or 16-bit"),
+    "slices_given_a_file": (_file_as_slices, "is a file"),
+    "slices_folder_missing": (_missing_folder, "no such folder"),
+    "slices_folder_without_images": (_empty_folder, "no slice files"),
+    "slices_in_colour": (_colour_slices, "single-channel"),
+    "slices_of_different_shapes": (_mixed_slices, "different shapes"),
+    "raw_of_the_wrong_size": (_short_raw, "bytes"),
+    "raw_is_a_folder": (lambda tmp, v: ("raw", _folder_as_tiff(tmp, v)[1]), "is a folder"),
+    "netcdf_without_grey": (_netcdf_without_grey, "'grey'"),
+    "netcdf_not_netcdf": (_garbage("junk.nc", "netcdf"), "not a readable netCDF"),
+}
+
+
+def _porosity(tmp: Path, source: str, scan: Path, *, imaging: dict | None = None,
+              voxel_size: float = VOXEL, shape: tuple[int, ...] = (32, 32, 32)) -> xr.Dataset:
+    entry: dict[str, Any] = {"source": source, "path": str(scan), "voxel_size_m": voxel_size}
+    if source == "raw":
+        entry["raw"] = {"shape": list(shape), "dtype": "uint16", "byte_order": "little"}
+    results = tmp / "results"
+    return ct_run.porosity(
+        "scan", entry, imaging or CONFIG["imaging"], CONFIG["materials"]["pellet"],
+        (4.0e-3, 216), scan, results / "images/scan.nc", results / "porosity/scan.nc",
+        results / "porosity/scan.png",
+    )
+
+
+@pytest.mark.parametrize("case", sorted(SCANS))
+def test_a_bad_scan_is_refused_naming_the_file(case, volume, tmp_path):
+    make, words = SCANS[case]
+    source, scan = make(tmp_path, volume.copy())
+    before = _files(tmp_path / "results")
+    with pytest.raises(ImageError) as err:
+        _porosity(tmp_path, source, scan)
+    message = str(err.value)
+    assert str(scan) in message and words in message
+    assert "\n" not in message
+    assert _files(tmp_path / "results") == before == set()
+
+
+def _imaging(**changes: Any) -> dict:
+    imaging = copy.deepcopy(CONFIG["imaging"])
+    for key, value in changes.items():
+        *sections, name = key.split(".")
+        node = imaging
+        for section in sections:
+            node = node[section]
+        node[name] = value
+    return imaging
+
+
+GRID_SETTINGS = {
+    # (imaging settings, keys the message must name)
+    "every_block_outside_the_porosity_bounds": (
+        {"calibration.porosity_bounds": [0.9, 0.95]},
+        ["imaging.calibration.porosity_bounds", "samples.scan.voxel_size_m"]),
+    "no_block_inside_the_specimen": (
+        {"mask.threshold": 65535.0}, ["imaging.mask"]),
+    "anchors_swapped": (
+        {"calibration.grey_air": 60000.0, "calibration.grey_muscovite": 100.0},
+        ["imaging.calibration"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(GRID_SETTINGS))
+def test_a_scan_giving_no_usable_grid_is_refused_naming_the_keys(case, volume, tmp_path):
+    changes, keys = GRID_SETTINGS[case]
+    scan = write_tiff_stack(volume, tmp_path / "scan.tif")
+    try:
+        imaging = _imaging(**changes)
+    except KeyError:
+        pytest.fail(f"config keys {changes} moved")
+    with pytest.raises((ValueError, ImageError)) as err:
+        _porosity(tmp_path, "tiff", scan, imaging=imaging)
+    message = str(err.value)
+    assert str(scan) in message
+    for key in keys:
+        assert key in message
+    assert not _files(tmp_path / "results")
+
+
+@pytest.mark.parametrize("factor", [1e3, 1e-3])
+def test_a_voxel_size_off_by_1000_is_warned_in_the_log_and_the_file(factor, volume, tmp_path,
+                                                                   caplog):
+    scan = write_tiff_stack(volume, tmp_path / "scan.tif")
+    with caplog.at_level(logging.WARNING, logger="imaging.ct"):
+        ds = _porosity(tmp_path, "tiff", scan, voxel_size=VOXEL * factor)
+    warned = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert warned and all("samples.scan.voxel_size_m" in w for w in warned)
+    assert "samples.scan.voxel_size_m" in ds.attrs["warnings"]
+    written = xr.load_dataset(tmp_path / "results/porosity/scan.nc")
+    assert written.attrs["warnings"] == ds.attrs["warnings"]
+
+
+def test_many_clamped_blocks_are_warned(volume, tmp_path, caplog):
+    scan = write_tiff_stack(volume, tmp_path / "scan.tif")
+    with caplog.at_level(logging.WARNING, logger="imaging.ct"):
+        ds = _porosity(tmp_path, "tiff", scan,
+                       imaging=_imaging(**{"calibration.porosity_bounds": [0.2, 0.3]}))
+    assert ds.attrs["clamped_fraction"] > ct_run.CLAMPED_WARNING_FRACTION
+    assert "imaging.calibration.porosity_bounds" in ds.attrs["warnings"]
+    assert any("clamped" in r.getMessage() for r in caplog.records)
+
+
+def test_a_good_scan_has_no_warning(volume, tmp_path, caplog):
+    scan = write_tiff_stack(volume, tmp_path / "scan.tif")
+    with caplog.at_level(logging.WARNING, logger="imaging.ct"):
+        ds = _porosity(tmp_path, "tiff", scan)
+    assert ds.attrs["warnings"] == ""
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+
+
+# ------------------------------------------------------------------- porosity grids
+
+EDGE = 4.0e-3
+MICRO = copy.deepcopy(CONFIG)
+MICRO["micro"].update(n_points=64, specimen_size_m=EDGE,
+                      checkpoints_suction_pa=[132.0e6, 60.0e6], vtk_snapshots=False)
+
+
+def _grid(values: np.ndarray, spacing: float = 5e-4, dims: tuple[str, ...] = ("z", "y", "x"),
+          variable: str = "porosity") -> xr.Dataset:
+    coords = {d: (d, (np.arange(n) + 0.5) * spacing, {"units": "m", "long_name": d})
+              for d, n in zip(dims, values.shape)}
+    return xr.Dataset({variable: (dims, values, {"units": "1", "long_name": "porosity"})},
+                      coords=coords)
+
+
+def _hole() -> np.ndarray:
+    values = np.full((20, 20, 20), 0.3)
+    values[10, 9, 10] = np.nan
+    return values
+
+
+def _edge_nan() -> np.ndarray:
+    values = np.full((12, 12, 12), 0.3)
+    values[:2, :2, :2] = np.nan  # a corner of the scan outside the pellet
+    return values
+
+
+GRIDS = {
+    # (dataset or file maker, expected error type, words the message must hold)
+    "other_dimension_names": (_grid(np.full((20, 20, 20), 0.3), dims=("a", "b", "c")),
+                              ValueError, ["dims", "micro.sample"]),
+    "nan_hole_in_the_centre": (_grid(_hole()), ValueError,
+                               ["hole", "imaging.min_specimen_fraction"]),
+    "cube_reaches_past_the_specimen": (_grid(_edge_nan()), ValueError,
+                                       ["outside the scanned pellet", "micro.specimen_size_m"]),
+    "grid_smaller_than_the_cube": (_grid(np.full((6, 6, 6), 0.3)), ValueError,
+                                   ["does not span", "micro.specimen_size_m"]),
+    "porosity_above_one": (_grid(np.full((20, 20, 20), 1.5)), ValueError,
+                           ["(0, 1)", "imaging.calibration.porosity_bounds"]),
+    "grid_without_finite_value": (_grid(np.full((20, 20, 20), np.nan)), ValueError,
+                                  ["no finite value", "imaging.mask"]),
+    "grid_without_porosity_variable": (_grid(np.full((20, 20, 20), 0.3), variable="phi"),
+                                       OutputError, ["missing variable", "porosity"]),
+    "grid_file_missing": ("missing", OutputError, ["no such file"]),
+    "grid_file_is_a_folder": ("folder", OutputError, ["is a folder"]),
+    "grid_file_not_netcdf": ("garbage", OutputError, ["not a readable netCDF"]),
+}
+
+
+def _grid_file(tmp: Path, grid: xr.Dataset | str) -> Path:
+    path = tmp / "grids" / "pellet.nc"
+    path.parent.mkdir()
+    if isinstance(grid, xr.Dataset):
+        write_dataset(grid, path, stage="imaging", title="porosity grid")
+    elif grid == "folder":
+        path.mkdir()
+    elif grid == "garbage":
+        path.write_text("not netCDF")
+    return path
+
+
+@pytest.mark.parametrize("case", sorted(GRIDS))
+def test_a_bad_porosity_grid_is_refused_naming_the_file_and_key(case, tmp_path):
+    grid, kind, words = GRIDS[case]
+    path = _grid_file(tmp_path, grid)
+    results = tmp_path / "results" / "micro"
+    with pytest.raises(kind) as err:
+        micro_run.run(MICRO, "heterogeneous", path, results / "heterogeneous.nc",
+                      results / "heterogeneous.png")
+    message = str(err.value)
+    assert str(path) in message
+    for word in words:
+        assert word in message
+    assert not _files(tmp_path / "results")
+
+
+def test_a_grid_spanning_exactly_the_cube_is_accepted():
+    """7 mm cube, 8 nodes 1 mm apart: the shift to the centre rounds, and must not refuse."""
+    from micro.pellet import centred_grid
+
+    for n, spacing in [(8, 1e-3), (11, 7e-4), (36, 2e-4)]:
+        grid = _grid(np.full((n, n, n), 0.3), spacing)["porosity"]
+        assert centred_grid(grid, (n - 1) * spacing).shape == (n, n, n)
+
+
+def test_an_unknown_case_is_refused_naming_the_key(tmp_path):
+    path = _grid_file(tmp_path, _grid(np.full((20, 20, 20), 0.3)))
+    with pytest.raises(ConfigError, match=r"micro\.cases\.nowhere"):
+        micro_run.run(MICRO, "nowhere", path, tmp_path / "results/micro/nowhere.nc",
+                      tmp_path / "results/micro/nowhere.png")
+    assert not _files(tmp_path / "results")
+
+
+def test_a_divergence_names_the_case_and_leaves_no_result(tmp_path, monkeypatch):
+    path = _grid_file(tmp_path, _grid(np.full((20, 20, 20), 0.3)))
+
+    def diverge(*args: Any, **kwargs: Any) -> None:
+        raise DivergenceError("pressure became non-finite")
+
+    monkeypatch.setattr(micro_run, "advance_to_balance", diverge)
+    results = tmp_path / "results" / "micro"
+    with pytest.raises(DivergenceError, match="case heterogeneous, checkpoint 0"):
+        micro_run.run(MICRO, "heterogeneous", path, results / "heterogeneous.nc",
+                      results / "heterogeneous.png")
+    assert not _files(tmp_path / "results")
+
+
+# ------------------------------------------------------------------------- configs
+
+
+def _set(key: str, value: Any) -> Callable[[dict], None]:
+    def edit(config: dict) -> None:
+        *sections, name = key.split(".")
+        node = config
+        for section in sections:
+            node = node[section]
+        node[name] = value
+    return edit
+
+
+CONFIGS = {
+    # (edit of the default config, key the message must name)
+    "voxel_size_zero": (_set("samples.pellet.voxel_size_m", 0.0), "samples.pellet.voxel_size_m"),
+    "voxel_size_text": (_set("samples.pellet.voxel_size_m", "big"),
+                        "samples.pellet.voxel_size_m"),
+    "unknown_source": (_set("samples.pellet.source", "jpeg"), "samples.pellet.source"),
+    "scan_without_path": (_set("samples.scan", {"source": "tiff", "voxel_size_m": 1e-5}),
+                          "samples.scan.path"),
+    "unknown_imaging_key": (_set("imaging.colour", "red"), "imaging.colour"),
+    "rev_positions_not_integer": (_set("imaging.rev.n_positions", 1.5),
+                                  "imaging.rev.n_positions"),
+    "porosity_bounds_three_values": (_set("imaging.calibration.porosity_bounds", [0, 0.5, 1]),
+                                     "imaging.calibration.porosity_bounds"),
+    "micro_sample_unknown": (_set("micro.sample", "nowhere"), "micro.sample"),
+    "checkpoints_increasing": (_set("micro.checkpoints_suction_pa", [1e6, 1e7]),
+                               "micro.checkpoints_suction_pa"),
+    "case_material_unknown_key": (
+        _set("micro.cases.heterogeneous.materials", {"colour": 1.0}),
+        "micro.cases.heterogeneous.materials.colour"),
+    "case_material_negative": (
+        _set("micro.cases.heterogeneous.materials", {"bond_tensile_strength_pa": -1.0}),
+        "micro.cases.heterogeneous.materials.bond_tensile_strength_pa"),
+    "study_of_an_unknown_case": (_set("micro.studies.convergence", ["nope"]),
+                                 "micro.studies.convergence"),
+    "upscaling_unknown_case": (_set("upscaling.conditions.confined", ["confined", "nowhere"]),
+                               "upscaling.conditions.confined"),
+    "upscaling_range_reversed": (_set("upscaling.suction_range_pa", [1e8, 1e6]),
+                                 "upscaling.suction_range_pa"),
+    "packing_without_particles": (_set("packings", {"flat": {"n_particles": 0}}),
+                                  "packings.flat.n_particles"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CONFIGS))
+def test_a_bad_config_is_refused_naming_the_key(case):
+    edit, key = CONFIGS[case]
+    config = copy.deepcopy(CONFIG)
+    edit(config)
+    with pytest.raises(ConfigError) as err:
+        validate_config(config, checks=[check_packings, check_studies])
+    assert key in str(err.value)
+
+
+@pytest.mark.parametrize("content", ["absent", "- a list\n- not a mapping\n"])
+def test_a_bad_config_file_is_refused_naming_it(content, tmp_path):
+    path = tmp_path / "config.yaml"
+    if content != "absent":
+        path.write_text(content)
+    with pytest.raises(ConfigError, match="config.yaml"):
+        load_config(path)
+
+
+# ------------------------------------------------------- one line, not a traceback
+
+
+def _logging_module():
+    spec = importlib.util.spec_from_file_location("_claychain_logging", SCRIPTS / "_logging.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+RAISES = {
+    # (statement raising the error, words of the one line; None: unexpected, traceback kept)
+    "image_error": ("from imaging.ct.io import read_tiff_stack; read_tiff_stack('/nowhere.tif')",
+                    "/nowhere.tif: no such file"),
+    "config_error": ("from shared.config import load_config; load_config('/nowhere.yaml')",
+                     "/nowhere.yaml"),
+    "output_error": ("from shared.io import read_dataset; read_dataset('/nowhere.nc')",
+                     "/nowhere.nc"),
+    "divergence": ("from micro.hydration import DivergenceError; "
+                   "raise DivergenceError('case a, checkpoint 3: non-finite pressure')",
+                   "case a, checkpoint 3"),
+    "our_value_error": ("from imaging.ct.grid import block_size_voxels; block_size_voxels(-1, 1)",
+                        "must be > 0"),
+    "read_only_results": ("raise PermissionError(13, 'Permission denied', 'results/p.nc')",
+                          "cannot write results/p.nc: Permission denied"),
+    "full_disk": ("import errno, os; raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), "
+                  "'results/p.nc')", "cannot write results/p.nc: No space left"),
+    "read_only_file_system": ("import errno, os; raise OSError(errno.EROFS, "
+                              "os.strerror(errno.EROFS), 'results/p.nc')", "read-only"),
+    "a_bug": ("import numpy; numpy.zeros(3).reshape(5)", None),
+}
+
+
+@pytest.mark.parametrize("case", sorted(RAISES))
+def test_an_expected_failure_prints_one_line_and_logs_the_traceback(case, tmp_path):
+    statement, words = RAISES[case]
+    log = tmp_path / "job.log"
+    script = tmp_path / "job.py"
+    script.write_text(textwrap.dedent(f"""\
+        import sys
+        sys.path.insert(0, {str(SCRIPTS)!r})
+        import _logging
+        _logging.setup({str(log)!r})
+        {statement}
+        """))
+    result = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                            timeout=120, cwd=tmp_path)
+    assert result.returncode == 1
+    assert "Traceback" in log.read_text()
+    if words is None:
+        assert "Traceback" in result.stderr and "claychain:" not in result.stderr
+        return
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("claychain: ") and words in lines[0]
+
+
+def test_an_unwritable_log_is_one_line(tmp_path):
+    (tmp_path / "logs").write_text("a file where the log folder should be")
+    script = tmp_path / "job.py"
+    script.write_text(f"import sys; sys.path.insert(0, {str(SCRIPTS)!r}); import _logging; "
+                      f"_logging.setup({str(tmp_path / 'logs' / 'job.log')!r})\n")
+    result = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 1
+    assert result.stderr.strip().splitlines() == [result.stderr.strip()]
+    assert "logs/job.log" in result.stderr and "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize("code", [errno.EACCES, errno.ENOSPC, errno.EROFS, errno.EDQUOT])
+def test_a_write_failure_of_the_porosity_grid_is_named(code, volume, tmp_path, monkeypatch):
+    """The results folder read-only or full: the error carries the file's name, no temporary
+    file stays behind, and the excepthook makes it one line."""
+    scan = write_tiff_stack(volume, tmp_path / "scan.tif")
+
+    def refuse(*args: Any, **kwargs: Any) -> None:
+        raise OSError(code, "simulated", str(tmp_path / "results/images/scan.nc"))
+
+    monkeypatch.setattr("shared.io.tempfile.mkstemp", refuse)
+    with pytest.raises(OSError) as err:
+        _porosity(tmp_path, "tiff", scan)
+    line = _logging_module().expected_message(err.value)
+    assert line is not None and "results/images/scan.nc" in line
+    assert not _files(tmp_path / "results")
+
+
+# --------------------------------------------------------- through snakemake itself
+
+TINY = {
+    "samples": {"pellet": {"source": "phantom", "voxel_size_m": VOXEL}},
+    "phantom": {"shape": [32, 32, 32], "seed": 1},
+    "micro": {"specimen_size_m": 4.0e-3, "n_points": 64,
+              "checkpoints_suction_pa": [132.0e6, 60.0e6],
+              "cases": {"het": {"porosity": "ct"}}, "vtk_snapshots": False},
+    "upscaling": {"conditions": {"free": "het", "confined": "het"},
+                  "suction_range_pa": [60.0e6, 132.0e6]},
+}
+
+
+def _snakemake(tmp: Path, config: dict, *targets: str) -> tuple[subprocess.CompletedProcess,
+                                                                  Path]:
+    workdir = tmp / "wf"
+    workdir.mkdir()
+    shutil.copy(ROOT / "Snakefile", workdir / "Snakefile")
+    shutil.copytree(ROOT / "workflow", workdir / "workflow")
+    (workdir / "config").mkdir()
+    (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(config))
+    result = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "1", *targets],
+                            cwd=workdir, capture_output=True, text=True, timeout=600)
+    return result, workdir
+
+
+def _outputs(workdir: Path, folders: tuple[str, ...]) -> list[Path]:
+    return [p for folder in folders for p in _files(workdir / "results" / folder)]
+
+
+def _cut_tiff(tmp: Path) -> Path:
+    scan = write_tiff_stack(_phantom_volume(), tmp / "cut.tif")
+    data = scan.read_bytes()
+    scan.write_bytes(data[: int(len(data) * 10.5 / 32)])
+    return scan
+
+
+def _scan_folder(tmp: Path) -> Path:
+    (tmp / "scan.tif").mkdir()
+    return tmp / "scan.tif"
+
+
+WORKFLOWS = {
+    # (config edit given the tmp folder, target, words of the claychain line, output folders
+    #  that must stay empty)
+    "truncated_tiff": (
+        lambda c, tmp: c["samples"].update(
+            pellet={"source": "tiff", "path": str(_cut_tiff(tmp)), "voxel_size_m": VOXEL}),
+        "results/porosity/pellet.nc", ["cut.tif", "truncated"], ("images", "porosity")),
+    "scan_path_is_a_folder": (
+        lambda c, tmp: c["samples"].update(
+            pellet={"source": "tiff", "path": str(_scan_folder(tmp)), "voxel_size_m": VOXEL}),
+        "results/porosity/pellet.nc", ["scan.tif", "is a folder"], ("images", "porosity")),
+    "every_block_clamped": (
+        lambda c, tmp: c.setdefault("imaging", {}).update(
+            calibration={"porosity_bounds": [0.9, 0.95]}),
+        "results/porosity/pellet.nc", ["imaging.calibration.porosity_bounds", "pellet.tif"],
+        ("images", "porosity")),
+    "cube_larger_than_the_specimen": (
+        lambda c, tmp: c["micro"].update(specimen_size_m=2.0e-2),
+        "results/micro/het.nc", ["results/porosity/pellet.nc", "micro.specimen_size_m"],
+        ("micro",)),
+}
+
+
+@pytest.mark.parametrize("case", sorted(WORKFLOWS))
+def test_snakemake_reports_a_bad_input_in_one_line(case, tmp_path):
+    edit, target, words, folders = WORKFLOWS[case]
+    config = copy.deepcopy(TINY)
+    edit(config, tmp_path)
+    result, workdir = _snakemake(tmp_path, config, target)
+    assert result.returncode != 0
+    ours = [line for line in result.stderr.splitlines() if line.startswith("claychain: ")]
+    assert len(ours) == 1, result.stderr[-3000:]
+    for word in words:
+        assert word in ours[0]
+    assert "Traceback" not in result.stderr
+    assert not _outputs(workdir, folders)
+    logs = "".join(p.read_text() for p in (workdir / "results/logs").rglob("*.log"))
+    assert "Traceback" in logs
+
+
+def test_snakemake_refuses_an_undefined_case_as_target(tmp_path):
+    """Documented in the README: a target naming no configured case has no rule."""
+    result, workdir = _snakemake(tmp_path, copy.deepcopy(TINY), "results/micro/nowhere.nc")
+    assert result.returncode != 0
+    assert "results/micro/nowhere.nc" in result.stderr
+    assert not _files(workdir / "results")
