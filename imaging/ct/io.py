@@ -7,6 +7,7 @@ netCDF file of the same scan give identical arrays.
 
 from __future__ import annotations
 
+import mmap
 import re
 import struct
 from pathlib import Path
@@ -71,10 +72,17 @@ def _tiff_truncation(path: Path) -> str | None:
     or pixel data), or None if every page is complete. OpenCV (libtiff) silently stops
     at the first page it cannot read, so a cut-off stack would read as a shorter one.
     """
-    data = path.read_bytes()
-    size = len(data)
-    if size < 8 or data[:2] not in (b"II", b"MM"):
+    size = path.stat().st_size
+    if size < 8:
         return None  # not a TIFF header: OpenCV's own error applies
+    with open(path, "rb") as handle, mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as data:
+        return _ifd_chain_problem(data, size)
+
+
+def _ifd_chain_problem(data: mmap.mmap, size: int) -> str | None:
+    """The first part of a (Big)TIFF's page chain beyond ``size`` bytes, or None."""
+    if data[:2] not in (b"II", b"MM"):
+        return None
     order = "<" if data[:2] == b"II" else ">"
     magic = struct.unpack_from(order + "H", data, 2)[0]
     if magic == 42:

@@ -57,6 +57,29 @@ def test_truncated_tiff_is_refused(volume, tmp_path):
         read_tiff_stack(tiff)
 
 
+@pytest.mark.parametrize("kept", [10.5 / 32, 0.5, 0.999, 1.0 - 1e-6])
+def test_a_stack_cut_anywhere_is_refused_not_read_short(kept, tmp_path, rng):
+    """OpenCV alone reads the pages before the cut as a shorter volume (10 of 32)."""
+    volume = rng.integers(0, 65535, size=(32, 20, 24), dtype=np.uint16)
+    tiff = write_tiff_stack(volume, tmp_path / "scan.tif")
+    np.testing.assert_array_equal(read_tiff_stack(tiff), volume)
+    data = tiff.read_bytes()
+    tiff.write_bytes(data[: int(len(data) * kept)])
+    with pytest.raises(ImageError, match=r"scan\.tif: truncated TIFF"):
+        read_tiff_stack(tiff)
+
+
+def test_a_folder_and_a_file_are_told_apart(tmp_path, rng):
+    (tmp_path / "scan.tif").mkdir()
+    with pytest.raises(ImageError, match="scan.tif: is a folder"):
+        read_volume("tiff", tmp_path / "scan.tif")
+    with pytest.raises(ImageError, match="scan.tif: is a folder"):
+        read_volume("raw", tmp_path / "scan.tif", raw_shape=(2, 2, 2))
+    stack = write_tiff_stack(rng.integers(0, 255, (3, 4, 4), dtype=np.uint8), tmp_path / "s.tif")
+    with pytest.raises(ImageError, match="s.tif: is a file"):
+        read_volume("slices", stack)
+
+
 def test_two_dimensional_image_is_refused(tmp_path, rng):
     import cv2
 
