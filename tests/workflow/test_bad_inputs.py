@@ -474,6 +474,14 @@ RAISES = {
                   "'results/p.nc')", "cannot write results/p.nc: No space left"),
     "read_only_file_system": ("import errno, os; raise OSError(errno.EROFS, "
                               "os.strerror(errno.EROFS), 'results/p.nc')", "read-only"),
+    "full_disk_in_the_netcdf_library": (
+        "from shared.io import atomic_write; atomic_write('results/p.nc', lambda tmp: "
+        "(_ for _ in ()).throw(RuntimeError('NetCDF: HDF error')))",
+        "cannot write results/p.nc: NetCDF: HDF error"),
+    "read_only_results_during_an_atomic_write": (
+        "from shared.io import atomic_write; atomic_write('results/p.nc', lambda tmp: "
+        "(_ for _ in ()).throw(PermissionError(13, 'Permission denied', tmp)))",
+        "cannot write results/p.nc: Permission denied"),
     "a_bug": ("import numpy; numpy.zeros(3).reshape(5)", None),
 }
 

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import errno
 import logging
+import os
+import shutil
 import sys
 from types import TracebackType
 
@@ -34,13 +36,40 @@ def _raised_by_us(traceback: TracebackType | None) -> bool:
     return frame is not None and _ours(frame.f_globals.get("__name__"))
 
 
+def _atomic_write_target(traceback: TracebackType | None) -> str | None:
+    """The file that ``shared.io.atomic_write`` was writing when the error was raised."""
+    while traceback is not None:
+        frame = traceback.tb_frame
+        if (frame.f_code.co_name == "atomic_write"
+                and frame.f_globals.get("__name__") == "shared.io"):
+            return str(frame.f_locals.get("path"))
+        traceback = traceback.tb_next
+    return None
+
+
+def _free_space(path: str) -> str:
+    folder = os.path.dirname(os.path.abspath(path))
+    while folder and not os.path.isdir(folder):
+        folder = os.path.dirname(folder)
+    try:
+        return f"{shutil.disk_usage(folder).free / 1e6:.3g} MB free there"
+    except OSError:
+        return "free space unknown"
+
+
 def expected_message(value: BaseException) -> str | None:
     """The one-line message of an expected failure, or None for an unexpected one."""
     text = " ".join(str(value).split()) or type(value).__name__
+    target = _atomic_write_target(value.__traceback__)
     if isinstance(value, OSError) and value.errno in _WRITE_ERRNOS:
-        target = value.filename or "a results file"
+        target = target or str(value.filename or "a results file")
         reason = value.strerror or text
-        return f"cannot write {target}: {reason} (is the results folder read-only or full?)"
+        return (f"cannot write {target}: {reason} ({_free_space(target)}; is the results "
+                "folder read-only or full?)")
+    if target is not None and isinstance(value, (OSError, RuntimeError)):
+        # the netCDF library's errors (e.g. "NetCDF: HDF error" on a full disk) name no file
+        return (f"cannot write {target}: {text} ({_free_space(target)}; is the results "
+                "folder read-only or full?)")
     if isinstance(value, Exception) and _ours(type(value).__module__):
         return text
     if isinstance(value, ValueError) and _raised_by_us(value.__traceback__):
