@@ -224,7 +224,16 @@ def porosity(
     Returns
     -------
     xarray.Dataset
-        The porosity dataset as written.
+        The porosity dataset as written; its attribute ``warnings`` holds the warnings of
+        :func:`_grid_warnings` (voxel size, clamped blocks), joined by "; ", or "".
+
+    Raises
+    ------
+    ImageError
+        If the scan is missing, truncated or not an 8/16-bit greyscale volume.
+    ValueError
+        If no specimen, no valid calibration or no block inside the porosity bounds is
+        found; the message names the scan and the config keys. Nothing is written then.
     """
     source = "tiff" if entry["source"] == "phantom" else entry["source"]
     voxel_size = float(entry["voxel_size_m"])
