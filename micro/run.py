@@ -22,7 +22,7 @@ import numpy as np
 import xarray as xr
 
 from micro import figures, vtk
-from micro.checkpoint import load_checkpoint, save_checkpoint
+from micro.checkpoint import checkpoint_wall_time, load_checkpoint, save_checkpoint
 from micro.hydration import DivergenceError, FlowSystem, HydrationSettings, advance_to_balance
 from micro.pellet import POROSITY_BINS, SpecimenSpec, initial_state, measure_checkpoint, settle
 from micro.permeability import principal_permeability
@@ -229,6 +229,7 @@ def run(
     DivergenceError
         If the coupled solution diverges; the last good checkpoint stays on disk.
     """
+    started = time.monotonic()
     spec, settings, heterogeneous = case_settings(config, case)
     # the studies aggregate finished cases: they are not part of a case's configuration
     section = {"micro": {k: v for k, v in config["micro"].items() if k != "studies"}, "case": case,
@@ -256,11 +257,13 @@ def run(
                  case, settled["dem_steps"], settled["unbalanced_force"])
         records: list[dict[str, Any]] = []
         reference_volume = float(state.mesh.volumes.sum())
+        earlier = 0.0
     else:
         state, system, records, reference_volume = resumed
+        # the wall time of the runs before, up to their last checkpoint file
+        earlier = checkpoint_wall_time(state_file)
         log.info("%s: resuming after checkpoint %d of %d", case, len(records), checkpoints.size)
     progress = Progress(checkpoints.size, f"micro {case}", log, interval=0.0)
-    started = time.monotonic()
     for index in range(len(records), checkpoints.size):
         suction = float(checkpoints[index])
         try:
@@ -278,7 +281,8 @@ def run(
         record = measure_checkpoint(state, suction, reference_volume, material, settings.cracks)
         record.update(diagnostics)
         records.append(record)
-        save_checkpoint(state_file, digest, state, system, records, reference_volume)
+        save_checkpoint(state_file, digest, state, system, records, reference_volume,
+                        wall_time=earlier + time.monotonic() - started)
         if vtk_dir is not None:
             vtk.write_checkpoint_snapshot(vtk_dir, output.stem, index, state)
         log.info("%s: s = %.3g Pa, S = %.3f, eps_v = %.4f, cracks %d, k_w,x = %.3g m2, "
@@ -290,7 +294,7 @@ def run(
     ds.attrs.update(n_points=state.dem.n_points, n_cells=state.mesh.n_cells,
                     confinement=spec.confinement, crack_model=int(settings.cracks),
                     porosity_source="ct" if heterogeneous else "homogeneous",
-                    wall_time_s=time.monotonic() - started,
+                    wall_time_s=earlier + time.monotonic() - started,
                     peak_memory_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0)
     write_dataset(ds, output, stage="micro", title=f"micro pellet hydration, case {case}",
                   config=section, seed=spec.seed, inputs=[porosity_input], rule=rule,

@@ -39,7 +39,10 @@ the measurements behind the defaults are in ``benchmarks/reference/README.md``.
 from __future__ import annotations
 
 import ctypes
+import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -266,6 +269,7 @@ class CholeskySolver:
         self._indptr: npt.NDArray[np.int32] | None = None
         self._indices: npt.NDArray[np.int32] | None = None
         self._factored_data: FloatArray | None = None
+        self._ordering: str | None = None
         self._stale_iterations = 0
         self._last_rent = 0
         self._stale_solves = 0
@@ -293,6 +297,7 @@ class CholeskySolver:
                 _check_lower(matrix)
                 method = self.ordering_method or ("natural" if ordered else "metis")
                 self._factor = analyze(matrix, mode="supernodal", ordering_method=method)
+                self._ordering = method
                 self._indptr = matrix.indptr.copy()
                 self._indices = matrix.indices.copy()
                 self.stats.analyses += 1
@@ -313,6 +318,70 @@ class CholeskySolver:
         self._stale_iterations = 0
         self._stale_solves = 0
         self.stats.factorisations += 1
+
+    def reuse_state(self) -> tuple[dict[str, Any], dict[str, npt.NDArray[Any]]]:
+        """What decides this solver's next refactorisations, for a checkpoint file.
+
+        Returns
+        -------
+        scalars : dict
+            The rent-or-buy counters (stale iterations and solves, last rent, solves
+            left to buy at once, back-off), the diagnostics ``last_drift`` and
+            ``last_residual``, the work counters of :attr:`stats` and the ordering
+            of the current analysis (JSON-serialisable).
+        arrays : dict
+            ``indptr``, ``indices`` and ``data`` of the factored lower triangle, empty
+            if there is no factor. The CHOLMOD factor itself cannot be saved: it is a
+            function of this matrix and the ordering, and :meth:`restore_reuse_state`
+            refactors it.
+        """
+        scalars: dict[str, Any] = {
+            "stale_iterations": self._stale_iterations, "last_rent": self._last_rent,
+            "stale_solves": self._stale_solves, "buy_at_once": self._buy_at_once,
+            "backoff": self._backoff, "last_drift": self.last_drift,
+            "last_residual": self.last_residual, "ordering": self._ordering,
+            "stats": dataclasses.asdict(self.stats),
+        }
+        arrays: dict[str, npt.NDArray[Any]] = {}
+        if self._factor is not None and self._factored_data is not None:
+            assert self._indptr is not None and self._indices is not None
+            arrays = {"indptr": self._indptr, "indices": self._indices,
+                      "data": self._factored_data}
+        return scalars, arrays
+
+    def restore_reuse_state(
+        self, scalars: Mapping[str, Any], arrays: Mapping[str, npt.NDArray[Any]]
+    ) -> None:
+        """Continue as the solver whose :meth:`reuse_state` this was, bit for bit.
+
+        With a saved factored matrix, it is analysed (same ordering) and factored again:
+        CHOLMOD is deterministic for a given matrix and ordering, so the new factor
+        applies exactly as the lost one did.
+        """
+        if arrays:
+            n = arrays["indptr"].shape[0] - 1
+            matrix = sp.csc_matrix(
+                (np.array(arrays["data"], dtype=np.float64),
+                 np.array(arrays["indices"], dtype=np.int32),
+                 np.array(arrays["indptr"], dtype=np.int32)), shape=(n, n))
+            self.ordering_method, saved_method = scalars["ordering"], self.ordering_method
+            try:
+                self.reset()
+                self._factorise(matrix, ordered=False)
+            finally:
+                self.ordering_method = saved_method
+        else:
+            self.reset()
+            self._factored_data = None
+        self._ordering = scalars["ordering"]
+        self._stale_iterations = int(scalars["stale_iterations"])
+        self._last_rent = int(scalars["last_rent"])
+        self._stale_solves = int(scalars["stale_solves"])
+        self._buy_at_once = int(scalars["buy_at_once"])
+        self._backoff = int(scalars["backoff"])
+        self.last_drift = float(scalars["last_drift"])
+        self.last_residual = float(scalars["last_residual"])
+        self.stats = SolverStats(**scalars["stats"])
 
     def drift(self, lower: sp.csc_matrix) -> float:
         """Largest scaled entry change of ``lower`` since the last factorisation [1].

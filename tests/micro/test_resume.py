@@ -1,0 +1,173 @@
+"""A micro run killed after any checkpoint and resumed writes the uninterrupted run's netCDF.
+
+The kill is simulated as in ``test_hydration.py``: ``advance_to_balance`` raises at the
+checkpoint after the kill point, so the run stops with its checkpoint file on disk, and
+a second call resumes from it. On 216 points and six checkpoints, the code before the
+flow numbering and the solver's reuse state were saved differed after a kill at the
+fifth checkpoint (gas permeability tensor 3 %, porosity histogram), and at 1000 points
+after the sixth of 14 (issue 14).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import xarray as xr
+
+import micro.run as micro_run
+from micro.checkpoint import checkpoint_wall_time, load_checkpoint, save_checkpoint
+from micro.hydration import DivergenceError, FlowSystem
+from micro.pellet import SpecimenSpec, initial_state
+from shared.config import validate_config
+from shared.io import write_dataset
+from shared.mesh import update_mesh
+from shared.solver import CholeskySolver
+from tests._defaults import CLAY, DEM
+
+CHECKPOINTS = [132.0e6, 60.0e6, 20.0e6, 5.0e6, 1.0e6, 1.0e5]
+
+# attributes that legitimately differ between two runs of the same case: the time of
+# writing (``created``, ``history``) and what the run cost (``wall_time_s``: the
+# resumed run counts the killed run's time up to its checkpoint file, and
+# ``peak_memory_mb``)
+VOLATILE = {"created", "history", "wall_time_s", "peak_memory_mb"}
+
+
+@pytest.fixture(scope="module")
+def case(tmp_path_factory):
+    """The configuration of a 216-point CT case and its porosity grid."""
+    tmp = tmp_path_factory.mktemp("resume")
+    config = validate_config({
+        "samples": {"p": {"source": "phantom", "voxel_size_m": 3e-4}},
+        "micro": {"sample": "p", "specimen_size_m": 4e-3, "n_points": 216,
+                  "checkpoints_suction_pa": CHECKPOINTS, "cases": {"c": {"porosity": "ct"}}},
+        "upscaling": {"conditions": {"free": "c", "confined": "c"}},
+    })
+    rng = np.random.default_rng(0)
+    values = np.clip(0.25 + 0.03 * rng.standard_normal((14, 14, 14)), 0.05, 0.6)
+    axis = np.arange(14) * 4e-4
+    grid = xr.DataArray(values, dims=("z", "y", "x"), coords={"z": axis, "y": axis, "x": axis},
+                        attrs={"units": "1", "long_name": "porosity"})
+    ds = grid.to_dataset(name="porosity")
+    for name in "zyx":
+        ds[name].attrs.update(units="m", long_name=name)
+    path = tmp / "porosity.nc"
+    write_dataset(ds, path, stage="imaging", title="test grid")
+    return config, path, tmp
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(case):
+    config, grid, tmp = case
+    output = tmp / "uninterrupted.nc"
+    micro_run.run(config, "c", grid, output, tmp / "uninterrupted.png")
+    return output
+
+
+def _assert_same_file(resumed: Path, reference: Path) -> None:
+    with xr.open_dataset(reference) as a, xr.open_dataset(resumed) as b:
+        assert sorted(a.variables) == sorted(b.variables)
+        for name in a.variables:  # every data variable and coordinate, bit for bit
+            x, y = a[name].values, b[name].values
+            assert x.dtype == y.dtype and x.shape == y.shape, name
+            if x.dtype.kind == "f":
+                assert np.array_equal(x.view(np.uint64 if x.itemsize == 8 else np.uint32),
+                                      y.view(np.uint64 if y.itemsize == 8 else np.uint32)), name
+            else:
+                assert np.array_equal(x, y), name
+            assert a[name].attrs == b[name].attrs, name
+        same = {k: v for k, v in a.attrs.items() if k not in VOLATILE}
+        assert same == {k: v for k, v in b.attrs.items() if k not in VOLATILE}
+        assert VOLATILE <= set(b.attrs)
+
+
+@pytest.mark.parametrize("kill", range(1, len(CHECKPOINTS)))
+def test_resume_after_a_kill_at_every_checkpoint_is_bit_identical(case, uninterrupted, kill,
+                                                                   monkeypatch):
+    config, grid, tmp = case
+    output = tmp / f"killed_after_{kill}.nc"
+    original = micro_run.advance_to_balance
+    calls = {"n": 0}
+
+    def killed(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == kill + 1:
+            raise DivergenceError("simulated kill")
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(micro_run, "advance_to_balance", killed)
+    with pytest.raises(DivergenceError, match="simulated kill"):
+        micro_run.run(config, "c", grid, output, output.with_suffix(".png"))
+    state_file = output.with_suffix(".checkpoint.npz")
+    before = checkpoint_wall_time(state_file)
+    assert before > 0.0 and not output.exists()
+    monkeypatch.setattr(micro_run, "advance_to_balance", original)
+    resumed = micro_run.run(config, "c", grid, output, output.with_suffix(".png"))
+    assert not state_file.exists()
+    # the whole run: the killed run's time up to its checkpoint file, and the rest
+    assert resumed.attrs["wall_time_s"] > before
+    _assert_same_file(output, uninterrupted)
+
+
+def test_the_flow_numbering_of_the_last_remesh_is_kept(tmp_path):
+    """The unknowns are numbered by the centroids at the last remesh: a checkpoint after
+    the points moved (here a 2 % stretch, which inverts no cell) restores that
+    numbering, not the one of the current geometry."""
+    state = initial_state(SpecimenSpec(edge_length=4e-3, n_points=216, seed=3), None, None,
+                          CLAY, DEM)
+    system = FlowSystem.for_mesh(state.mesh)
+    state.dem.positions[:] = state.dem.positions * np.array([1.02, 1.0, 0.98])
+    state.mesh = update_mesh(state.mesh, state.dem.positions)
+    rebuilt = FlowSystem.for_mesh(state.mesh, system.dirichlet)
+    assert not np.array_equal(rebuilt.pattern.free_cells, system.pattern.free_cells)
+    path = tmp_path / "case.checkpoint.npz"
+    save_checkpoint(path, "abc", state, system, [], 1.0)
+    _, loaded, _, _ = load_checkpoint(path, "abc", CLAY)
+    for name in ("dirichlet", "free_cells", "free_index", "indptr", "indices",
+                 "diagonal_position", "facet_position"):
+        np.testing.assert_array_equal(getattr(loaded.pattern, name),
+                                      getattr(system.pattern, name), err_msg=name)
+
+
+def _laplacian(n: int, shift: float) -> sp.csc_matrix:
+    main = np.full(n, 2.0 + shift)
+    full = sp.diags([main, -np.ones(n - 1), -np.ones(n - 1)], [0, -1, 1], format="csc")
+    lower = sp.tril(full, format="csc")
+    lower.sort_indices()
+    return lower
+
+
+@pytest.mark.parametrize("growth", [2.0, 1.05])
+def test_a_restored_solver_continues_bit_for_bit(growth):
+    """Counters (back-off, buy-at-once, stale iterations) and the factor: the restored
+    solver takes the same refactoring decisions and gives the same bits. Doubling the
+    shift makes the solver buy at once with a back-off; growing it by 5 % makes the
+    next solve rent the stale (refactored on restoring) factor."""
+    rng = np.random.default_rng(2)
+    n = 400
+    rhs = [rng.standard_normal(n) for _ in range(12)]
+    matrices = [_laplacian(n, 1e-3 * growth**k) for k in range(12)]
+    original = CholeskySolver(refactor_iterations=6)
+    for k in range(4):
+        original.solve(matrices[k], rhs[k], ordered=True)
+    scalars, arrays = original.reuse_state()
+    assert arrays
+    if growth == 2.0:
+        assert scalars["buy_at_once"] > 0 and scalars["backoff"] > 1
+    else:
+        assert scalars["buy_at_once"] == 0
+    restored = CholeskySolver(refactor_iterations=6)
+    restored.restore_reuse_state(scalars, arrays)
+    assert json.dumps(restored.reuse_state()[0]) == json.dumps(scalars)
+    factored = restored.stats.factorisations
+    for k in range(4, 12):
+        a = original.solve(matrices[k], rhs[k], ordered=True)
+        b = restored.solve(matrices[k], rhs[k], ordered=True)
+        np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64))
+        if k == 4 and growth < 2.0:  # solved with the factor rebuilt on restoring
+            assert restored.stats.factorisations == factored
+    assert json.dumps(restored.reuse_state()[0]) == json.dumps(original.reuse_state()[0])
