@@ -24,12 +24,14 @@ except ConfigError as err:
 SAMPLES = sorted(config["samples"])
 CASES = sorted(config["micro"]["cases"])
 PACKINGS = sorted(config["packings"])
+MACRO_CASES = sorted(config["macro"]["cases"])
 
 
 wildcard_constraints:
     sample="|".join(SAMPLES),
     case="|".join(CASES),
     packing="|".join(PACKINGS) or "(?!)",
+    macro_case="|".join(MACRO_CASES) or "(?!)",
 
 
 def code_hash(*packages):
@@ -114,6 +116,30 @@ def get_scale_edge_lengths(wildcards):
     return {case: case_edge_length(config, case) for case in scale_cases(config)}
 
 
+def get_macro_case_config(wildcards):
+    """The macro settings with this case alone (a param: editing one case reruns it alone)."""
+    shared = {key: value for key, value in config["macro"].items() if key != "cases"}
+    return {
+        **shared,
+        "cases": {wildcards.macro_case: config["macro"]["cases"][wildcards.macro_case]},
+    }
+
+
+def get_macro_materials(wildcards):
+    """The mixture's material sections (Tables 4.1-4.2), the only materials macro reads."""
+    return {
+        key: config["materials"][key] for key in ("mixture_pellet", "mixture_powder")
+    }
+
+
+def get_macro_outputs():
+    """One result and figure per macro case."""
+    return expand(
+        ["results/macro/{macro_case}.nc", "results/macro/{macro_case}.png"],
+        macro_case=MACRO_CASES,
+    )
+
+
 def get_study_outputs():
     """The study products of the declared studies (none by default)."""
     outputs = []
@@ -156,6 +182,7 @@ def get_final_outputs():
         + studies
         + upscaling
         + packing
+        + get_macro_outputs()
     )
 
 
@@ -185,5 +212,16 @@ UPSCALING_CODE = code_hash(
     "shared/io.py",
     "shared/provenance.py",
     "shared/figures.py",
+    "shared/config.py",
+)
+MACRO_CODE = code_hash(
+    "macro",
+    "shared/upscaling.py",
+    "shared/mesh.py",
+    "shared/dem",
+    "shared/io.py",
+    "shared/provenance.py",
+    "shared/figures.py",
+    "shared/progress.py",
     "shared/config.py",
 )

@@ -1,0 +1,302 @@
+"""The local pressure-volume problem of each system (Caulk 2022, Sec. 4.3, Eqs. 4.39-4.51).
+
+Given a system's water mass m_w, solid volume V_s, reference volume V_0 and largest
+volume V_max (its cell's void for powder), find its volume V and water pressure p with
+
+    f1 = S(V) - S_ret(p, phi(V)) - mu sum_p log c = 0   (retention, Eqs. 4.39, 4.41-4.43)
+    f2 = V - V_0 (1 + eps(-p)) - mu sum_V log c = 0   (swelling, Eq. 4.40)
+
+where S_ret is the retention curve (Eq. 4.24 read as S(s)), S(V) = m_w / (rho (V - V_s)), phi(V) = 1 - V_s / V,
+and the log-barriers keep the constraints of Sec. 4.3 strictly positive:
+c1 = 1 - V_s/V (phi >= 0), c2 = V_s/V (phi <= 1), c3 = 1 - V/V_max, c4 = 1 - S, c5 = S
+(volume constraints, in f2) and c6 = -p/s_max (p <= 0), c7 = 1 + p/s_max (p >= -s_max)
+(pressure constraints, in f1). The thesis prints one barrier sum in both equations; a
+constraint that binds would then shift the other equation by a finite amount, so each
+equation carries the barriers of its own unknown (our reading). Eq. 4.39 is written on
+saturation, S(V) = S_ret(p), rather than on pressure, p = p_ret(V): the same root, but a
+bounded function (p_ret has infinite slopes at S -> 0 and S -> 1, where Newton steps
+overshoot). f2 is made dimensionless by V_0.
+
+Newton-Raphson (Eqs. 4.44-4.50) with central-difference Jacobians (Eq. 4.46), the
+barrier weight mu and the under-relaxation 1 - alpha_r decaying geometrically each
+iteration, a fraction-to-boundary rule that keeps every iterate strictly feasible, and
+a backtracking (Armijo) line search on |f|^2 that keeps Newton from cycling where the
+swelling and retention curves bend.
+Converged when the RMS relative update (Eq. 4.51) is below the tolerance, mu has
+decayed below 1e-3 tolerance and both residuals are below the tolerance (or a
+constraint is active). Systems where Newton stalls (|f| has local minima where the
+porosity dependence of the retention curve bends the swelling target) are solved by a
+bracketed bisection of the same equations and counted. All systems are solved at once (numpy, no loop over
+systems); a system that does not converge raises :class:`NewtonError` naming it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from macro.laws import MixtureParameters, saturation, suction, swelling_strain
+
+__all__ = [
+    "NewtonError", "NewtonSettings", "PVProblem", "bracketed_solution", "constraints",
+    "residuals", "solve_pressure_volume",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class NewtonError(RuntimeError):
+    """A local pressure-volume system without solution or without convergence."""
+
+
+@dataclass(frozen=True)
+class NewtonSettings:
+    """tolerance (Eq. 4.51), max_iterations, barrier_start mu_0, barrier_decay,
+    relaxation_start alpha_r at iteration 0, derivative_step h (relative)."""
+
+    tolerance: float
+    max_iterations: int
+    barrier_start: float
+    barrier_decay: float
+    relaxation_start: float
+    derivative_step: float
+
+
+@dataclass
+class PVProblem:
+    """The data of n systems (arrays of shape (n,)); ``names`` label them in errors.
+
+    water_mass [kg], solid_volume [m3], reference_volume V_0 [m3], max_volume [m3],
+    density rho_w [kg/m3], max_suction s_max [Pa].
+    """
+
+    water_mass: FloatArray
+    solid_volume: FloatArray
+    reference_volume: FloatArray
+    max_volume: FloatArray
+    density: float
+    max_suction: float
+    names: list[str] | None = None
+
+    def name(self, i: int) -> str:
+        return self.names[i] if self.names is not None else f"system {i}"
+
+
+def constraints(problem: PVProblem, volume: FloatArray, pressure: FloatArray,
+                index: npt.NDArray[np.int64] | slice = slice(None)) -> FloatArray:
+    """The seven constraints c1..c7 (all must be >= 0), shape (7, n)."""
+    vs = problem.solid_volume[index]
+    sat = problem.water_mass[index] / (problem.density * (volume - vs))
+    return np.stack([
+        1.0 - vs / volume, vs / volume, 1.0 - volume / problem.max_volume[index],
+        1.0 - sat, sat, -pressure / problem.max_suction, 1.0 + pressure / problem.max_suction,
+    ])
+
+
+def residuals(problem: PVProblem, material: MixtureParameters, volume: FloatArray,
+              pressure: FloatArray, mu: float | FloatArray = 0.0,
+              index: npt.NDArray[np.int64] | slice = slice(None)) -> tuple[FloatArray, FloatArray]:
+    """Dimensionless f1 (retention) and f2 (swelling) of Eqs. 4.39-4.40 with barrier weight mu."""
+    vs = problem.solid_volume[index]
+    v0 = problem.reference_volume[index]
+    c = constraints(problem, volume, pressure, index)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        porosity = 1.0 - vs / volume
+        s_ret = saturation(-pressure, porosity, material)
+        barrier_p = np.log(c[5]) + np.log(c[6])
+        barrier_v = np.log(c[0]) + np.log(c[1]) + np.log(c[2]) + np.log(c[3]) + np.log(c[4])
+    f1 = c[4] - s_ret - mu * barrier_p
+    f2 = (volume - v0 * (1.0 + swelling_strain(-pressure, material))) / v0 - mu * barrier_v
+    return f1, f2
+
+
+def _feasible(c: FloatArray) -> npt.NDArray[np.bool_]:
+    return np.all(c > 0.0, axis=0)
+
+
+def initial_guess(problem: PVProblem, material: MixtureParameters,
+                  volume: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Eqs. 4.47-4.48 from the previous volumes, moved strictly inside the constraints.
+
+    Raises
+    ------
+    NewtonError
+        If a system has no feasible volume: its water does not fit below V_max.
+    """
+    pb = problem
+    low = np.maximum(pb.solid_volume + pb.water_mass / pb.density, pb.solid_volume)
+    high = pb.max_volume
+    bad = np.flatnonzero(~(low < high * (1.0 - 1e-12)))
+    if bad.size:
+        i = int(bad[0])
+        raise NewtonError(
+            f"{pb.name(i)}: no feasible volume (solid + water {low[i]:.6g} m3 >= V_max "
+            f"{high[i]:.6g} m3; water mass {pb.water_mass[i]:.6g} kg); {bad.size} such system(s)"
+        )
+    gap = high - low
+    volume = np.clip(volume, low + 1e-3 * gap, high - 1e-3 * gap)
+    sat = pb.water_mass / (pb.density * (volume - pb.solid_volume))
+    s = suction(np.clip(sat, 1e-300, 1.0), 1.0 - pb.solid_volume / volume, material)
+    pressure = -np.clip(s, 1e-6 * pb.max_suction, (1.0 - 1e-6) * pb.max_suction)
+    target = pb.reference_volume * (1.0 + swelling_strain(-pressure, material))
+    volume = np.clip(target, low + 1e-3 * gap, high - 1e-3 * gap)
+    return volume, pressure
+
+
+def solve_pressure_volume(
+    problem: PVProblem,
+    material: MixtureParameters,
+    settings: NewtonSettings,
+    previous_volume: FloatArray,
+) -> tuple[FloatArray, FloatArray, int, int]:
+    """Solve every system's (V, p).
+
+    Returns volumes [m3], pressures [Pa], the iterations used, and the number of systems
+    where Newton stalled and :func:`bracketed_solution` solved them.
+
+    Raises
+    ------
+    NewtonError
+        Naming the first system that has no feasible volume or did not converge, with
+        its state (V, p, m_w, V_s, V_max, last update).
+    """
+    volume, pressure = initial_guess(problem, material, np.asarray(previous_volume, dtype=float))
+    n = volume.size
+    active = np.arange(n)
+    error = np.full(n, np.inf)
+    mu = settings.barrier_start
+    damping = 1.0 - settings.relaxation_start
+    h = settings.derivative_step
+    iterations = 0
+    mu_done = 1e-3 * settings.tolerance
+    for iterations in range(1, settings.max_iterations + 1):
+        v, p = volume[active], pressure[active]
+        # differences that never probe outside the constraints: central where the
+        # constraints leave room, one-sided (shorter side) next to a bound
+        low = problem.solid_volume[active] + problem.water_mass[active] / problem.density
+        hv_up = np.minimum(h * v, 0.5 * (problem.max_volume[active] - v))
+        hv_dn = np.minimum(h * v, 0.5 * (v - low))
+        hp_up = np.minimum(h * np.abs(p), -0.5 * p)
+        hp_dn = np.minimum(h * np.abs(p), 0.5 * (p + problem.max_suction))
+        f1, f2 = residuals(problem, material, v, p, mu, active)
+        a1, a2 = residuals(problem, material, v + hv_up, p, mu, active)
+        b1, b2 = residuals(problem, material, v - hv_dn, p, mu, active)
+        c1, c2 = residuals(problem, material, v, p + hp_up, mu, active)
+        d1, d2 = residuals(problem, material, v, p - hp_dn, mu, active)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            j11, j21 = (a1 - b1) / (hv_up + hv_dn), (a2 - b2) / (hv_up + hv_dn)
+            j12, j22 = (c1 - d1) / (hp_up + hp_dn), (c2 - d2) / (hp_up + hp_dn)
+            det = j11 * j22 - j12 * j21
+            dv = (-f1 * j22 + f2 * j12) / det
+            dp = (-f2 * j11 + f1 * j21) / det
+        # pinned against a bound closer than the difference step can resolve: no update
+        pinned = ~(np.isfinite(dv) & np.isfinite(dp))
+        dv[pinned] = 0.0
+        dp[pinned] = 0.0
+        step = np.full(v.size, 1.0 - damping)
+        # fraction to the boundary and backtracking: halve the step until every
+        # constraint stays positive and the residual norm decreases (Armijo)
+        norm = f1 * f1 + f2 * f2
+        for _ in range(60):
+            tv, tp = v + step * dv, p + step * dp
+            trial = constraints(problem, tv, tp, active)
+            ok = _feasible(trial) & np.isfinite(trial).all(axis=0)
+            g1, g2 = residuals(problem, material, np.where(ok, tv, v), np.where(ok, tp, p), mu, active)
+            ok &= g1 * g1 + g2 * g2 <= (1.0 - 1e-4 * step) * norm
+            if ok.all():
+                break
+            step = np.where(ok, step, 0.5 * step)
+        new_v, new_p = v + step * dv, p + step * dp
+        with np.errstate(invalid="ignore", divide="ignore"):
+            err = np.sqrt(0.5 * (((new_v - v) / v) ** 2 + ((new_p - p) / p) ** 2))
+        volume[active], pressure[active] = new_v, new_p
+        error[active] = err
+        broken = pinned & ~_at_bound(problem, new_v, new_p, active)
+        if broken.any():
+            _fail(problem, active[np.flatnonzero(broken)[0]], volume, pressure, error, iterations,
+                  "singular Jacobian away from the constraints")
+        if mu <= mu_done:
+            g1, g2 = residuals(problem, material, new_v, new_p, mu, active)
+            solved = (err < settings.tolerance) & (
+                ((np.abs(g1) < settings.tolerance) & (np.abs(g2) < settings.tolerance))
+                | _at_bound(problem, new_v, new_p, active)
+            )
+            active = active[~solved]
+            if active.size == 0:
+                return volume, pressure, iterations, 0
+        mu *= settings.barrier_decay
+        damping *= settings.barrier_decay
+    # Newton stalled (a local minimum of |f| or a cycle): bracketed fallback, counted
+    v_b, p_b = bracketed_solution(problem, material, active, np.asarray(previous_volume)[active])
+    volume[active], pressure[active] = v_b, p_b
+    return volume, pressure, iterations, int(active.size)
+
+
+def bracketed_solution(problem: PVProblem, material: MixtureParameters,
+                       index: npt.NDArray[np.int64],
+                       previous_volume: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Safeguarded solution of the same problem by bisection on V (vectorised).
+
+    Eliminating p with the retention curve, p = -s(S(V), phi(V)), leaves
+    h(V) = V - V_0 (1 + eps(s(V))) on (V_low, V_max), V_low the saturated volume. h can
+    change sign more than once (the retention curve's porosity dependence); the sign
+    change nearest to the previous volume is bisected to 1e-12 relative (continuity of
+    the state). A system whose swelling target exceeds V_max above its previous volume
+    sits at V_max (constraint c3 active).
+
+    Raises
+    ------
+    NewtonError
+        If neither a root nor the bound V_max solves the system.
+    """
+    pb = problem
+    vs, v0 = pb.solid_volume[index], pb.reference_volume[index]
+    low = (vs + pb.water_mass[index] / pb.density) * (1.0 + 1e-12)
+    high = pb.max_volume[index] * (1.0 - 1e-12)
+
+    def h(v: FloatArray, rows: npt.NDArray[np.int64] | slice = slice(None)) -> tuple[FloatArray, FloatArray]:
+        sat = pb.water_mass[index][rows] / (pb.density * (v - vs[rows]))
+        s = np.clip(suction(np.clip(sat, 1e-300, 1.0), 1.0 - vs[rows] / v, material), 0.0, pb.max_suction)
+        return v - v0[rows] * (1.0 + swelling_strain(s, material)), -s
+
+    grid = low[:, None] + (high - low)[:, None] * np.linspace(0.0, 1.0, 257)[None, :]
+    values = np.stack([h(grid[:, k])[0] for k in range(grid.shape[1])], axis=1)
+    change = (values[:, :-1] < 0.0) & (values[:, 1:] >= 0.0)
+    centre = 0.5 * (grid[:, :-1] + grid[:, 1:])
+    distance = np.where(change, np.abs(centre - previous_volume[:, None]), np.inf)
+    best = np.argmin(distance, axis=1)
+    rows = np.arange(index.size)
+    found = np.isfinite(distance[rows, best])
+    capped = ~found & (values[:, -1] < 0.0)
+    bad = np.flatnonzero(~found & ~capped)
+    if bad.size:
+        i = int(index[bad[0]])
+        raise NewtonError(f"{pb.name(i)}: no solution of the pressure-volume problem between "
+                          f"V_low={low[bad[0]]:.6g} and V_max={high[bad[0]]:.6g} m3")
+    a, b = grid[rows, best], grid[rows, best + 1]
+    for _ in range(40):
+        mid = 0.5 * (a + b)
+        hm, _ = h(mid)
+        a = np.where(hm < 0.0, mid, a)
+        b = np.where(hm < 0.0, b, mid)
+    v = np.where(capped, high, 0.5 * (a + b))
+    _, p = h(v)
+    return v, np.minimum(p, -1e-9 * pb.max_suction)
+
+
+def _at_bound(problem: PVProblem, volume: FloatArray, pressure: FloatArray,
+              index: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
+    """Systems with a constraint within 1e-8 of its bound (an active constraint)."""
+    return np.any(constraints(problem, volume, pressure, index) < 1e-8, axis=0)
+
+
+def _fail(problem: PVProblem, i: int, volume: FloatArray, pressure: FloatArray,
+          error: FloatArray, iterations: int, why: str) -> None:
+    raise NewtonError(
+        f"{problem.name(i)}: Newton-Raphson failed ({why}) after {iterations} iterations: "
+        f"V={volume[i]:.6g} m3, p={pressure[i]:.6g} Pa, m_w={problem.water_mass[i]:.6g} kg, "
+        f"V_s={problem.solid_volume[i]:.6g} m3, V_0={problem.reference_volume[i]:.6g} m3, "
+        f"V_max={problem.max_volume[i]:.6g} m3, RMS update={error[i]:.3g}"
+    )
