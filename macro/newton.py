@@ -154,7 +154,8 @@ def solve_pressure_volume(
     """Solve every system's (V, p).
 
     Returns volumes [m3], pressures [Pa], the iterations used, and the number of systems
-    where Newton stalled and :func:`bracketed_solution` solved them.
+    that :func:`bracketed_solution` solved: those where Newton stalled, and those it
+    left on a bound (checked for a root nearer their previous volume).
 
     Raises
     ------
@@ -225,13 +226,20 @@ def solve_pressure_volume(
             )
             active = active[~solved]
             if active.size == 0:
-                return volume, pressure, iterations, 0
+                break
         mu *= settings.barrier_decay
         damping *= settings.barrier_decay
-    # Newton stalled (a local minimum of |f| or a cycle): bracketed fallback, counted
-    v_b, p_b = bracketed_solution(problem, material, active, np.asarray(previous_volume)[active])
-    volume[active], pressure[active] = v_b, p_b
-    return volume, pressure, iterations, int(active.size)
+    # h(V) can have several roots (and the bound V_max): a system that Newton left on a
+    # bound, or that it did not solve, takes the root nearest its previous volume by the
+    # bracketed bisection (counted)
+    previous = np.asarray(previous_volume, dtype=float)
+    at_bound = np.flatnonzero(_at_bound(problem, volume, pressure, np.arange(n)))
+    redo = np.union1d(active, at_bound).astype(np.int64)
+    if redo.size:
+        v_b, p_b = bracketed_solution(problem, material, redo, previous[redo])
+        volume[redo], pressure[redo] = v_b, p_b
+    return volume, pressure, iterations, int(redo.size)
+
 
 
 def bracketed_solution(problem: PVProblem, material: MixtureParameters,
@@ -258,29 +266,33 @@ def bracketed_solution(problem: PVProblem, material: MixtureParameters,
 
     def h(v: FloatArray, rows: npt.NDArray[np.int64] | slice = slice(None)) -> tuple[FloatArray, FloatArray]:
         sat = pb.water_mass[index][rows] / (pb.density * (v - vs[rows]))
-        s = np.clip(suction(np.clip(sat, 1e-300, 1.0), 1.0 - vs[rows] / v, material), 0.0, pb.max_suction)
-        return v - v0[rows] * (1.0 + swelling_strain(s, material)), -s
+        s = np.maximum(suction(np.clip(sat, 1e-300, 1.0), 1.0 - vs[rows] / v, material), 0.0)
+        # beyond the largest suction (c7) no root counts: NaN never changes sign
+        value = np.where(s <= pb.max_suction, v - v0[rows] * (1.0 + swelling_strain(s, material)), np.nan)
+        return value, -np.minimum(s, pb.max_suction)
 
     grid = low[:, None] + (high - low)[:, None] * np.linspace(0.0, 1.0, 257)[None, :]
     values = np.stack([h(grid[:, k])[0] for k in range(grid.shape[1])], axis=1)
-    change = (values[:, :-1] < 0.0) & (values[:, 1:] >= 0.0)
+    change = np.sign(values[:, :-1]) * np.sign(values[:, 1:]) <= 0.0  # NaN compares False
     centre = 0.5 * (grid[:, :-1] + grid[:, 1:])
     distance = np.where(change, np.abs(centre - previous_volume[:, None]), np.inf)
     best = np.argmin(distance, axis=1)
     rows = np.arange(index.size)
     found = np.isfinite(distance[rows, best])
-    capped = ~found & (values[:, -1] < 0.0)
+    capped = ~found & (values[:, -1] < 0.0)  # NaN (c7 violated at V_max) is not capped
     bad = np.flatnonzero(~found & ~capped)
     if bad.size:
         i = int(index[bad[0]])
         raise NewtonError(f"{pb.name(i)}: no solution of the pressure-volume problem between "
                           f"V_low={low[bad[0]]:.6g} and V_max={high[bad[0]]:.6g} m3")
     a, b = grid[rows, best], grid[rows, best + 1]
+    sign_a = np.sign(values[rows, best])
     for _ in range(40):
         mid = 0.5 * (a + b)
         hm, _ = h(mid)
-        a = np.where(hm < 0.0, mid, a)
-        b = np.where(hm < 0.0, b, mid)
+        left = np.sign(hm) == sign_a
+        a = np.where(left, mid, a)
+        b = np.where(left, b, mid)
     v = np.where(capped, high, 0.5 * (a + b))
     _, p = h(v)
     return v, np.minimum(p, -1e-9 * pb.max_suction)
