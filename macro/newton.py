@@ -250,9 +250,11 @@ def bracketed_solution(problem: PVProblem, material: MixtureParameters,
     Eliminating p with the retention curve, p = -s(S(V), phi(V)), leaves
     h(V) = V - V_0 (1 + eps(s(V))) on (V_low, V_max), V_low the saturated volume. h can
     change sign more than once (the retention curve's porosity dependence); the sign
-    change nearest to the previous volume is bisected to 1e-12 relative (continuity of
-    the state). A system whose swelling target exceeds V_max above its previous volume
-    sits at V_max (constraint c3 active).
+    change nearest to the previous volume is bisected (continuity of the state). Without a
+    root, the system sits on the bound it moves into, nearest to its previous volume:
+    V_max when its swelling target exceeds it (constraint c3 active), the edge of the
+    admissible suctions s <= s_max (c7 active), or saturation (c4, c6 active) when it
+    would shrink even saturated.
 
     Raises
     ------
@@ -273,27 +275,49 @@ def bracketed_solution(problem: PVProblem, material: MixtureParameters,
 
     grid = low[:, None] + (high - low)[:, None] * np.linspace(0.0, 1.0, 257)[None, :]
     values = np.stack([h(grid[:, k])[0] for k in range(grid.shape[1])], axis=1)
-    change = np.sign(values[:, :-1]) * np.sign(values[:, 1:]) <= 0.0  # NaN compares False
+    valid = np.isfinite(values)
+    # candidates between grid points k and k + 1: a root (sign change), or the edge of
+    # the admissible suctions (c7) that the system moves into; at the last point, V_max
+    root = np.sign(values[:, :-1]) * np.sign(values[:, 1:]) <= 0.0  # NaN compares False
+    grow_edge = valid[:, :-1] & ~valid[:, 1:] & (values[:, :-1] < 0.0)
+    shrink_edge = ~valid[:, :-1] & valid[:, 1:] & (values[:, 1:] > 0.0)
+    kind = np.where(root, 1, np.where(grow_edge | shrink_edge, 2, 0))
+    capped = valid[:, -1] & (values[:, -1] < 0.0)
+    # a system that would shrink even when saturated sits saturated (c4 and c6 active)
+    saturated = valid[:, 0] & (values[:, 0] > 0.0)
+    kind[:, 0] = np.where(saturated & (kind[:, 0] == 0), 3, kind[:, 0])
     centre = 0.5 * (grid[:, :-1] + grid[:, 1:])
-    distance = np.where(change, np.abs(centre - previous_volume[:, None]), np.inf)
+    # a root (both equations hold) wins over a bound; among equals, the nearest to the
+    # previous volume (continuity of the state)
+    distance = np.abs(centre - previous_volume[:, None]) + np.where(kind >= 2, 1e3 * high[:, None], 0.0)
+    distance = np.where(kind > 0, distance, np.inf)
     best = np.argmin(distance, axis=1)
     rows = np.arange(index.size)
-    found = np.isfinite(distance[rows, best])
-    capped = ~found & (values[:, -1] < 0.0)  # NaN (c7 violated at V_max) is not capped
-    bad = np.flatnonzero(~found & ~capped)
+    best_distance = distance[rows, best]
+    use_cap = capped & (np.abs(high - previous_volume) + 1e3 * high < best_distance)
+    bad = np.flatnonzero(~np.isfinite(best_distance) & ~use_cap)
     if bad.size:
         i = int(index[bad[0]])
+        k = bad[0]
         raise NewtonError(f"{pb.name(i)}: no solution of the pressure-volume problem between "
-                          f"V_low={low[bad[0]]:.6g} and V_max={high[bad[0]]:.6g} m3")
+                          f"V_low={low[k]:.6g} and V_max={high[k]:.6g} m3 (m_w={pb.water_mass[i]:.6g} kg, "
+                          f"V_s={pb.solid_volume[i]:.6g} m3, V_0={pb.reference_volume[i]:.6g} m3; "
+                          f"h over the range: {np.array2string(values[k, ::32], precision=3)})")
     a, b = grid[rows, best], grid[rows, best + 1]
+    is_root = kind[rows, best] == 1
     sign_a = np.sign(values[rows, best])
+    valid_a = valid[rows, best]
     for _ in range(40):
         mid = 0.5 * (a + b)
         hm, _ = h(mid)
-        left = np.sign(hm) == sign_a
+        # roots: keep the sign change; edges: keep the admissible side
+        left = np.where(is_root, np.sign(hm) == sign_a, np.isfinite(hm) == valid_a)
         a = np.where(left, mid, a)
         b = np.where(left, b, mid)
-    v = np.where(capped, high, 0.5 * (a + b))
+    v = np.where(valid_a | is_root, a, b)
+    v = np.where(is_root, 0.5 * (a + b), v)
+    v = np.where(kind[rows, best] == 3, low, v)
+    v = np.where(use_cap, high, v)
     _, p = h(v)
     return v, np.minimum(p, -1e-9 * pb.max_suction)
 
