@@ -83,12 +83,14 @@ def simulate(model: MacroModel) -> tuple[xr.Dataset, str]:
         rows["dt"].append(dt)
 
     record(0.0)
-    progress = Progress(s.max_time, f"macro ({model.n_pellets} pellets, {model.n_cells} cells)", LOG)
+    # progress towards the first guard to stop the run (simulated time or steps)
+    progress = Progress(1.0, f"macro ({model.n_pellets} pellets, {model.n_cells} cells), "
+                        "fraction of the max_time_s/max_steps guard", LOG)
     reason = "max_steps"
     while model.steps < s.max_steps:
         dt = model.step(max_dt=s.max_time - model.time)
         record(dt)
-        progress.update(model.time)
+        progress.update(max(model.time / s.max_time, model.steps / s.max_steps))
         if model.time >= s.max_time * (1.0 - 1e-12):
             reason = "max_time"
             break
@@ -97,7 +99,7 @@ def simulate(model: MacroModel) -> tuple[xr.Dataset, str]:
         if near_equilibrium(np.array(rows["time"]), series, s.stop_window, s.stop_tolerance):
             reason = "near_equilibrium"
             break
-    progress.update(model.time, force=True)
+    progress.update(max(model.time / s.max_time, model.steps / s.max_steps), force=True)
     LOG.info("stopped (%s) at t = %.4g s after %d steps", reason, model.time, model.steps)
     return _dataset(model, rows, edges), reason
 
