@@ -252,7 +252,8 @@ def solve_pressure_volume(
 
 def bracketed_solution(problem: PVProblem, material: MixtureParameters,
                        index: npt.NDArray[np.int64],
-                       previous_volume: FloatArray) -> tuple[FloatArray, FloatArray]:
+                       previous_volume: FloatArray,
+                       window: float | None = 0.03) -> tuple[FloatArray, FloatArray]:
     """Safeguarded solution of the same problem by bisection on V (vectorised).
 
     Eliminating p with the retention curve, p = -s(S(V), phi(V)), leaves
@@ -280,6 +281,36 @@ def bracketed_solution(problem: PVProblem, material: MixtureParameters,
         # beyond the largest suction (c7) no root counts: NaN never changes sign
         value = np.where(s <= pb.max_suction, v - v0[rows] * (1.0 + swelling_strain(s, material)), np.nan)
         return value, -np.minimum(s, pb.max_suction)
+
+    if window is not None:
+        # first a narrow window around the previous volume: a root there is the nearest
+        lo = np.clip(previous_volume * (1.0 - window), low, high)
+        hi = np.clip(previous_volume * (1.0 + window), low, high)
+        local = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, 9)[None, :]
+        vals = np.stack([h(local[:, k])[0] for k in range(9)], axis=1)
+        change = np.sign(vals[:, :-1]) * np.sign(vals[:, 1:]) <= 0.0
+        mid = 0.5 * (local[:, :-1] + local[:, 1:])
+        dist = np.where(change, np.abs(mid - previous_volume[:, None]), np.inf)
+        pick = np.argmin(dist, axis=1)
+        rows = np.arange(index.size)
+        found = np.isfinite(dist[rows, pick])
+        v = np.empty(index.size)
+        p = np.empty(index.size)
+        if found.any():
+            f = np.flatnonzero(found)
+            a, b = local[f, pick[f]], local[f, pick[f] + 1]
+            sign_a = np.sign(vals[f, pick[f]])
+            for _ in range(40):
+                m = 0.5 * (a + b)
+                left = np.sign(h(m, f)[0]) == sign_a
+                a = np.where(left, m, a)
+                b = np.where(left, b, m)
+            v[f] = 0.5 * (a + b)
+            p[f] = np.minimum(h(v[f], f)[1], -1e-9 * pb.max_suction)
+        rest = np.flatnonzero(~found)
+        if rest.size:
+            v[rest], p[rest] = bracketed_solution(problem, material, index[rest], previous_volume[rest], None)
+        return v, p
 
     grid = low[:, None] + (high - low)[:, None] * np.linspace(0.0, 1.0, 257)[None, :]
     values = np.stack([h(grid[:, k])[0] for k in range(grid.shape[1])], axis=1)
