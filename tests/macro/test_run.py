@@ -114,3 +114,16 @@ def test_pellets_larger_than_the_container_are_named(table_path, tmp_path):
 def test_unknown_case_is_named(table_path, tmp_path):
     with pytest.raises(KeyError, match="macro.cases has no case 'nope'"):
         run(small_config(), "nope", table_path, tmp_path / "out.nc")
+
+
+def test_near_equilibrium_stop_criterion():
+    """Flat over the window -> stop; still rising, or too short a history -> go on."""
+    from macro.run import near_equilibrium
+
+    times = np.linspace(0.0, 100.0, 50)
+    plateau = np.column_stack([1e6 * (1 - np.exp(-times / 5.0)), 5e7 + 0 * times])
+    rising = np.column_stack([1e4 * times, 5e7 + 0 * times])
+    assert near_equilibrium(times, plateau, 0.2, 0.01)
+    assert not near_equilibrium(times, rising, 0.2, 0.01)
+    assert not near_equilibrium(times[:5], plateau[:5], 0.2, 0.01)
+    assert not near_equilibrium(times, plateau, 0.2, 0.0)
