@@ -410,7 +410,11 @@ class MacroModel:
         floored[:n_p] = False
         self.floored_cells += int(np.count_nonzero(floored))
         self.max_volume = np.where(floored, needed, self.max_volume)
-        names = [f"pellet {i}" if i < n_p else f"cell {i - n_p}" for i in free]
+
+        def names(k: int) -> str:
+            i = int(free[k])
+            return f"pellet {i}" if i < n_p else f"cell {i - n_p}"
+
         problem = PVProblem(
             self.water_mass[free], self.solid_volume[free], self.reference_volume[free],
             self.max_volume[free], self.settings.density, self.settings.max_suction, names,

@@ -32,6 +32,7 @@ systems); a system that does not converge raises :class:`NewtonError` naming it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,7 +70,8 @@ class PVProblem:
     """The data of n systems (arrays of shape (n,)); ``names`` label them in errors.
 
     water_mass [kg], solid_volume [m3], reference_volume V_0 [m3], max_volume [m3],
-    density rho_w [kg/m3], max_suction s_max [Pa].
+    density rho_w [kg/m3], max_suction s_max [Pa]; ``names`` a list or a function of the
+    index (built only when an error needs it).
     """
 
     water_mass: FloatArray
@@ -78,10 +80,13 @@ class PVProblem:
     max_volume: FloatArray
     density: float
     max_suction: float
-    names: list[str] | None = None
+    names: list[str] | Callable[[int], str] | None = None
 
     def name(self, i: int) -> str:
-        return self.names[i] if self.names is not None else f"system {i}"
+        """The label of system ``i`` in error messages."""
+        if self.names is None:
+            return f"system {i}"
+        return self.names(i) if callable(self.names) else self.names[i]
 
 
 def constraints(problem: PVProblem, volume: FloatArray, pressure: FloatArray,
