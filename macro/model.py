@@ -378,7 +378,8 @@ class MacroModel:
 
     def saturation_limited_step(self, conductance: FloatArray) -> float:
         """Largest step in which no free system's saturation changes by more than
-        ``max_saturation_change`` [s]: the explicit update follows a retention curve
+        ``max_saturation_change`` and none loses more than that fraction of its water
+        [s]: the explicit update follows a retention curve
         whose slope changes by orders of magnitude, which Eq. 4.58's local slope misses
         (a dry cell next to a wet one would otherwise be drained below zero water)."""
         assert self._exchanges is not None
@@ -386,7 +387,9 @@ class MacroModel:
         free = ~self.held & ~self.inert
         pore = (self.volume - self.solid_volume)[free]
         change = np.abs(rate[free]) / (self.settings.density * pore)
-        largest = change.max(initial=0.0)
+        # and no system loses more than that fraction of its own water (dry systems)
+        loss = np.maximum(-rate[free], 0.0) / np.maximum(self.water_mass[free], 1e-300)
+        largest = max(change.max(initial=0.0), loss.max(initial=0.0))
         return float(self.settings.max_saturation_change / largest) if largest > 0.0 else float("inf")
 
     def transport(self, dt: float, conductance: FloatArray) -> None:
