@@ -79,6 +79,7 @@ class MacroSettings:
     viscosity: float
     conductivity_factor: float
     powder_pressure: bool
+    retention_follows_porosity: bool
     powder_on_walls: bool
     sensor_bands: int
     seed: int
@@ -124,6 +125,7 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         density=float(macro["water_density_kg_m3"]),
         viscosity=float(macro["water_viscosity_pa_s"]),
         conductivity_factor=float(over.get("conductivity_factor", macro["conductivity_factor"])),
+        retention_follows_porosity=bool(macro["retention_follows_porosity"]),
         powder_pressure=bool(over.get("powder_swelling_pressure", macro["powder_swelling_pressure"])),
         powder_on_walls=bool(over.get("powder_pressure_on_walls", macro["powder_pressure_on_walls"])),
         sensor_bands=int(macro["sensor_bands"]),
@@ -250,7 +252,7 @@ class MacroModel:
         s_b = self.settings.boundary_suction
         target = self.reference_volume[h] * (1.0 + swelling_strain(s_b, self.material))
         self.volume[h] = np.minimum(target, self.max_volume[h] * (1.0 - 1e-9))
-        porosity = 1.0 - self.solid_volume[h] / self.volume[h]
+        porosity = self.retention_porosity()[h]
         sat = saturation(s_b, porosity, self.material)
         self.water_mass[h] = self.settings.density * sat * (self.volume[h] - self.solid_volume[h])
         self.pressure[h] = -s_b
@@ -337,6 +339,13 @@ class MacroModel:
         """(n,) water saturation m_w / (rho (V - V_s)) [1]."""
         return self.water_mass / (self.settings.density * (self.volume - self.solid_volume))
 
+    def retention_porosity(self) -> FloatArray:
+        """(n,) porosity of the retention curve: current (Eqs. 4.25-4.26, 4.42-4.43) or, with
+        ``macro.retention_follows_porosity`` off, each system's initial 1 - V_s/V_0."""
+        if self.settings.retention_follows_porosity:
+            return self.porosities()
+        return 1.0 - self.solid_volume / self.reference_volume
+
     def porosities(self) -> FloatArray:
         """(n,) porosity 1 - V_s / V [1]."""
         return 1.0 - self.solid_volume / self.volume
@@ -368,7 +377,7 @@ class MacroModel:
         assert self._exchanges is not None
         # dp/dS grows without bound as S -> 1: no system is driven wetter than the
         # boundary, so the slope is taken no wetter than at half the boundary suction
-        porosity = self.porosities()
+        porosity = self.retention_porosity()
         wettest = saturation(0.5 * self.settings.boundary_suction, porosity, self.material)
         sat = np.clip(self.saturations(), 1e-12, wettest)
         slope = suction_derivative(sat, porosity, self.material)
@@ -421,6 +430,7 @@ class MacroModel:
         problem = PVProblem(
             self.water_mass[free], self.solid_volume[free], self.reference_volume[free],
             self.max_volume[free], self.settings.density, self.settings.max_suction, names,
+            None if self.settings.retention_follows_porosity else self.retention_porosity()[free],
         )
         volume, pressure, iterations, fallbacks = solve_pressure_volume(
             problem, self.material, self.settings.newton, self.volume[free])

@@ -71,7 +71,8 @@ class PVProblem:
 
     water_mass [kg], solid_volume [m3], reference_volume V_0 [m3], max_volume [m3],
     density rho_w [kg/m3], max_suction s_max [Pa]; ``names`` a list or a function of the
-    index (built only when an error needs it).
+    index (built only when an error needs it); ``retention_porosity`` the porosity of the
+    retention curve's zeta and lambda, or None for the current 1 - V_s/V (Eqs. 4.42-4.43).
     """
 
     water_mass: FloatArray
@@ -81,6 +82,13 @@ class PVProblem:
     density: float
     max_suction: float
     names: list[str] | Callable[[int], str] | None = None
+    retention_porosity: FloatArray | None = None
+
+    def porosity(self, volume: FloatArray, index: npt.NDArray[np.int64] | slice = slice(None)) -> FloatArray:
+        """Porosity entering the retention curve: current (Eqs. 4.42-4.43) or fixed."""
+        if self.retention_porosity is None:
+            return 1.0 - self.solid_volume[index] / volume
+        return self.retention_porosity[index] + 0.0 * volume
 
     def name(self, i: int) -> str:
         """The label of system ``i`` in error messages."""
@@ -108,8 +116,7 @@ def residuals(problem: PVProblem, material: MixtureParameters, volume: FloatArra
     v0 = problem.reference_volume[index]
     c = constraints(problem, volume, pressure, index)
     with np.errstate(invalid="ignore", divide="ignore"):
-        porosity = 1.0 - vs / volume
-        s_ret = saturation(-pressure, porosity, material)
+        s_ret = saturation(-pressure, problem.porosity(volume, index), material)
         barrier_p = np.log(c[5]) + np.log(c[6])
         barrier_v = np.log(c[0]) + np.log(c[1]) + np.log(c[2]) + np.log(c[3]) + np.log(c[4])
     f1 = c[4] - s_ret - mu * barrier_p
@@ -143,7 +150,7 @@ def initial_guess(problem: PVProblem, material: MixtureParameters,
     gap = high - low
     volume = np.clip(volume, low + 1e-3 * gap, high - 1e-3 * gap)
     sat = pb.water_mass / (pb.density * (volume - pb.solid_volume))
-    s = suction(np.clip(sat, 1e-300, 1.0), 1.0 - pb.solid_volume / volume, material)
+    s = suction(np.clip(sat, 1e-300, 1.0), pb.porosity(volume), material)
     pressure = -np.clip(s, 1e-6 * pb.max_suction, (1.0 - 1e-6) * pb.max_suction)
     target = pb.reference_volume * (1.0 + swelling_strain(-pressure, material))
     volume = np.clip(target, low + 1e-3 * gap, high - 1e-3 * gap)
@@ -282,7 +289,7 @@ def bracketed_solution(problem: PVProblem, material: MixtureParameters,
 
     def h(v: FloatArray, rows: npt.NDArray[np.int64] | slice = slice(None)) -> tuple[FloatArray, FloatArray]:
         sat = pb.water_mass[index][rows] / (pb.density * (v - vs[rows]))
-        s = np.maximum(suction(np.clip(sat, 1e-300, 1.0), 1.0 - vs[rows] / v, material), 0.0)
+        s = np.maximum(suction(np.clip(sat, 1e-300, 1.0), pb.porosity(v, index[rows]), material), 0.0)
         # beyond the largest suction (c7) no root counts: NaN never changes sign
         value = np.where(s <= pb.max_suction, v - v0[rows] * (1.0 + swelling_strain(s, material)), np.nan)
         return value, -np.minimum(s, pb.max_suction)
