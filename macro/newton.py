@@ -112,7 +112,6 @@ def residuals(problem: PVProblem, material: MixtureParameters, volume: FloatArra
               pressure: FloatArray, mu: float | FloatArray = 0.0,
               index: npt.NDArray[np.int64] | slice = slice(None)) -> tuple[FloatArray, FloatArray]:
     """Dimensionless f1 (retention) and f2 (swelling) of Eqs. 4.39-4.40 with barrier weight mu."""
-    vs = problem.solid_volume[index]
     v0 = problem.reference_volume[index]
     c = constraints(problem, volume, pressure, index)
     with np.errstate(invalid="ignore", divide="ignore"):
