@@ -14,6 +14,7 @@ include: "workflow/rules/imaging.smk"
 include: "workflow/rules/micro.smk"
 include: "workflow/rules/packing.smk"
 include: "workflow/rules/upscaling.smk"
+include: "workflow/rules/macro.smk"
 
 
 rule all:

@@ -22,6 +22,7 @@ CASE_MODULES = (
     "benchmarks.flow",
     "benchmarks.dem",
     "benchmarks.yade_compare",
+    "benchmarks.macro",
 )
 OUT = Path("results/benchmarks")
 

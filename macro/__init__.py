@@ -1,1 +1,11 @@
-"""claychain macro."""
+"""claychain macro: the pellet-powder mixture mock-up (Caulk 2022, Chap. 4) fed by the
+pellet permeability table of the upscaling stage.
+
+Entry point: :func:`macro.run.run` (``config, case, table_path, output_path, figure_path``).
+Modules: ``laws`` (constitutive laws), ``packing`` (radius-growth packing in the cylinder),
+``field`` (powder heterogeneity), ``mixture`` (systems and exchanges on the Delaunay mesh),
+``transport`` (explicit mass update, Eq. 4.58), ``newton`` (local pressure-volume solve),
+``model`` (the coupled step and the wall readings), ``figures``.
+"""
+
+__all__ = ["field", "figures", "laws", "mixture", "model", "newton", "packing", "run", "transport"]

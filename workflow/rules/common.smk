@@ -27,6 +27,7 @@ SAMPLES = sorted(config["samples"])
 CASES = sorted(config["micro"]["cases"])
 PACKINGS = sorted(config["packings"])
 REALIZATIONS = {r.name: r for r in scale_realizations(config)}
+MACRO_CASES = sorted(config["macro"]["cases"])
 
 
 wildcard_constraints:
@@ -34,6 +35,7 @@ wildcard_constraints:
     case="|".join(CASES),
     packing="|".join(PACKINGS) or "(?!)",
     realization="|".join(REALIZATIONS) or "(?!)",
+    macro_case="|".join(MACRO_CASES) or "(?!)",
 
 
 def code_hash(*packages):
@@ -134,6 +136,30 @@ def get_scale_layout(wildcards):
     }
 
 
+def get_macro_case_config(wildcards):
+    """The macro settings with this case alone (a param: editing one case reruns it alone)."""
+    shared = {key: value for key, value in config["macro"].items() if key != "cases"}
+    return {
+        **shared,
+        "cases": {wildcards.macro_case: config["macro"]["cases"][wildcards.macro_case]},
+    }
+
+
+def get_macro_materials(wildcards):
+    """The mixture's material sections (Tables 4.1-4.2), the only materials macro reads."""
+    return {
+        key: config["materials"][key] for key in ("mixture_pellet", "mixture_powder")
+    }
+
+
+def get_macro_outputs():
+    """One result and figure per macro case."""
+    return expand(
+        ["results/macro/{macro_case}.nc", "results/macro/{macro_case}.png"],
+        macro_case=MACRO_CASES,
+    )
+
+
 def get_study_outputs():
     """The study products of the declared studies (none by default)."""
     outputs = []
@@ -176,6 +202,7 @@ def get_final_outputs():
         + studies
         + upscaling
         + packing
+        + get_macro_outputs()
     )
 
 
@@ -213,5 +240,16 @@ UPSCALING_CODE = code_hash(
     "shared/io.py",
     "shared/provenance.py",
     "shared/figures.py",
+    "shared/config.py",
+)
+MACRO_CODE = code_hash(
+    "macro",
+    "shared/upscaling.py",
+    "shared/mesh.py",
+    "shared/dem",
+    "shared/io.py",
+    "shared/provenance.py",
+    "shared/figures.py",
+    "shared/progress.py",
     "shared/config.py",
 )

@@ -1,0 +1,97 @@
+"""Timing of the macro model: steps per second and wall time per phase.
+
+``python -m benchmarks run macro_steps [--size STEPS]`` (or ``python -m benchmarks.macro``)
+runs the default configuration's first macro case on a synthetic pellet permeability
+table (water k from 1e-19 m2 at 0.1 MPa down by 0.8 decades per decade of suction) for
+``STEPS`` coupled steps and reports the packing, the set-up time, the steps per second
+and the seconds spent in each phase (remesh/geometry, transport, Newton-Raphson, DEM).
+Timings are measured, never asserted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from benchmarks.parameters import CONFIG
+from shared.io import write_dataset
+from shared.upscaling import PermeabilityTable
+
+__all__ = ["bench_macro_steps", "synthetic_table"]
+
+
+def synthetic_table() -> xr.Dataset:
+    """A two-condition table on 12 suctions from 0.1 to 200 MPa."""
+    suction = np.geomspace(1e5, 2e8, 12)
+    water = 10.0 ** (-19.0 - 0.8 * (np.log10(suction) - 5.0))
+    k = np.broadcast_to(water, (2, 2, 3, suction.size)).copy()
+    tensor = np.zeros((2, 2, suction.size, 3, 3))
+    for i in range(3):
+        tensor[..., i, i] = k[:, :, i, :]
+    attrs = {"units": "m2", "long_name": "synthetic"}
+    return xr.Dataset(
+        {
+            "k": (("condition", "phase", "axis", "suction"), k, attrs),
+            "k_tensor": (("condition", "phase", "suction", "i", "j"), tensor, attrs),
+            "saturation": (("condition", "suction"), np.full((2, suction.size), 0.5), {"units": "1", "long_name": "s"}),
+            "eps_v": (("condition", "suction"), np.zeros((2, suction.size)), {"units": "1", "long_name": "e"}),
+        },
+        coords={"condition": ["free", "confined"], "phase": ["water", "gas"], "axis": ["x", "y", "z"],
+                "suction": ("suction", suction, {"units": "Pa", "long_name": "suction"})},
+    )
+
+
+def bench_macro_steps(steps: int = 100) -> dict:
+    """Steps per second and seconds per phase of the default macro case."""
+    from macro.run import build_model
+
+    case = sorted(CONFIG["macro"]["cases"])[0]
+    with tempfile.TemporaryDirectory() as folder:
+        path = write_dataset(synthetic_table(), Path(folder) / "table.nc", stage="upscaling", title="synthetic")
+        start = time.perf_counter()
+        model = build_model(CONFIG, case, PermeabilityTable.from_file(path, "free"))
+        setup = time.perf_counter() - start
+        model.step()  # compiles what the set-up did not
+        for key in model.phase_seconds:
+            model.phase_seconds[key] = 0.0
+        start = time.perf_counter()
+        for _ in range(steps):
+            model.step()
+        wall = time.perf_counter() - start
+    packing = model.packing  # type: ignore[attr-defined]
+    return {
+        "case": case,
+        "n_pellets": model.n_pellets,
+        "n_cells": model.n_cells,
+        "packing_fraction": packing.packing_fraction,
+        "setup_s": setup,
+        "steps": steps,
+        "steps_per_s": steps / wall,
+        "simulated_s": model.time,
+        "phase_s": dict(model.phase_seconds),
+        "newton_fallbacks": model.fallbacks,
+        "remeshes": model.remeshes,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.macro")
+    parser.add_argument("steps", type=int, nargs="?", default=100)
+    parser.add_argument("--output", type=Path, default=None)
+    args = parser.parse_args()
+    result = bench_macro_steps(args.steps)
+    text = json.dumps(result, indent=1)
+    print(text)
+    if args.output is not None:
+        args.output.parent.mkdir(parents=True, exist_ok=True)
+        args.output.write_text(text)
+
+
+if __name__ == "__main__":
+    main()

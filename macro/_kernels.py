@@ -1,0 +1,135 @@
+"""numba kernels of the macro model: packing relaxation, Hertz contacts, the container.
+
+Arrays in, arrays out; serial loops that scatter into per-pellet arrays (deterministic).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def relax_overlaps(positions, radii, pairs, cylinder_radius, z_low, z_high, fraction):
+    """Move pellets apart by ``fraction`` of their overlaps (pairs, curved wall, plates).
+
+    Overdamped (position-based) relaxation of a radius-growth packing. Returns the
+    largest overlap found [m] before the move.
+    """
+    n = positions.shape[0]
+    move = np.zeros((n, 3))
+    largest = 0.0
+    for k in range(pairs.shape[0]):
+        i, j = pairs[k, 0], pairs[k, 1]
+        dx = positions[j, 0] - positions[i, 0]
+        dy = positions[j, 1] - positions[i, 1]
+        dz = positions[j, 2] - positions[i, 2]
+        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+        overlap = radii[i] + radii[j] - dist
+        if overlap <= 0.0 or dist == 0.0:
+            continue
+        largest = max(largest, overlap)
+        s = 0.5 * fraction * overlap / dist
+        move[i, 0] -= s * dx
+        move[i, 1] -= s * dy
+        move[i, 2] -= s * dz
+        move[j, 0] += s * dx
+        move[j, 1] += s * dy
+        move[j, 2] += s * dz
+    for i in range(n):
+        rho = np.sqrt(positions[i, 0] ** 2 + positions[i, 1] ** 2)
+        wall = rho + radii[i] - cylinder_radius
+        if wall > 0.0 and rho > 0.0:
+            largest = max(largest, wall)
+            move[i, 0] -= fraction * wall * positions[i, 0] / rho
+            move[i, 1] -= fraction * wall * positions[i, 1] / rho
+        low = z_low + radii[i] - positions[i, 2]
+        if low > 0.0:
+            largest = max(largest, low)
+            move[i, 2] += fraction * low
+        high = positions[i, 2] + radii[i] - z_high
+        if high > 0.0:
+            largest = max(largest, high)
+            move[i, 2] -= fraction * high
+    for i in range(n):
+        for c in range(3):
+            positions[i, c] += move[i, c]
+    return largest
+
+
+@njit(cache=True)
+def hertz_pairs(positions, radii, young, poisson, pairs, forces, stiffness):
+    """Frictionless Hertz forces F = 4/3 E* sqrt(R*) delta^(3/2) (Eqs. 4.1-4.2).
+
+    E* = E_a E_b / (E_b (1 - nu^2) + E_a (1 - nu^2)) from each pellet's modulus. Adds the
+    forces and the tangent stiffness 2 E* sqrt(R* delta) per pellet; returns the normal
+    force of each pair [N] (0 if apart).
+    """
+    normal = np.zeros(pairs.shape[0])
+    factor = 1.0 - poisson * poisson
+    for k in range(pairs.shape[0]):
+        i, j = pairs[k, 0], pairs[k, 1]
+        dx = positions[j, 0] - positions[i, 0]
+        dy = positions[j, 1] - positions[i, 1]
+        dz = positions[j, 2] - positions[i, 2]
+        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+        overlap = radii[i] + radii[j] - dist
+        if overlap <= 0.0 or dist == 0.0:
+            continue
+        e_star = young[i] * young[j] / (factor * (young[i] + young[j]))
+        a = np.sqrt(radii[i] * radii[j] / (radii[i] + radii[j]) * overlap)
+        fn = 4.0 / 3.0 * e_star * a * overlap
+        normal[k] = fn
+        s = fn / dist
+        forces[i, 0] -= s * dx
+        forces[i, 1] -= s * dy
+        forces[i, 2] -= s * dz
+        forces[j, 0] += s * dx
+        forces[j, 1] += s * dy
+        forces[j, 2] += s * dz
+        stiffness[i] += 2.0 * e_star * a
+        stiffness[j] += 2.0 * e_star * a
+    return normal
+
+
+@njit(cache=True)
+def container_contacts(positions, radii, young, poisson, cylinder_radius, z_low, z_high,
+                       forces, stiffness):
+    """Frictionless Hertz contacts with a rigid cylinder and two rigid end plates.
+
+    A pellet of radius r at distance rho from the axis overlaps the curved wall by
+    rho + r - R and a plate by r - (distance to the plate); force 4/3 E* sqrt(r) delta^(3/2)
+    with E* = E / (1 - nu^2) (rigid wall, R* = r; the wall's curvature is neglected).
+    Returns per pellet the force on the curved wall (radial, outwards), on the lower and
+    on the upper plate [N].
+    """
+    n = positions.shape[0]
+    radial = np.zeros(n)
+    lower = np.zeros(n)
+    upper = np.zeros(n)
+    for i in range(n):
+        e_star = young[i] / (1.0 - poisson * poisson)
+        rho = np.sqrt(positions[i, 0] ** 2 + positions[i, 1] ** 2)
+        overlap = rho + radii[i] - cylinder_radius
+        if overlap > 0.0 and rho > 0.0:
+            a = np.sqrt(radii[i] * overlap)
+            fn = 4.0 / 3.0 * e_star * a * overlap
+            radial[i] = fn
+            forces[i, 0] -= fn * positions[i, 0] / rho
+            forces[i, 1] -= fn * positions[i, 1] / rho
+            stiffness[i] += 2.0 * e_star * a
+        overlap = z_low + radii[i] - positions[i, 2]
+        if overlap > 0.0:
+            a = np.sqrt(radii[i] * overlap)
+            fn = 4.0 / 3.0 * e_star * a * overlap
+            lower[i] = fn
+            forces[i, 2] += fn
+            stiffness[i] += 2.0 * e_star * a
+        overlap = positions[i, 2] + radii[i] - z_high
+        if overlap > 0.0:
+            a = np.sqrt(radii[i] * overlap)
+            fn = 4.0 / 3.0 * e_star * a * overlap
+            upper[i] = fn
+            forces[i, 2] -= fn
+            stiffness[i] += 2.0 * e_star * a
+    return radial, lower, upper

@@ -1,0 +1,43 @@
+"""Figure of a macro case: wall pressures against time (Fig. 4.11 analogue) and suction and
+swelling along the axis at several times (Fig. 4.10 analogue)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from shared.figures import new_figure, save_figure
+
+__all__ = ["case_figure"]
+
+
+def case_figure(ds: xr.Dataset, path: str | Path) -> Path:
+    """Three panels: sensor and axial pressures vs time; suction and swelling profiles."""
+    fig, grid = new_figure(1, 3, width=4.2, height=3.4)
+    axes = grid[0]  # type: ignore[index]
+    ax = axes[0]
+    days = ds["time"].values / 86400.0
+    for k in range(ds.sizes["sensor"]):
+        z = float(ds["sensor_height"].values[k]) * 100
+        ax.plot(days, ds["sensor_pressure"].values[:, k] / 1e6, label=f"band at {z:.0f} cm")
+    ax.plot(days, ds["axial_pressure"].values / 1e6, "k--", label="axial (upper)")
+    ax.set_xlabel("time [d]")
+    ax.set_ylabel("pressure [MPa]")
+    ax.legend(fontsize=6)
+    ax.set_title("wall pressures")
+    z = ds["z"].values * 100
+    picks = np.unique(np.linspace(0, ds.sizes["time"] - 1, 5).round().astype(int))
+    for i in picks:
+        label = f"{days[i]:.2g} d"
+        axes[1].plot(z, ds["suction_profile"].values[i] / 1e6, label=label)
+        axes[2].plot(z, ds["swelling_profile"].values[i], label=label)
+    axes[1].set_xlabel("height [cm]")
+    axes[1].set_ylabel("suction [MPa]")
+    axes[1].legend(fontsize=6)
+    axes[1].set_title("suction along the axis")
+    axes[2].set_xlabel("height [cm]")
+    axes[2].set_ylabel("swelling strain V/V0 - 1 [1]")
+    axes[2].set_title("swelling along the axis")
+    return save_figure(fig, path)

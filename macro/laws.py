@@ -1,0 +1,173 @@
+"""Constitutive laws of the pellet-powder mixture (Caulk 2022, Chap. 4), vectorised.
+
+Units are SI and per Pa: suction s = -p > 0 [Pa], alpha and beta [1/Pa].
+
+- Retention (Eqs. 4.24-4.26, DESIGN section 3): S(s) = [1 + (s/zeta)^(1/(1-lambda))]^(-lambda),
+  zeta = zeta_0 exp(a (phi_0 - phi)), lambda = lambda_0 exp(b (phi_0 - phi)); inverse
+  s(S) = zeta (S^(-1/lambda) - 1)^(1-lambda).
+- Powder permeability (Eqs. 4.16-4.19): k = k_0 exp(b_k (phi - phi_0)) k_r,
+  k_r = ((S - S_r)/(S_s - S_r))^n clamped to [0, 1].
+- Swelling (Eq. 4.28 with the sign of DESIGN section 3):
+  eps(s) = (beta/alpha) [exp(-alpha s) - exp(-alpha s_0)] > 0 for s < s_0.
+- Pellet Young's modulus (Eq. 4.3): E(s) = 3 (1 - 2 nu) exp(alpha s) / beta, capped.
+- Powder swelling pressure on its contour (Eqs. 4.31-4.33, our reading): the
+  consolidation line p'_vc = beta_v exp(alpha_v rho_d), rho_d = m_s / V (Eq. 4.32), acts
+  only once the powder fills its cell (V = V_cell), scaled by the saturation S_w.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = [
+    "MixtureParameters",
+    "mixture_parameters",
+    "saturation",
+    "suction",
+    "suction_derivative",
+    "powder_permeability",
+    "swelling_strain",
+    "young_modulus",
+    "consolidation_pressure",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class MixtureParameters:
+    """Material parameters of the mixture (Tables 4.1-4.2 and the macro section).
+
+    Attributes
+    ----------
+    zeta0, lambda0, retention_a, retention_b, reference_porosity
+        Retention: zeta_0 [Pa], lambda_0 [1], a, b [1], phi_0 [1] (Table 4.2).
+    saturated_saturation, residual_saturation, kr_exponent
+        S_s, S_r, n of Eq. 4.17 [1].
+    k0, permeability_b
+        k_0 [m2] and b_k [1] of Eq. 4.19.
+    alpha, beta
+        Swelling alpha, beta [1/Pa] (Table 4.1, per Pa).
+    initial_suction
+        s_0 [Pa].
+    poisson_ratio
+        nu [1].
+    young_bounds
+        (min, max) of E(s) [Pa].
+    grain_density
+        Density of the powder grains [kg/m3].
+    beta_v, alpha_v
+        Eq. 4.31: beta_v [Pa], alpha_v [m3/kg].
+    """
+
+    zeta0: float
+    lambda0: float
+    retention_a: float
+    retention_b: float
+    reference_porosity: float
+    saturated_saturation: float
+    residual_saturation: float
+    kr_exponent: float
+    k0: float
+    permeability_b: float
+    alpha: float
+    beta: float
+    initial_suction: float
+    poisson_ratio: float
+    young_bounds: tuple[float, float]
+    grain_density: float
+    beta_v: float
+    alpha_v: float
+
+
+def mixture_parameters(materials: Mapping[str, Any], powder: Mapping[str, Any]) -> MixtureParameters:
+    """Parameters from validated ``materials`` (mixture_pellet, mixture_powder) and ``macro.powder``."""
+    pellet = materials["mixture_pellet"]
+    mix = materials["mixture_powder"]
+    low, high = (float(v) for v in pellet["young_modulus_bounds_pa"])
+    if not low <= high:
+        raise ValueError("materials.mixture_pellet.young_modulus_bounds_pa must be [min, max]")
+    return MixtureParameters(
+        zeta0=float(mix["retention_pressure_reference_pa"]),
+        lambda0=float(mix["retention_exponent_reference"]),
+        retention_a=float(mix["retention_pressure_porosity_factor"]),
+        retention_b=float(mix["retention_exponent_porosity_factor"]),
+        reference_porosity=float(mix["reference_porosity"]),
+        saturated_saturation=float(mix["saturated_saturation"]),
+        residual_saturation=float(mix["residual_saturation"]),
+        kr_exponent=float(mix["relative_permeability_exponent"]),
+        k0=float(mix["intrinsic_permeability_reference_m2"]),
+        permeability_b=float(mix["permeability_porosity_factor"]),
+        alpha=float(pellet["swelling_alpha_per_pa"]),
+        beta=float(pellet["swelling_beta_per_pa"]),
+        initial_suction=float(pellet["initial_suction_pa"]),
+        poisson_ratio=float(pellet["poisson_ratio"]),
+        young_bounds=(low, high),
+        grain_density=float(powder["grain_density_kg_m3"]),
+        beta_v=float(powder["swelling_beta_v_pa"]),
+        alpha_v=float(powder["swelling_alpha_v_m3_per_kg"]),
+    )
+
+
+def retention_parameters(porosity: npt.ArrayLike, m: MixtureParameters) -> tuple[FloatArray, FloatArray]:
+    """zeta(phi) [Pa] and lambda(phi) [1] (Eqs. 4.25-4.26); no range check (Newton probes)."""
+    shift = m.reference_porosity - np.asarray(porosity, dtype=np.float64)
+    return m.zeta0 * np.exp(m.retention_a * shift), m.lambda0 * np.exp(m.retention_b * shift)
+
+
+def saturation(suction: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
+    """Water saturation S(s, phi) [1] (Eq. 4.24 inverted, DESIGN section 3); 1 for s <= 0."""
+    s = np.maximum(np.asarray(suction, dtype=np.float64), 0.0)
+    zeta, lam = retention_parameters(porosity, m)
+    return (1.0 + (s / zeta) ** (1.0 / (1.0 - lam))) ** (-lam)
+
+
+def suction(sat: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
+    """Suction s(S, phi) [Pa] (Eq. 4.24): zeta (S^(-1/lambda) - 1)^(1 - lambda); NaN outside (0, 1]."""
+    sat = np.asarray(sat, dtype=np.float64)
+    zeta, lam = retention_parameters(porosity, m)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        base = sat ** (-1.0 / lam) - 1.0
+        return np.where((sat > 0.0) & (sat <= 1.0), zeta * np.maximum(base, 0.0) ** (1.0 - lam), np.nan)
+
+
+def suction_derivative(sat: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
+    """|ds/dS| = |dp/dS| [Pa] at fixed porosity (closed form), for the stable step Eq. 4.58."""
+    sat = np.asarray(sat, dtype=np.float64)
+    zeta, lam = retention_parameters(porosity, m)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        base = np.maximum(sat ** (-1.0 / lam) - 1.0, 1e-300)
+        return zeta * (1.0 - lam) / lam * base ** (-lam) * sat ** (-1.0 / lam - 1.0)
+
+
+def powder_permeability(sat: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
+    """Powder water permeability k = k_M k_rM [m2] (Eqs. 4.16-4.19)."""
+    sat = np.asarray(sat, dtype=np.float64)
+    effective = (sat - m.residual_saturation) / (m.saturated_saturation - m.residual_saturation)
+    kr = np.clip(effective, 0.0, 1.0) ** m.kr_exponent
+    km = m.k0 * np.exp(m.permeability_b * (np.asarray(porosity, dtype=np.float64) - m.reference_porosity))
+    return km * kr
+
+
+def swelling_strain(suction: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
+    """Volumetric swelling strain eps(s) [1] (Eq. 4.28, sign of DESIGN section 3)."""
+    s = np.asarray(suction, dtype=np.float64)
+    return (m.beta / m.alpha) * (np.exp(-m.alpha * s) - np.exp(-m.alpha * m.initial_suction))
+
+
+def young_modulus(suction: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
+    """Pellet Young's modulus E(s) = 3 (1 - 2 nu) exp(alpha s) / beta [Pa] (Eq. 4.3), capped."""
+    s = np.asarray(suction, dtype=np.float64)
+    with np.errstate(over="ignore"):
+        e = 3.0 * (1.0 - 2.0 * m.poisson_ratio) * np.exp(m.alpha * s) / m.beta
+    return np.clip(e, *m.young_bounds)
+
+
+def consolidation_pressure(dry_density: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
+    """Swelling pressure of the consolidation line p'_vc = beta_v exp(alpha_v rho_d) [Pa] (Eq. 4.31)."""
+    return m.beta_v * np.exp(m.alpha_v * np.asarray(dry_density, dtype=np.float64))

@@ -1,0 +1,165 @@
+"""Geometry of the pellet-powder systems on the Delaunay mesh of the pellet centres.
+
+Systems are the pellets (mesh vertices, indices 0..n_p-1) and the cells (tetrahedra,
+indices n_p..n_p+n_c-1) whose void, outside the pellets, holds the powder. Exchanges
+(Fig. 4.2, Eqs. 4.13-4.15), each with an area A and a length L:
+
+- pellet-pellet: the overlap disk of two pellets, A = pi a^2, L = centre distance;
+- pellet-cell: the spherical triangle of the pellet inside the cell, A = Omega r^2
+  (Omega the solid angle of the tetrahedron at the vertex), L = distance from the
+  pellet centre to the cell centroid;
+- cell-cell: the shared triangle minus the three pellet sectors (theta r^2 / 2, theta
+  the triangle's angle at the vertex), L = centroid distance.
+
+The void of a cell is its volume minus the pellet parts inside it, V_t - sum Omega r^3 / 3,
+floored at ``void_floor`` V_t where swollen pellets overlap.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from dataclasses import replace as dataclass_replace
+
+import numpy as np
+import numpy.typing as npt
+
+from shared.mesh import Mesh
+
+__all__ = [
+    "Exchanges", "cell_voids", "end_cells", "exchanges", "facet_angles", "moved_mesh", "solid_angles",
+]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+
+def solid_angles(points: FloatArray, tetrahedra: IntArray) -> FloatArray:
+    """(n_c, 4) solid angle of each tetrahedron at each vertex [sr] (Van Oosterom-Strackee)."""
+    out = np.empty(tetrahedra.shape)
+    for v in range(4):
+        others = [w for w in range(4) if w != v]
+        apex = points[tetrahedra[:, v]]
+        a, b, c = (points[tetrahedra[:, w]] - apex for w in others)
+        la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+        triple = np.abs(np.einsum("ij,ij->i", a, np.cross(b, c)))
+        denom = (la * lb * lc + np.einsum("ij,ij->i", a, b) * lc
+                 + np.einsum("ij,ij->i", a, c) * lb + np.einsum("ij,ij->i", b, c) * la)
+        out[:, v] = 2.0 * np.arctan2(triple, denom)
+    return out
+
+
+def facet_angles(points: FloatArray, triangles: IntArray) -> FloatArray:
+    """(n_f, 3) interior angle of each triangle at each of its vertices [rad]."""
+    out = np.empty(triangles.shape)
+    for v in range(3):
+        apex = points[triangles[:, v]]
+        a = points[triangles[:, (v + 1) % 3]] - apex
+        b = points[triangles[:, (v + 2) % 3]] - apex
+        cos = np.einsum("ij,ij->i", a, b) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
+        out[:, v] = np.arccos(np.clip(cos, -1.0, 1.0))
+    return out
+
+
+def cell_voids(mesh: Mesh, radii: FloatArray, omega: FloatArray, void_floor: float) -> FloatArray:
+    """(n_c,) void volume of each cell outside the pellets [m3]."""
+    inside = (omega * radii[mesh.tetrahedra] ** 3).sum(axis=1) / 3.0
+    return np.maximum(mesh.volumes - inside, void_floor * mesh.volumes)
+
+
+@dataclass
+class Exchanges:
+    """Edges between systems: ``pairs`` (m, 2) system indices, ``area`` [m2], ``length`` [m],
+    ``kind`` (m,) 0 pellet-pellet, 1 pellet-cell, 2 cell-cell."""
+
+    pairs: IntArray
+    area: FloatArray
+    length: FloatArray
+    kind: npt.NDArray[np.int8]
+
+
+def exchanges(mesh: Mesh, radii: FloatArray, omega: FloatArray, min_area_fraction: float) -> Exchanges:
+    """All exchanges of the mesh for the current pellet radii (see the module docstring).
+
+    Cell-cell areas are floored at ``min_area_fraction`` of the triangle so that a facet
+    covered by swollen pellets keeps a small powder path.
+    """
+    points = mesh.points
+    n_p = points.shape[0]
+    # pellet-pellet: Delaunay edges whose pellets overlap
+    tet = mesh.tetrahedra
+    edges = np.concatenate([tet[:, [a, b]] for a in range(4) for b in range(a + 1, 4)])
+    edges = np.unique(np.sort(edges, axis=1), axis=0)
+    d = np.linalg.norm(points[edges[:, 1]] - points[edges[:, 0]], axis=1)
+    ri, rj = radii[edges[:, 0]], radii[edges[:, 1]]
+    touching = ri + rj > d
+    x = (d**2 + ri**2 - rj**2) / (2.0 * d)
+    a2 = np.maximum(ri**2 - x**2, 0.0)
+    pp = edges[touching]
+    pp_area = np.pi * a2[touching]
+    pp_length = d[touching]
+    # pellet-cell
+    cells = np.repeat(np.arange(mesh.n_cells), 4)
+    verts = tet.ravel()
+    pc_area = (omega * radii[tet] ** 2).ravel()
+    pc_length = np.linalg.norm(mesh.centroids[cells] - points[verts], axis=1)
+    pc = np.column_stack([verts, n_p + cells])
+    # cell-cell
+    theta = facet_angles(points, mesh.facet_vertices)
+    sectors = (0.5 * theta * radii[mesh.facet_vertices] ** 2).sum(axis=1)
+    cc_area = np.maximum(mesh.facet_areas - sectors, min_area_fraction * mesh.facet_areas)
+    i, j = mesh.facet_cells[:, 0], mesh.facet_cells[:, 1]
+    cc_length = np.linalg.norm(mesh.centroids[j] - mesh.centroids[i], axis=1)
+    cc = np.column_stack([n_p + i, n_p + j])
+    return Exchanges(
+        pairs=np.concatenate([pp, pc, cc]).astype(np.int64),
+        area=np.concatenate([pp_area, pc_area, cc_area]),
+        length=np.concatenate([pp_length, pc_length, cc_length]),
+        kind=np.concatenate([np.zeros(len(pp), np.int8), np.ones(len(pc), np.int8),
+                             np.full(len(cc), 2, np.int8)]),
+    )
+
+
+def end_cells(mesh: Mesh) -> npt.NDArray[np.bool_]:
+    """(n_c,) cells owning a hull triangle that faces an end (|n_z| > cos 45 deg).
+
+    The hydrated boundary of Appendix .1 (cellBndCondIsDirichlet on z- and z+); by the
+    normal rather than the nearest bounding-box face, which in a slender cylinder would
+    also take curved-side triangles near the ends.
+    """
+    mask = np.zeros(mesh.n_cells, dtype=np.bool_)
+    ends = np.abs(mesh.boundary_normals[:, 2]) > np.sqrt(0.5)
+    mask[mesh.boundary_cells[ends]] = True
+    return mask
+
+
+def moved_mesh(mesh: Mesh, points: FloatArray) -> tuple[Mesh, npt.NDArray[np.bool_]]:
+    """The mesh's geometry at moved points, same connectivity; also the inverted cells.
+
+    Unlike :func:`shared.mesh.update_mesh` this tolerates inverted cells (hull slivers
+    that the model keeps inert flip with the slightest motion): volumes are absolute
+    values, normals are oriented by the cell centroids. The caller decides whether an
+    inverted cell that matters needs a new mesh.
+    """
+    tet = mesh.tetrahedra
+    p = points[tet]
+    signed = np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0])) / 6.0
+    centroids = p.mean(axis=1)
+
+    def triangles(vertices: IntArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        q = points[vertices]
+        cross = np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0])
+        norm = np.linalg.norm(cross, axis=1)
+        return 0.5 * norm, cross / np.maximum(norm, 1e-300)[:, None], q.mean(axis=1)
+
+    area, normal, centre = triangles(mesh.facet_vertices)
+    direction = centroids[mesh.facet_cells[:, 1]] - centroids[mesh.facet_cells[:, 0]]
+    normal *= np.where(np.einsum("ij,ij->i", normal, direction) < 0.0, -1.0, 1.0)[:, None]
+    b_area, b_normal, b_centre = triangles(mesh.boundary_vertices)
+    outward = b_centre - centroids[mesh.boundary_cells]
+    b_normal *= np.where(np.einsum("ij,ij->i", b_normal, outward) < 0.0, -1.0, 1.0)[:, None]
+    moved = dataclass_replace(
+        mesh, points=points.copy(), volumes=np.abs(signed), centroids=centroids,
+        facet_areas=area, facet_normals=normal, facet_centroids=centre,
+        boundary_areas=b_area, boundary_normals=b_normal, boundary_centroids=b_centre,
+    )
+    return moved, signed <= 0.0

@@ -1,0 +1,657 @@
+"""The coupled pellet-powder model: state, one time step, and the wall readings.
+
+One step (Fig. 4.8): geometry of the cells for the current pellets (fixed Delaunay
+connectivity, :func:`macro.mixture.moved_mesh`; a new mesh when an active cell inverts), conductances, the stable time step
+(Eq. 4.58), the explicit mass update (Eq. 4.23), the local pressure-volume problems
+(Sec. 4.3), pellet radii r = (3 V / 4 pi)^(1/3) and moduli E(s) (Eqs. 4.3, 4.27-4.30),
+the powder's swelling pressure and its forces on the pellets (Eqs. 4.31-4.38), and
+quasi-static DEM substeps (Hertz between pellets and against the container).
+
+The quasi-static DEM uses a fictitious mass per pellet equal to its contact stiffness
+(time unit 1), so every substep is stable whatever the moduli (density scaling, as
+the thesis's script scales the density by 1e10); it is a relaxation, not dynamics.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from macro import _kernels
+from macro.field import cell_porosity
+from macro.laws import (
+    MixtureParameters,
+    suction as suction_of,
+    consolidation_pressure,
+    powder_permeability,
+    saturation,
+    suction_derivative,
+    swelling_strain,
+    young_modulus,
+)
+from macro.mixture import (
+    Exchanges,
+    cell_voids,
+    end_cells,
+    exchanges,
+    facet_angles,
+    moved_mesh,
+    solid_angles,
+)
+from macro.newton import NewtonSettings, PVProblem, solve_pressure_volume
+from macro.packing import Packing
+from macro.transport import conductances, harmonic_mean, mass_rates, stable_time_step
+from shared.dem import detect_contacts
+from shared.mesh import Mesh, build_mesh
+from shared.upscaling import PermeabilityTable
+
+__all__ = ["MacroSettings", "MacroModel", "macro_settings", "Readings"]
+
+FloatArray = npt.NDArray[np.float64]
+
+VOID_FLOOR = 1e-3
+"""Smallest cell void, fraction of the tetrahedron (the script's minVoidVolume ratio is 1e-4)."""
+MIN_AREA_FRACTION = 1e-2
+"""Smallest powder path through a cell-cell triangle covered by pellets, fraction of it."""
+CONFINED = 1e-3
+"""Powder is confined (presses on its contour) within this fraction of its cell's void."""
+
+
+@dataclass(frozen=True)
+class MacroSettings:
+    """The macro section of one case (see workflow/schemas/config.schema.yaml, ``macro``)."""
+
+    height: float
+    radius: float
+    pellet_radius: float
+    packing_fraction: float
+    pellet_porosity: float
+    powder: Mapping[str, Any]
+    table_condition: str
+    boundary_suction: float
+    max_suction: float
+    density: float
+    viscosity: float
+    conductivity_factor: float
+    powder_pressure: bool
+    retention_follows_porosity: bool
+    powder_on_walls: bool
+    sensor_bands: int
+    seed: int
+    chi: float
+    max_saturation_change: float
+    max_time: float
+    max_steps: int
+    records: int
+    stop_window: float
+    stop_tolerance: float
+    newton: NewtonSettings
+    packing_sweeps: int
+    min_cell_void_fraction: float
+    dem_substeps: int
+    dem_damping: float
+
+
+def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
+    """Settings of one case: the ``macro`` section with ``macro.cases[case]`` applied.
+
+    Raises
+    ------
+    KeyError
+        Naming ``macro.cases`` when the case is not declared.
+    """
+    if case not in macro["cases"]:
+        raise KeyError(f"macro.cases has no case {case!r} (has {sorted(macro['cases'])})")
+    over = macro["cases"][case]
+    num = macro["numerics"]
+    powder = dict(macro["powder"])
+    if "heterogeneity" in over:
+        powder["heterogeneity"] = over["heterogeneity"]
+    return MacroSettings(
+        height=float(macro["cylinder_height_m"]),
+        radius=float(macro["cylinder_radius_m"]),
+        pellet_radius=float(over.get("pellet_radius_m", macro["pellet_radius_m"])),
+        packing_fraction=float(over.get("packing_fraction", macro["packing_fraction"])),
+        pellet_porosity=float(macro["pellet_porosity"]),
+        powder=powder,
+        table_condition=str(over.get("table_condition", macro["table_condition"])),
+        boundary_suction=float(macro["boundary_suction_pa"]),
+        max_suction=float(macro["max_suction_pa"]),
+        density=float(macro["water_density_kg_m3"]),
+        viscosity=float(macro["water_viscosity_pa_s"]),
+        conductivity_factor=float(over.get("conductivity_factor", macro["conductivity_factor"])),
+        retention_follows_porosity=bool(macro["retention_follows_porosity"]),
+        powder_pressure=bool(over.get("powder_swelling_pressure", macro["powder_swelling_pressure"])),
+        powder_on_walls=bool(over.get("powder_pressure_on_walls", macro["powder_pressure_on_walls"])),
+        sensor_bands=int(macro["sensor_bands"]),
+        seed=int(over.get("seed", macro["seed"])),
+        chi=float(num["stability_factor"]),
+        max_saturation_change=float(num["max_saturation_change"]),
+        max_time=float(num["max_time_s"]),
+        max_steps=int(num["max_steps"]),
+        records=int(num["records"]),
+        stop_window=float(num["stop_window_fraction"]),
+        stop_tolerance=float(num["stop_tolerance"]),
+        newton=NewtonSettings(
+            tolerance=float(num["newton_tolerance"]),
+            max_iterations=int(num["newton_max_iterations"]),
+            barrier_start=float(num["newton_barrier_start"]),
+            barrier_decay=float(num["newton_barrier_decay"]),
+            relaxation_start=float(num["newton_relaxation_start"]),
+            derivative_step=float(num["newton_derivative_step"]),
+        ),
+        packing_sweeps=int(num["packing_iterations"]),
+        min_cell_void_fraction=float(num["min_cell_void_fraction"]),
+        dem_substeps=int(num["dem_substeps"]),
+        dem_damping=float(num["dem_damping"]),
+    )
+
+
+@dataclass
+class Readings:
+    """Wall readings of one instant: sensor pressures (bands,) [Pa], axial pressures on
+    the upper and lower plates [Pa], unbalanced force ratio [1]."""
+
+    sensors: FloatArray
+    axial_upper: float
+    axial_lower: float
+    unbalanced: float
+
+
+@dataclass
+class MacroModel:
+    """State of the mixture; :meth:`step` advances it.
+
+    Systems 0..n_p-1 are pellets, n_p..n_p+n_c-1 cells. Arrays over systems: water mass
+    [kg], volume V [m3], pressure p [Pa], solid volume V_s [m3], reference volume V_0
+    [m3], largest volume V_max [m3], held (Dirichlet end cells).
+    """
+
+    settings: MacroSettings
+    material: MixtureParameters
+    table: PermeabilityTable
+    mesh: Mesh
+    positions: FloatArray
+    velocities: FloatArray
+    radii: FloatArray
+    water_mass: FloatArray
+    volume: FloatArray
+    pressure: FloatArray
+    solid_volume: FloatArray
+    reference_volume: FloatArray
+    max_volume: FloatArray
+    held: npt.NDArray[np.bool_]
+    inert: npt.NDArray[np.bool_]
+    initial_cell_porosity: FloatArray
+    time: float = 0.0
+    steps: int = 0
+    boundary_inflow: float = 0.0
+    fallbacks: int = 0
+    remeshes: int = 0
+    floored_cells: int = 0
+    newton_iterations: int = 0
+    phase_seconds: dict[str, float] = field(default_factory=lambda: {
+        "remesh": 0.0, "transport": 0.0, "newton": 0.0, "dem": 0.0})
+    _omega: FloatArray | None = None
+    _exchanges: Exchanges | None = None
+    _cell_pressure: FloatArray | None = None
+    _readings: Readings | None = None
+
+    @property
+    def n_pellets(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def n_cells(self) -> int:
+        return self.mesh.n_cells
+
+    # ------------------------------------------------------------------ set-up
+    @classmethod
+    def create(cls, settings: MacroSettings, material: MixtureParameters,
+               table: PermeabilityTable, packing: Packing) -> MacroModel:
+        """Initial state on a packing: everything at the initial suction except the end
+        cells, held at the boundary suction."""
+        rng = np.random.default_rng(settings.seed + 1)
+        mesh = build_mesh(packing.positions)
+        n_p, n_c = packing.radii.size, mesh.n_cells
+        omega = solid_angles(mesh.points, mesh.tetrahedra)
+        voids = cell_voids(mesh, packing.radii, omega, VOID_FLOOR)
+        n_cell = cell_porosity(mesh.centroids, settings.powder, rng, settings.seed)
+        phi_powder = float(settings.powder["initial_porosity"])
+        v0 = np.concatenate([4.0 / 3.0 * np.pi * packing.radii**3, (1.0 - n_cell) * voids])
+        phi0 = np.concatenate([np.full(n_p, settings.pellet_porosity), np.full(n_c, phi_powder)])
+        solid = (1.0 - phi0) * v0
+        s0 = material.initial_suction
+        sat0 = saturation(s0, phi0, material)
+        water = settings.density * sat0 * (v0 - solid)
+        # a pellet swells at most to its free swelling at zero suction
+        v_max = np.concatenate([v0[:n_p] * (1.0 + swelling_strain(0.0, material)) * (1.0 + 1e-6), voids])
+        inert, held = _cell_roles(mesh, voids, packing.positions, packing.radii, settings)
+        model = cls(
+            settings=settings, material=material, table=table, mesh=mesh,
+            positions=packing.positions.copy(), velocities=np.zeros_like(packing.positions),
+            radii=packing.radii.copy(), water_mass=water, volume=v0.copy(),
+            pressure=np.full(n_p + n_c, -s0), solid_volume=solid, reference_volume=v0,
+            max_volume=v_max, held=held, inert=inert, initial_cell_porosity=n_cell,
+        )
+        model._omega = omega
+        model._hold_boundary()
+        model._update_geometry()
+        model._cell_pressure = model.powder_pressure()
+        model._readings = model.relax(0)
+        return model
+
+    def _hold_boundary(self) -> None:
+        """Held cells at the boundary suction: S, V from the laws (capped by their void)."""
+        h = np.flatnonzero(self.held)
+        s_b = self.settings.boundary_suction
+        target = self.reference_volume[h] * (1.0 + swelling_strain(s_b, self.material))
+        self.volume[h] = np.minimum(target, self.max_volume[h] * (1.0 - 1e-9))
+        porosity = self.retention_porosity()[h]
+        sat = saturation(s_b, porosity, self.material)
+        self.water_mass[h] = self.settings.density * sat * (self.volume[h] - self.solid_volume[h])
+        self.pressure[h] = -s_b
+
+    # ------------------------------------------------------------------ geometry
+    def _update_geometry(self) -> None:
+        n_p = self.n_pellets
+        if self.steps > 0:
+            mesh, inverted = moved_mesh(self.mesh, self.positions)
+            if np.any(inverted & ~self.inert[self.n_pellets:]):
+                self._remesh()
+            else:
+                self.mesh = mesh
+            self._omega = solid_angles(self.mesh.points, self.mesh.tetrahedra)
+        assert self._omega is not None
+        voids = cell_voids(self.mesh, self.radii, self._omega, VOID_FLOOR)
+        cells = slice(n_p, None)
+        self.max_volume[cells] = voids
+        ex = exchanges(self.mesh, self.radii, self._omega, MIN_AREA_FRACTION)
+        keep = ~self.inert[ex.pairs].any(axis=1)
+        self._exchanges = Exchanges(ex.pairs[keep], ex.area[keep], ex.length[keep], ex.kind[keep])
+
+    def _remesh(self) -> None:
+        """New Delaunay mesh when a cell inverted; the powder state moves with it.
+
+        Each new cell takes the intensive state (powder fraction of the void, solid
+        fraction, saturation, swelling V/V_0) of the active old cell with the nearest
+        centroid;
+        then the powder's solid and water are rescaled so that their totals over the
+        active cells are conserved exactly. Held cells are re-selected and reset.
+        """
+        from scipy.spatial import cKDTree
+
+        n_p = self.n_pellets
+        old = slice(n_p, None)
+        old_centroids = self.mesh.centroids
+        old_void = self.max_volume[old]
+        active_old = ~self.inert[old] & ~self.held[old]
+        fraction = np.where(self.inert[old], 0.0, self.reference_volume[old] / old_void)
+        solid_fraction = self.solid_volume[old] / self.reference_volume[old]
+        sat = np.clip(self.saturations()[old], 0.0, 1.0)
+        swell = self.volume[old] / self.reference_volume[old]
+        porosity0 = self.initial_cell_porosity
+        total_solid = float(self.solid_volume[old][active_old].sum())
+        total_water = float(self.water_mass[old][active_old].sum())
+        mesh = build_mesh(self.positions)
+        omega = solid_angles(mesh.points, mesh.tetrahedra)
+        voids = cell_voids(mesh, self.radii, omega, VOID_FLOOR)
+        donors = np.flatnonzero(~self.inert[old])
+        nearest = donors[cKDTree(old_centroids[donors]).query(mesh.centroids)[1]]
+        inert, held = _cell_roles(mesh, voids, self.positions, self.radii, self.settings)
+        v0 = fraction[nearest] * voids
+        vs = solid_fraction[nearest] * v0
+        vol = np.minimum(swell[nearest] * v0, voids * (1.0 - 1e-9))
+        vol = np.maximum(vol, vs * (1.0 + 1e-6))
+        water = self.settings.density * sat[nearest] * (vol - vs)
+        free = ~inert[n_p:] & ~held[n_p:]
+        scale_solid = total_solid / vs[free].sum()
+        vs[free] *= scale_solid
+        v0[free] *= scale_solid
+        vol[free] *= scale_solid
+        water[free] *= total_water / water[free].sum()
+        self.mesh = mesh
+        self._omega = omega
+        self.inert, self.held = inert, held
+        self.initial_cell_porosity = porosity0[nearest]
+        self.water_mass = np.concatenate([self.water_mass[:n_p], water])
+        self.solid_volume = np.concatenate([self.solid_volume[:n_p], vs])
+        self.reference_volume = np.concatenate([self.reference_volume[:n_p], v0])
+        self.volume = np.concatenate([self.volume[:n_p], vol])
+        self.max_volume = np.concatenate([self.max_volume[:n_p], np.maximum(voids, vol * (1.0 + 1e-6))])
+        self.pressure = np.concatenate([self.pressure[:n_p], -np.full(voids.size, self.settings.boundary_suction)])
+        cells = slice(n_p, None)
+        porosity = 1.0 - vs / vol
+        s_guess = np.clip(np.nan_to_num(suction_of(sat[nearest], porosity, self.material),
+                                        nan=self.material.initial_suction),
+                          1.0, self.settings.max_suction * 0.999)
+        self.pressure[cells] = -s_guess
+        self._hold_boundary()
+        self.remeshes += 1
+
+    # ------------------------------------------------------------------ hydraulics
+    def saturations(self) -> FloatArray:
+        """(n,) water saturation m_w / (rho (V - V_s)) [1]."""
+        return self.water_mass / (self.settings.density * (self.volume - self.solid_volume))
+
+    def retention_porosity(self) -> FloatArray:
+        """(n,) porosity of the retention curve: current (Eqs. 4.25-4.26, 4.42-4.43) or, with
+        ``macro.retention_follows_porosity`` off, each system's initial 1 - V_s/V_0."""
+        if self.settings.retention_follows_porosity:
+            return self.porosities()
+        return 1.0 - self.solid_volume / self.reference_volume
+
+    def porosities(self) -> FloatArray:
+        """(n,) porosity 1 - V_s / V [1]."""
+        return 1.0 - self.solid_volume / self.volume
+
+    def permeabilities(self) -> FloatArray:
+        """(n,) permeability [m2]: the table's for pellets, the powder law for cells."""
+        n_p = self.n_pellets
+        k = np.empty(self.volume.size)
+        k[:n_p] = self.table.permeability(-self.pressure[:n_p], "water")
+        k[n_p:] = powder_permeability(self.saturations()[n_p:], self.porosities()[n_p:], self.material)
+        return k
+
+    def conductances(self) -> FloatArray:
+        """Mass conductance of every exchange [kg/(Pa s)]."""
+        ex = self._exchanges
+        assert ex is not None
+        k = self.permeabilities()
+        i, j = ex.pairs[:, 0], ex.pairs[:, 1]
+        k_edge = harmonic_mean(k[i], k[j])
+        cc = ex.kind == 2
+        sat, por = self.saturations(), self.porosities()
+        k_edge[cc] = powder_permeability(0.5 * (sat[i[cc]] + sat[j[cc]]),
+                                         0.5 * (por[i[cc]] + por[j[cc]]), self.material)
+        s = self.settings
+        return conductances(ex.area, ex.length, k_edge, s.density, s.viscosity, s.conductivity_factor)
+
+    def time_step(self, conductance: FloatArray) -> float:
+        """Stable explicit step of Eq. 4.58 [s]."""
+        assert self._exchanges is not None
+        # dp/dS grows without bound as S -> 1: no system is driven wetter than the
+        # boundary, so the slope is taken no wetter than at half the boundary suction
+        porosity = self.retention_porosity()
+        wettest = saturation(0.5 * self.settings.boundary_suction, porosity, self.material)
+        sat = np.clip(self.saturations(), 1e-12, wettest)
+        slope = suction_derivative(sat, porosity, self.material)
+        pore = self.volume - self.solid_volume
+        return stable_time_step(self._exchanges.pairs, conductance, pore, slope, self.held | self.inert,
+                                self.settings.density, self.settings.chi)
+
+    def saturation_limited_step(self, conductance: FloatArray) -> float:
+        """Largest step in which no free system's saturation changes by more than
+        ``max_saturation_change`` and none loses more than that fraction of its water
+        [s]: the explicit update follows a retention curve
+        whose slope changes by orders of magnitude, which Eq. 4.58's local slope misses
+        (a dry cell next to a wet one would otherwise be drained below zero water)."""
+        assert self._exchanges is not None
+        rate = mass_rates(self._exchanges.pairs, conductance, self.pressure, self.volume.size)
+        free = ~self.held & ~self.inert
+        pore = (self.volume - self.solid_volume)[free]
+        change = np.abs(rate[free]) / (self.settings.density * pore)
+        # and no system loses more than that fraction of its own water (dry systems)
+        loss = np.maximum(-rate[free], 0.0) / np.maximum(self.water_mass[free], 1e-300)
+        largest = max(change.max(initial=0.0), loss.max(initial=0.0))
+        return float(self.settings.max_saturation_change / largest) if largest > 0.0 else float("inf")
+
+    def transport(self, dt: float, conductance: FloatArray) -> None:
+        """Explicit mass update (Eq. 4.23); held systems keep their mass, their loss is inflow."""
+        assert self._exchanges is not None
+        rate = mass_rates(self._exchanges.pairs, conductance, self.pressure, self.volume.size)
+        self.boundary_inflow -= float(dt * rate[self.held].sum())
+        free = ~self.held
+        self.water_mass[free] += dt * rate[free]
+
+    def solve_local(self) -> None:
+        """Pressure-volume problem of every system not held (Sec. 4.3)."""
+        free = np.flatnonzero(~self.held & ~self.inert)
+        n_p = self.n_pellets
+        # a cell squeezed by swollen pellets keeps at least its solid at the smallest
+        # porosity (the lower porosity clamp, minPoroClamp) and its water (counted)
+        phi_min = float(self.settings.powder["porosity_clamp"][0])
+        needed = np.maximum(self.solid_volume + self.water_mass / self.settings.density,
+                            self.solid_volume / (1.0 - phi_min)) * (1.0 + 1e-6)
+        floored = (self.max_volume < needed) & ~self.held & ~self.inert
+        floored[:n_p] = False
+        self.floored_cells += int(np.count_nonzero(floored))
+        self.max_volume = np.where(floored, needed, self.max_volume)
+
+        def names(k: int) -> str:
+            i = int(free[k])
+            return f"pellet {i}" if i < n_p else f"cell {i - n_p}"
+
+        problem = PVProblem(
+            self.water_mass[free], self.solid_volume[free], self.reference_volume[free],
+            self.max_volume[free], self.settings.density, self.settings.max_suction, names,
+            None if self.settings.retention_follows_porosity else self.retention_porosity()[free],
+        )
+        volume, pressure, iterations, fallbacks = solve_pressure_volume(
+            problem, self.material, self.settings.newton, self.volume[free])
+        self.volume[free], self.pressure[free] = volume, pressure
+        self.newton_iterations += iterations
+        self.fallbacks += fallbacks
+
+    # ------------------------------------------------------------------ mechanics
+    def powder_pressure(self) -> FloatArray:
+        """(n_c,) swelling pressure of the powder on its cell contour [Pa] (Eqs. 4.31-4.33).
+
+        Confined powder (V within ``CONFINED`` of its void) presses with
+        S_w beta_v exp(alpha_v m_s / V_c) (Eqs. 4.31, 4.33), m_s = rho_grain V_s its solid
+        mass and V_c the void of its cell, the volume it is confined to; free powder does
+        not. Zero everywhere when ``macro.powder_swelling_pressure`` is off.
+        """
+        cells = slice(self.n_pellets, None)
+        if not self.settings.powder_pressure:
+            return np.zeros(self.n_cells)
+        v = self.volume[cells]
+        confined = v >= (1.0 - CONFINED) * self.max_volume[cells]
+        grain = float(self.settings.powder["grain_density_kg_m3"])
+        dry = grain * self.solid_volume[cells] / np.maximum(self.max_volume[cells], self.solid_volume[cells])
+        sat = np.clip(self.saturations()[cells], 0.0, 1.0)
+        active = ~self.inert[cells]
+        return np.where(confined & active, sat * consolidation_pressure(dry, self.material), 0.0)
+
+    def hydro_forces(self, cell_pressure: FloatArray) -> FloatArray:
+        """(n_p, 3) forces of the cell pressures on the pellets [N] (Eqs. 4.34-4.38).
+
+        A pellet's sector A_k = theta r^2 / 2 of each triangle is pushed by the pressure
+        difference across it, A_k (P_i - P_j) n_ij (n_ij from cell i to j); on the hull,
+        A_k P_i n_out.
+        """
+        mesh = self.mesh
+        forces = np.zeros((self.n_pellets, 3))
+        for verts, cells, normals, outside in (
+            (mesh.facet_vertices, mesh.facet_cells, mesh.facet_normals, False),
+            (mesh.boundary_vertices, mesh.boundary_cells, mesh.boundary_normals, True),
+        ):
+            theta = facet_angles(mesh.points, verts)
+            sector = 0.5 * theta * self.radii[verts] ** 2
+            if outside:
+                jump = cell_pressure[cells]
+            else:
+                jump = cell_pressure[cells[:, 0]] - cell_pressure[cells[:, 1]]
+            vec = (sector * jump[:, None])[:, :, None] * normals[:, None, :]
+            for c in range(3):
+                forces[:, c] += np.bincount(verts.ravel(), vec[:, :, c].ravel(), minlength=self.n_pellets)
+        return forces
+
+    def relax(self, substeps: int) -> Readings:
+        """Quasi-static DEM substeps under the current radii, moduli and hydro forces."""
+        s = self.settings
+        young = young_modulus(-self.pressure[: self.n_pellets], self.material)
+        nu = self.material.poisson_ratio
+        assert self._cell_pressure is not None
+        external = self.hydro_forces(self._cell_pressure)
+        z_lo, z_hi = -0.5 * s.height, 0.5 * s.height
+        skin = 0.2 * float(self.radii.mean())
+        pairs = detect_contacts(self.positions, self.radii, 1.0, skin)
+        reference = self.positions.copy()
+        # fictitious mass floor: the stiffness of a contact overlapping by 1e-3 r
+        floor = 2.0 * young / (1.0 - nu * nu) * self.radii * np.sqrt(1e-3)
+        for k in range(substeps + 1):
+            if 2.0 * np.sqrt(((self.positions - reference) ** 2).sum(axis=1)).max() > skin:
+                pairs = detect_contacts(self.positions, self.radii, 1.0, skin)
+                reference = self.positions.copy()
+            forces = external.copy()
+            stiffness = np.zeros(self.n_pellets)
+            normal = _kernels.hertz_pairs(self.positions, self.radii, young, nu, pairs, forces, stiffness)
+            radial, lower, upper = _kernels.container_contacts(
+                self.positions, self.radii, young, nu, s.radius, z_lo, z_hi, forces, stiffness)
+            if k == substeps:
+                break
+            mass = np.maximum(stiffness, floor)[:, None]
+            mid = self.velocities + 0.5 * forces / mass
+            damped = forces * (1.0 - s.dem_damping * np.sign(forces * mid))
+            self.velocities += damped / mass
+            # a substep moves a pellet by at most 1e-3 of its radius (Hertz stiffens with
+            # the overlap faster than the mass scaling follows)
+            speed = np.sqrt((self.velocities**2).sum(axis=1))
+            cap = 1e-3 * self.radii
+            self.velocities *= np.minimum(1.0, cap / np.maximum(speed, 1e-300))[:, None]
+            self.positions += self.velocities
+        carried = normal[normal > 0.0]
+        resultant = np.sqrt((forces**2).sum(axis=1)).mean()
+        unbalanced = float(resultant / carried.mean()) if carried.size else 0.0
+        sensors = self._band_pressures(radial)
+        area = np.pi * s.radius**2
+        upper_force, lower_force = float(upper.sum()), float(lower.sum())
+        if s.powder_on_walls:
+            extra_sensors, extra_upper, extra_lower = self._powder_wall_loads()
+            sensors += extra_sensors
+            upper_force += extra_upper
+            lower_force += extra_lower
+        return Readings(sensors, upper_force / area, lower_force / area, unbalanced)
+
+    def _band_edges(self) -> FloatArray:
+        s = self.settings
+        return np.linspace(-0.5 * s.height, 0.5 * s.height, s.sensor_bands + 1)
+
+    def _band_pressures(self, radial: FloatArray) -> FloatArray:
+        """Radial wall pressure per height band: sum of forces / (2 pi R dz) [Pa].
+
+        The script's getPressure divides by pi R dz (half the band's area)."""
+        edges = self._band_edges()
+        band = np.clip(np.searchsorted(edges, self.positions[:, 2]) - 1, 0, edges.size - 2)
+        force = np.bincount(band, radial, minlength=edges.size - 1)
+        return force / (2.0 * np.pi * self.settings.radius * np.diff(edges))
+
+    def _powder_wall_loads(self) -> tuple[FloatArray, float, float]:
+        """Sec. 4.10: confined powder of the hull cells pushes on the container through the
+        powder part of their hull triangles (area minus pellet sectors)."""
+        assert self._cell_pressure is not None
+        mesh = self.mesh
+        theta = facet_angles(mesh.points, mesh.boundary_vertices)
+        sectors = (0.5 * theta * self.radii[mesh.boundary_vertices] ** 2).sum(axis=1)
+        fluid = np.maximum(mesh.boundary_areas - sectors, 0.0)
+        force = self._cell_pressure[mesh.boundary_cells] * fluid
+        normals, centroids = mesh.boundary_normals, mesh.boundary_centroids
+        rho = np.maximum(np.hypot(centroids[:, 0], centroids[:, 1]), 1e-300)
+        radial = (normals[:, 0] * centroids[:, 0] + normals[:, 1] * centroids[:, 1]) / rho
+        side = np.abs(normals[:, 2]) <= np.sqrt(0.5)
+        edges = self._band_edges()
+        band = np.clip(np.searchsorted(edges, centroids[:, 2]) - 1, 0, edges.size - 2)
+        per_band = np.bincount(band[side], (force * np.maximum(radial, 0.0))[side],
+                               minlength=edges.size - 1)
+        sensors = per_band / (2.0 * np.pi * self.settings.radius * np.diff(edges))
+        upper = float((force * np.maximum(normals[:, 2], 0.0))[~side].sum())
+        lower = float((force * np.maximum(-normals[:, 2], 0.0))[~side].sum())
+        return sensors, upper, lower
+
+    # ------------------------------------------------------------------ step
+    def step(self, max_dt: float = float("inf")) -> float:
+        """Advance one coupled step; returns the time step used [s]."""
+        clock = time.perf_counter()
+        if self.steps > 0:
+            self._update_geometry()
+        now = time.perf_counter()
+        self.phase_seconds["remesh"] += now - clock
+        clock = now
+        conductance = self.conductances()
+        dt = min(self.time_step(conductance), self.saturation_limited_step(conductance), max_dt)
+        self.transport(dt, conductance)
+        now = time.perf_counter()
+        self.phase_seconds["transport"] += now - clock
+        clock = now
+        self.solve_local()
+        now = time.perf_counter()
+        self.phase_seconds["newton"] += now - clock
+        clock = now
+        n_p = self.n_pellets
+        self.radii = np.cbrt(3.0 * self.volume[:n_p] / (4.0 * np.pi))
+        self._cell_pressure = self.powder_pressure()
+        self._readings = self.relax(self.settings.dem_substeps)
+        self.phase_seconds["dem"] += time.perf_counter() - clock
+        self.time += dt
+        self.steps += 1
+        return dt
+
+    @property
+    def readings(self) -> Readings:
+        assert self._readings is not None
+        return self._readings
+
+    def neglected_void_fraction(self) -> float:
+        """Fraction of the cells' initial void in inert cells [1]."""
+        cells = slice(self.n_pellets, None)
+        void = self.reference_volume[cells] / (1.0 - self.initial_cell_porosity)
+        return float(void[self.inert[cells]].sum() / void.sum())
+
+    def interior_water(self) -> float:
+        """Water mass of the systems not held [kg]."""
+        return float(self.water_mass[~self.held].sum())
+
+    def mean_suction(self) -> tuple[float, float]:
+        """Volume-weighted mean suction of the pellets and of the free powder cells [Pa]."""
+        n_p = self.n_pellets
+        s = -self.pressure
+        cells = n_p + np.flatnonzero(~self.inert[n_p:])
+        return (float(np.average(s[:n_p], weights=self.volume[:n_p])),
+                float(np.average(s[cells], weights=self.volume[cells])))
+
+    def mean_saturation(self) -> tuple[float, float]:
+        """Pore-volume-weighted mean saturation of pellets and powder [1]."""
+        n_p = self.n_pellets
+        sat = self.saturations()
+        pore = self.volume - self.solid_volume
+        cells = n_p + np.flatnonzero(~self.inert[n_p:])
+        return (float(np.average(sat[:n_p], weights=pore[:n_p])),
+                float(np.average(sat[cells], weights=pore[cells])))
+
+    def profiles(self, edges: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Along the axis (bins ``edges``): mean swelling strain V/V_0 - 1 of pellets and
+        powder (volume-weighted) [1], and mean suction [Pa]."""
+        n_p = self.n_pellets
+        z = np.concatenate([self.positions[:, 2], self.mesh.centroids[:, 2]])
+        bins = np.clip(np.searchsorted(edges, z) - 1, 0, edges.size - 2)
+        n = edges.size - 1
+        v0 = np.where(self.inert, 0.0, self.reference_volume)
+        weight = np.bincount(bins, v0, minlength=n)
+        swell = np.bincount(bins, self.volume - v0, minlength=n)
+        suction = np.bincount(bins, -self.pressure * v0, minlength=n)
+        del n_p
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return swell / weight, suction / weight
+
+
+def _cell_roles(mesh: Mesh, voids: FloatArray, positions: FloatArray, radii: FloatArray,
+                settings: MacroSettings) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Inert (sliver) and held (hydrated end) flags over all systems (pellets never).
+
+    Held: active cells facing an end of the hull, or whose centroid lies within half a
+    pellet radius of the outermost pellet centres along the axis.
+    """
+    n_p = positions.shape[0]
+    none = np.zeros(n_p, dtype=np.bool_)
+    inert = voids < settings.min_cell_void_fraction * voids.mean()
+    z = mesh.centroids[:, 2]
+    margin = 0.5 * float(radii.mean())
+    layer = (z > positions[:, 2].max() - margin) | (z < positions[:, 2].min() + margin)
+    held = (end_cells(mesh) | layer) & ~inert
+    return np.concatenate([none, inert]), np.concatenate([none, held])

@@ -1,0 +1,222 @@
+"""Entry point of the macro stage: one mock-up case -> ``results/macro/<case>.nc`` + figure.
+
+``run(config, case, table_path, output_path, figure_path)`` packs the pellets, builds the
+mixture on the Delaunay mesh of their centres, hydrates it from both ends and records the
+wall readings (DESIGN section 2). It stops near equilibrium (every sensor pressure, the
+axial pressure and both mean suctions changed by less than ``stop_tolerance`` of their
+largest magnitude over the last ``stop_window_fraction`` of the elapsed time) or at the
+``max_time_s`` / ``max_steps`` guards, whichever comes first; the reason is recorded.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import xarray as xr
+
+from macro.laws import mixture_parameters
+from macro.model import MacroModel, MacroSettings, macro_settings
+from macro.packing import pack_cylinder
+from shared.io import write_dataset
+from shared.progress import Progress
+from shared.upscaling import PermeabilityTable
+
+__all__ = ["run", "simulate", "near_equilibrium"]
+
+LOG = logging.getLogger("claychain.macro")
+FloatArray = npt.NDArray[np.float64]
+PROFILE_BINS = 24
+
+
+def near_equilibrium(times: FloatArray, series: FloatArray, window: float, tolerance: float) -> bool:
+    """Whether every column of ``series`` (time, k) moved by less than ``tolerance`` times
+    its largest magnitude so far over the last ``window`` fraction of the elapsed time."""
+    if tolerance <= 0.0 or times.size < 10:
+        return False
+    inside = times >= times[-1] * (1.0 - window)
+    if np.count_nonzero(inside) < 5 or inside.all():
+        return False
+    scale = np.abs(series).max(axis=0)
+    change = series[inside].max(axis=0) - series[inside].min(axis=0)
+    return bool(np.all(change <= tolerance * np.maximum(scale, 1e-300)))
+
+
+def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) -> MacroModel:
+    """The initial model of a case from the validated ``macro`` and ``materials`` sections."""
+    settings = macro_settings(config["macro"], case)
+    material = mixture_parameters(config["materials"], settings.powder)
+    packing = pack_cylinder(settings.height, settings.radius, settings.pellet_radius,
+                            settings.packing_fraction, np.random.default_rng(settings.seed),
+                            settings.packing_sweeps)
+    model = MacroModel.create(settings, material, table, packing)
+    model.packing = packing  # type: ignore[attr-defined]
+    return model
+
+
+def simulate(model: MacroModel) -> tuple[xr.Dataset, str]:
+    """Hydrate until near equilibrium or a guard; returns the records and the stop reason."""
+    s: MacroSettings = model.settings
+    edges = np.linspace(-0.5 * s.height, 0.5 * s.height, PROFILE_BINS + 1)
+    rows: dict[str, list[Any]] = {k: [] for k in (
+        "time", "sensors", "axial_upper", "axial_lower", "suction", "saturation",
+        "swelling", "suction_profile", "pellet_suction", "unbalanced", "dt")}
+
+    def record(dt: float) -> None:
+        r = model.readings
+        swell, suction = model.profiles(edges)
+        rows["time"].append(model.time)
+        rows["sensors"].append(r.sensors.copy())
+        rows["axial_upper"].append(r.axial_upper)
+        rows["axial_lower"].append(r.axial_lower)
+        rows["suction"].append(model.mean_suction())
+        rows["saturation"].append(model.mean_saturation())
+        rows["swelling"].append(swell)
+        rows["suction_profile"].append(suction)
+        rows["pellet_suction"].append(-model.pressure[: model.n_pellets].copy())
+        rows["unbalanced"].append(r.unbalanced)
+        rows["dt"].append(dt)
+
+    record(0.0)
+    # progress towards the first guard to stop the run (simulated time or steps)
+    progress = Progress(1.0, f"macro ({model.n_pellets} pellets, {model.n_cells} cells), "
+                        "fraction of the max_time_s/max_steps guard", LOG)
+    reason = "max_steps"
+    while model.steps < s.max_steps:
+        dt = model.step(max_dt=s.max_time - model.time)
+        record(dt)
+        progress.update(max(model.time / s.max_time, model.steps / s.max_steps))
+        if model.time >= s.max_time * (1.0 - 1e-12):
+            reason = "max_time"
+            break
+        series = np.column_stack([np.array(rows["sensors"]), np.array(rows["axial_upper"]),
+                                  np.array(rows["suction"])])
+        if near_equilibrium(np.array(rows["time"]), series, s.stop_window, s.stop_tolerance):
+            reason = "near_equilibrium"
+            break
+    progress.update(max(model.time / s.max_time, model.steps / s.max_steps), force=True)
+    LOG.info("stopped (%s) at t = %.4g s after %d steps", reason, model.time, model.steps)
+    return _dataset(model, rows, edges), reason
+
+
+def _keep(n: int, wanted: int) -> npt.NDArray[np.int64]:
+    """Indices of at most ``wanted`` records, equally spaced, first and last included."""
+    return np.unique(np.round(np.linspace(0, n - 1, min(n, wanted))).astype(np.int64))
+
+
+def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray) -> xr.Dataset:
+    s = model.settings
+    keep = _keep(len(rows["time"]), s.records)
+    pick = {k: np.asarray(v)[keep] for k, v in rows.items()}
+    bands = np.linspace(-0.5 * s.height, 0.5 * s.height, s.sensor_bands + 1)
+    sensor_z = 0.5 * (bands[:-1] + bands[1:]) + 0.5 * s.height
+    z = 0.5 * (edges[:-1] + edges[1:]) + 0.5 * s.height
+    packing = model.packing  # type: ignore[attr-defined]
+    coords = {
+        "time": ("time", pick["time"], {"units": "s", "long_name": "simulated time"}),
+        "sensor": ("sensor", np.arange(s.sensor_bands), {"units": "1", "long_name": "wall sensor (height band)"}),
+        "sensor_height": ("sensor", sensor_z, {"units": "m", "long_name": "height of the band's middle above the lower plate"}),
+        "material": ("material", ["pellet", "powder"], {"units": "1", "long_name": "material"}),
+        "z": ("z", z, {"units": "m", "long_name": "height above the lower plate"}),
+        "pellet": ("pellet", np.arange(model.n_pellets), {"units": "1", "long_name": "pellet index"}),
+        "xyz": ("xyz", ["x", "y", "z"], {"units": "1", "long_name": "axis"}),
+    }
+    data = {
+        "sensor_pressure": (("time", "sensor"), pick["sensors"], {"units": "Pa", "long_name": "radial pressure on the curved wall per height band (swelling pressure sensors)"}),
+        "axial_pressure": (("time",), pick["axial_upper"], {"units": "Pa", "long_name": "axial pressure on the upper plate"}),
+        "axial_pressure_lower": (("time",), pick["axial_lower"], {"units": "Pa", "long_name": "axial pressure on the lower plate"}),
+        "mean_suction": (("time", "material"), pick["suction"], {"units": "Pa", "long_name": "volume-weighted mean suction"}),
+        "mean_saturation": (("time", "material"), pick["saturation"], {"units": "1", "long_name": "pore-volume-weighted mean water saturation"}),
+        "swelling_profile": (("time", "z"), pick["swelling"], {"units": "1", "long_name": "mean volumetric swelling strain V/V0 - 1 of pellets and powder along the axis"}),
+        "suction_profile": (("time", "z"), pick["suction_profile"], {"units": "Pa", "long_name": "mean suction along the axis"}),
+        "pellet_suction": (("time", "pellet"), pick["pellet_suction"], {"units": "Pa", "long_name": "suction of each pellet (field snapshots)"}),
+        "unbalanced_force": (("time",), pick["unbalanced"], {"units": "1", "long_name": "mean resultant over mean contact force"}),
+        "time_step": (("time",), pick["dt"], {"units": "s", "long_name": "time step that ended at this record"}),
+        "pellet_position": (("pellet", "xyz"), packing.positions, {"units": "m", "long_name": "initial pellet centre (origin at the container's centre)"}),
+        "pellet_radius_final": (("pellet",), model.radii, {"units": "m", "long_name": "pellet radius at the end"}),
+    }
+    table = model.table
+    attrs = {
+        "n_pellets": model.n_pellets,
+        "n_cells": model.n_cells,
+        "packing_fraction": packing.packing_fraction,
+        "packing_largest_overlap_m": packing.largest_overlap,
+        "table_condition": s.table_condition,
+        "table_lookups": table.looked_up,
+        "table_clamped_lookups": table.clamped,
+        "newton_iterations": model.newton_iterations,
+        "newton_fallbacks": model.fallbacks,
+        "floored_cell_steps": model.floored_cells,
+        "remeshes": model.remeshes,
+        "steps": model.steps,
+        "inert_void_fraction": model.neglected_void_fraction(),
+        "boundary_inflow_kg": model.boundary_inflow,
+        "powder_heterogeneity": str(s.powder["heterogeneity"]),
+        "powder_swelling_pressure": int(s.powder_pressure),
+        "powder_pressure_on_walls": int(s.powder_on_walls),
+        "sensor_area_convention": "force / (2 pi R dz); the thesis's getPressure divides by pi R dz",
+        **{f"seconds_{k}": v for k, v in model.phase_seconds.items()},
+    }
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def run(
+    config: Mapping[str, Any],
+    case: str,
+    table_path: str | Path,
+    output_path: str | Path,
+    figure_path: str | Path | None = None,
+    rule: str | None = None,
+) -> xr.Dataset:
+    """Run one macro case and write ``output_path`` (and the figure).
+
+    Parameters
+    ----------
+    config
+        Validated configuration with ``macro`` and ``materials`` (mixture_pellet,
+        mixture_powder) sections.
+    case
+        Name in ``macro.cases``.
+    table_path
+        ``results/upscaling/pellet_permeability.nc``; its path and sha256 are recorded.
+    output_path, figure_path
+        The netCDF result and the PNG figure (None: no figure).
+    rule
+        Snakemake rule name for the provenance.
+
+    Raises
+    ------
+    shared.io.OutputError
+        If the table is missing or malformed (naming the file).
+    ValueError, KeyError
+        Naming the configuration key at fault (pellets larger than the container,
+        unknown case).
+    macro.newton.NewtonError
+        Naming a local system without a solution.
+    """
+    start = time.monotonic()
+    settings = macro_settings(config["macro"], case)
+    table = PermeabilityTable.from_file(table_path, settings.table_condition)
+    model = build_model(config, case, table)
+    LOG.info("case %s: %d pellets (packing fraction %.3f), %d cells (%d held, %.2g %% void inert)",
+             case, model.n_pellets, model.packing.packing_fraction,  # type: ignore[attr-defined]
+             model.n_cells, int(model.held.sum()), 100 * model.neglected_void_fraction())
+    ds, reason = simulate(model)
+    ds.attrs["stop_reason"] = reason
+    ds.attrs["runtime_s"] = time.monotonic() - start
+    section = {"macro": config["macro"], "case": case,
+               "materials": {k: config["materials"][k] for k in ("mixture_pellet", "mixture_powder")}}
+    write_dataset(ds, output_path, stage="macro", title=f"claychain macro mock-up {case}",
+                  config=section, seed=settings.seed, inputs=[table_path], rule=rule,
+                  wildcards={"case": case},
+                  references="Caulk (2022) thesis Chap. 4 and Appendix .1")
+    if figure_path is not None:
+        from macro.figures import case_figure
+
+        case_figure(ds, figure_path)
+    return ds

@@ -1,0 +1,21 @@
+# Macro stage: the pellet-powder mock-up (thesis Chap. 4) fed by the upscaling table.
+
+
+rule macro_case:
+    input:
+        table="results/upscaling/pellet_permeability.nc",
+    output:
+        result="results/macro/{macro_case}.nc",
+        figure="results/macro/{macro_case}.png",
+    params:
+        code=MACRO_CODE,
+        macro=get_macro_case_config,
+        materials=get_macro_materials,
+    conda:
+        "../envs/claychain.yaml"
+    log:
+        "results/logs/macro_case/{macro_case}.log",
+    benchmark:
+        "results/benchmarks/macro_case/{macro_case}.tsv"
+    script:
+        "../scripts/macro_case.py"
