@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 import xarray as xr
-from _defaults import CONFIG
+from tests._defaults import CONFIG
 
 from shared.io import write_dataset
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _defaults import CONFIG
+from tests._defaults import CONFIG
 
 from macro.field import cell_porosity, gaussian_field
 

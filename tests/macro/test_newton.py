@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _defaults import CONFIG
+from tests._defaults import CONFIG
 
 from macro.laws import mixture_parameters
 from macro.newton import NewtonError, NewtonSettings, PVProblem, constraints, solve_pressure_volume

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 import xarray as xr
-from _macro_cases import small_config, synthetic_table, write_table
+from tests._macro_cases import small_config, synthetic_table, write_table
 
 from macro.laws import mixture_parameters
 from macro.model import MacroModel, macro_settings

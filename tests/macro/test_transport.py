@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _macro_cases import small_config
+from tests._macro_cases import small_config
 
 from macro.run import build_model
 from macro.transport import mass_rates, stable_time_step
