@@ -24,6 +24,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from shared.permeability import porosity_permeability
+from shared.retention import van_genuchten_saturation, van_genuchten_suction
+from shared.swelling import swelling_strain as shared_swelling_strain
+
 __all__ = [
     "MixtureParameters",
     "mixture_parameters",
@@ -122,18 +126,15 @@ def retention_parameters(porosity: npt.ArrayLike, m: MixtureParameters) -> tuple
 
 def saturation(suction: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
     """Water saturation S(s, phi) [1] (Eq. 4.24 inverted, DESIGN section 3); 1 for s <= 0."""
-    s = np.maximum(np.asarray(suction, dtype=np.float64), 0.0)
-    zeta, lam = retention_parameters(porosity, m)
-    return (1.0 + (s / zeta) ** (1.0 / (1.0 - lam))) ** (-lam)
+    return van_genuchten_saturation(suction, *retention_parameters(porosity, m))
 
 
 def suction(sat: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
     """Suction s(S, phi) [Pa] (Eq. 4.24): zeta (S^(-1/lambda) - 1)^(1 - lambda); NaN outside (0, 1]."""
     sat = np.asarray(sat, dtype=np.float64)
-    zeta, lam = retention_parameters(porosity, m)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        base = sat ** (-1.0 / lam) - 1.0
-        return np.where((sat > 0.0) & (sat <= 1.0), zeta * np.maximum(base, 0.0) ** (1.0 - lam), np.nan)
+        value = van_genuchten_suction(sat, *retention_parameters(porosity, m))
+    return np.where((sat > 0.0) & (sat <= 1.0), value, np.nan)
 
 
 def suction_derivative(sat: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
@@ -150,14 +151,12 @@ def powder_permeability(sat: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureP
     sat = np.asarray(sat, dtype=np.float64)
     effective = (sat - m.residual_saturation) / (m.saturated_saturation - m.residual_saturation)
     kr = np.clip(effective, 0.0, 1.0) ** m.kr_exponent
-    km = m.k0 * np.exp(m.permeability_b * (np.asarray(porosity, dtype=np.float64) - m.reference_porosity))
-    return km * kr
+    return porosity_permeability(porosity, m.k0, m.permeability_b, m.reference_porosity) * kr
 
 
 def swelling_strain(suction: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
     """Volumetric swelling strain eps(s) [1] (Eq. 4.28, sign of DESIGN section 3)."""
-    s = np.asarray(suction, dtype=np.float64)
-    return (m.beta / m.alpha) * (np.exp(-m.alpha * s) - np.exp(-m.alpha * m.initial_suction))
+    return shared_swelling_strain(suction, m.alpha, m.beta, m.initial_suction)
 
 
 def young_modulus(suction: npt.ArrayLike, m: MixtureParameters) -> FloatArray:

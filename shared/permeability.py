@@ -20,6 +20,7 @@ __all__ = [
     "effective_saturation",
     "relative_permeability",
     "intrinsic_permeability",
+    "porosity_permeability",
     "phase_viscosity",
 ]
 
@@ -95,10 +96,28 @@ def intrinsic_permeability(
     ndarray
         k_M [m2], shape of ``porosity``.
     """
-    porosity = np.asarray(porosity, dtype=np.float64)
-    return material.intrinsic_permeability_reference * np.exp(
-        material.permeability_porosity_factor * (porosity - material.reference_porosity)
+    return porosity_permeability(
+        porosity, material.intrinsic_permeability_reference,
+        material.permeability_porosity_factor, material.reference_porosity,
     )
+
+
+def porosity_permeability(
+    porosity: npt.ArrayLike, reference: float, factor: float, reference_porosity: float
+) -> FloatArray:
+    """k = k_0 exp(b_k (phi - phi_0)) [m2] (Eqs. 3.18, 4.19).
+
+    Parameters
+    ----------
+    porosity
+        Porosity phi [1].
+    reference
+        k_0 [m2] at ``reference_porosity`` phi_0 [1].
+    factor
+        b_k [1].
+    """
+    porosity = np.asarray(porosity, dtype=np.float64)
+    return reference * np.exp(factor * (porosity - reference_porosity))
 
 
 def phase_viscosity(phase: Phase, material: ClayParameters) -> float:

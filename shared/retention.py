@@ -21,6 +21,8 @@ import numpy.typing as npt
 from shared.materials import ClayParameters
 
 __all__ = [
+    "van_genuchten_saturation",
+    "van_genuchten_suction",
     "retention_parameters",
     "saturation",
     "suction",
@@ -69,11 +71,37 @@ def retention_parameters(
     return zeta, exponent
 
 
-def _unclamped_saturation(
-    suction: FloatArray, zeta: FloatArray, exponent: FloatArray
+def van_genuchten_saturation(
+    suction: npt.ArrayLike, zeta: npt.ArrayLike, exponent: npt.ArrayLike
 ) -> FloatArray:
-    ratio = np.maximum(suction, 0.0) / zeta
+    """S = [1 + (s / zeta)^(1 / (1 - lambda))]^(-lambda) (Eqs. 3.15, 4.24), unclamped, no
+    range check (a solver may probe outside the physical range); s <= 0 gives 1.
+
+    Parameters
+    ----------
+    suction
+        Suction s [Pa].
+    zeta, exponent
+        Retention pressure zeta [Pa] and exponent lambda [1], broadcastable.
+    """
+    ratio = np.maximum(np.asarray(suction, dtype=np.float64), 0.0) / zeta
     return (1.0 + ratio ** (1.0 / (1.0 - exponent))) ** (-exponent)
+
+
+def van_genuchten_suction(
+    saturation: npt.ArrayLike, zeta: npt.ArrayLike, exponent: npt.ArrayLike
+) -> FloatArray:
+    """The inverse, s = zeta (S^(-1/lambda) - 1)^(1 - lambda) [Pa], no range check.
+
+    Parameters
+    ----------
+    saturation
+        Water saturation S [1]; 1 gives 0, 0 an infinite suction.
+    zeta, exponent
+        Retention pressure zeta [Pa] and exponent lambda [1], broadcastable.
+    """
+    excess = np.maximum(np.asarray(saturation, dtype=np.float64) ** (-1.0 / exponent) - 1.0, 0.0)
+    return zeta * excess ** (1.0 - exponent)
 
 
 def saturation(
@@ -99,7 +127,7 @@ def saturation(
     """
     suction = np.asarray(suction, dtype=np.float64)
     zeta, exponent = retention_parameters(porosity, material)
-    value = _unclamped_saturation(suction, zeta, exponent)
+    value = van_genuchten_saturation(suction, zeta, exponent)
     return np.clip(value, material.residual_saturation, material.saturated_saturation)
 
 
@@ -132,9 +160,7 @@ def suction(
     saturation = np.asarray(saturation, dtype=np.float64)
     if not np.all((saturation > 0.0) & (saturation <= 1.0)):
         raise ValueError("saturation must lie in (0, 1] to be inverted (NaN not allowed)")
-    zeta, exponent = retention_parameters(porosity, material)
-    excess = np.maximum(saturation ** (-1.0 / exponent) - 1.0, 0.0)
-    return zeta * excess ** (1.0 - exponent)
+    return van_genuchten_suction(saturation, *retention_parameters(porosity, material))
 
 
 def saturation_derivative(
@@ -171,7 +197,7 @@ def saturation_derivative(
         * ratio ** (exponent / (1.0 - exponent))
         * (1.0 + ratio ** (1.0 / (1.0 - exponent))) ** (-(1.0 + exponent))
     )
-    curve = _unclamped_saturation(suction, zeta, exponent)
+    curve = van_genuchten_saturation(suction, zeta, exponent)
     inside = (
         (suction > 0.0)
         & (curve > material.residual_saturation)

@@ -12,9 +12,27 @@ import numpy.typing as npt
 
 from shared.materials import ClayParameters
 
-__all__ = ["volumetric_strain", "swollen_radius"]
+__all__ = ["swelling_strain", "volumetric_strain", "swollen_radius"]
 
 FloatArray = npt.NDArray[np.float64]
+
+
+def swelling_strain(
+    suction: npt.ArrayLike, alpha: float, beta: float, initial_suction: float
+) -> FloatArray:
+    """eps_v = (beta / alpha) [exp(-alpha s) - exp(-alpha s_0)] [1] (Eqs. 3.21, 4.28).
+
+    Parameters
+    ----------
+    suction
+        Suction s [Pa].
+    alpha, beta
+        Parameters of the law [1/Pa].
+    initial_suction
+        s_0, suction of the reference state [Pa].
+    """
+    suction = np.asarray(suction, dtype=np.float64)
+    return (beta / alpha) * (np.exp(-alpha * suction) - np.exp(-alpha * initial_suction))
 
 
 def volumetric_strain(
@@ -35,10 +53,8 @@ def volumetric_strain(
     ndarray
         eps_v [1], shape of ``suction``; > 0 for s < s_0.
     """
-    suction = np.asarray(suction, dtype=np.float64)
-    alpha = material.swelling_alpha
-    return (material.swelling_beta / alpha) * (
-        np.exp(-alpha * suction) - np.exp(-alpha * material.initial_suction)
+    return swelling_strain(
+        suction, material.swelling_alpha, material.swelling_beta, material.initial_suction
     )
 
 
