@@ -34,6 +34,9 @@ _REFERENCE = "Caulk (2022), PhD thesis, Univ. Grenoble Alpes, Sec. 3.3.4"
 
 CLAMPED_WARNING_FRACTION = 0.1
 """A porosity grid with more of its blocks clamped to the bounds than this is warned about."""
+MIN_BLOCKS_PER_AXIS = 8
+"""A porosity grid with fewer blocks than this along an axis is warned about (too coarse
+for the REV and chord analyses and for the micro model's porosity field)."""
 
 
 def phantom_spec(
@@ -141,7 +144,8 @@ def _grid_warnings(
     """Warnings about a suspicious porosity grid, each also logged.
 
     A grid spacing below the voxel size (one voxel per block) or a grid of a single
-    block along an axis usually means a voxel size in the wrong unit; many blocks
+    block along an axis usually means a voxel size in the wrong unit; fewer than
+    ``MIN_BLOCKS_PER_AXIS`` blocks, a grid spacing too coarse for the scan; many blocks
     clamped to the porosity bounds, a wrong calibration or voxel size.
 
     Raises
@@ -173,6 +177,14 @@ def _grid_warnings(
             f"the scan ({shape[0]} x {shape[1]} x {shape[2]} voxels of {voxel_size:.3g} m, "
             f"{key}) is at most one grid spacing ({spacing:.3g} m) long along {axis}: "
             "is the voxel size in metres?"
+        )
+    elif min(blocks) < MIN_BLOCKS_PER_AXIS:
+        axis = "zyx"[int(np.argmin(blocks))]
+        warnings.append(
+            f"the porosity grid has only {min(blocks)} blocks of {spacing:.3g} m along {axis}: "
+            f"set imaging.grid_spacing_m to at most "
+            f"{shape['zyx'.index(axis)] * voxel_size / MIN_BLOCKS_PER_AXIS:.3g} m for "
+            f"{MIN_BLOCKS_PER_AXIS} blocks (its default is the micro model's point spacing)"
         )
     if clamped > CLAMPED_WARNING_FRACTION:
         warnings.append(

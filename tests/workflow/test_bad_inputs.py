@@ -619,3 +619,15 @@ def test_snakemake_refuses_an_undefined_case_as_target(tmp_path):
     assert result.returncode != 0
     assert "results/micro/nowhere.nc" in result.stderr
     assert not _files(workdir / "results")
+
+
+def test_a_coarse_grid_is_warned_with_the_spacing_to_set(volume, tmp_path, caplog):
+    """9.6 mm of scan in 2 mm blocks: 5 blocks per axis, under 8; the warning names
+    imaging.grid_spacing_m and the spacing that gives 8 blocks, 9.6 mm / 8 = 1.2 mm."""
+    scan = write_tiff_stack(volume, tmp_path / "scan.tif")
+    with caplog.at_level(logging.WARNING, logger="imaging.ct"):
+        ds = _porosity(tmp_path, "tiff", scan, imaging=_imaging(grid_spacing_m=2.0e-3))
+    assert ds.sizes["z"] == 5
+    assert "imaging.grid_spacing_m" in ds.attrs["warnings"]
+    assert "0.0012 m" in ds.attrs["warnings"]
+    assert any("grid_spacing_m" in r.getMessage() for r in caplog.records)
