@@ -10,6 +10,16 @@ from numba import njit
 
 
 @njit(cache=True)
+def _pair_overlap(positions, radii, i, j):  # type: ignore[no-untyped-def]
+    """Branch vector i -> j, centre distance and overlap r_i + r_j - distance [m]."""
+    dx = positions[j, 0] - positions[i, 0]
+    dy = positions[j, 1] - positions[i, 1]
+    dz = positions[j, 2] - positions[i, 2]
+    dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+    return dx, dy, dz, dist, radii[i] + radii[j] - dist
+
+
+@njit(cache=True)
 def relax_overlaps(positions, radii, pairs, cylinder_radius, z_low, z_high, fraction):
     """Move pellets apart by ``fraction`` of their overlaps (pairs, curved wall, plates).
 
@@ -21,11 +31,7 @@ def relax_overlaps(positions, radii, pairs, cylinder_radius, z_low, z_high, frac
     largest = 0.0
     for k in range(pairs.shape[0]):
         i, j = pairs[k, 0], pairs[k, 1]
-        dx = positions[j, 0] - positions[i, 0]
-        dy = positions[j, 1] - positions[i, 1]
-        dz = positions[j, 2] - positions[i, 2]
-        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
-        overlap = radii[i] + radii[j] - dist
+        dx, dy, dz, dist, overlap = _pair_overlap(positions, radii, i, j)
         if overlap <= 0.0 or dist == 0.0:
             continue
         largest = max(largest, overlap)
@@ -69,11 +75,7 @@ def hertz_pairs(positions, radii, young, poisson, pairs, forces, stiffness):
     factor = 1.0 - poisson * poisson
     for k in range(pairs.shape[0]):
         i, j = pairs[k, 0], pairs[k, 1]
-        dx = positions[j, 0] - positions[i, 0]
-        dy = positions[j, 1] - positions[i, 1]
-        dz = positions[j, 2] - positions[i, 2]
-        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
-        overlap = radii[i] + radii[j] - dist
+        dx, dy, dz, dist, overlap = _pair_overlap(positions, radii, i, j)
         if overlap <= 0.0 or dist == 0.0:
             continue
         e_star = young[i] * young[j] / (factor * (young[i] + young[j]))

@@ -107,6 +107,15 @@ PHASES: tuple[Phase, ...] = ("water", "gas")
 _REFINEMENTS = 6
 
 
+def _floored(conductance: FloatArray, floor: float) -> FloatArray | None:
+    """Conductances raised to ``floor`` times the largest (isolated free cells would make
+    the steady system singular); None if every conductance is 0."""
+    largest = float(np.max(conductance, initial=0.0))
+    if largest == 0.0:
+        return None
+    return np.maximum(conductance, floor * largest)
+
+
 def _measurement_solver() -> CholeskySolver:
     """A fresh solver at round-off backward error for each measurement.
 
@@ -238,10 +247,9 @@ def measure_permeability(
         raise ValueError(f"axis must be 0, 1 or 2, got {axis}")
     if not pressure_drop > 0.0:
         raise ValueError(f"pressure_drop must be > 0, got {pressure_drop}")
-    largest = float(np.max(conductance, initial=0.0))
-    if largest == 0.0:
+    floored = _floored(conductance, conductance_floor)
+    if floored is None:
         return 0.0
-    floored = np.maximum(conductance, conductance_floor * largest)
     departure, gradient = _imposed_profile(
         mesh, axis, 0.0, pressure_drop, clip=method == "wall_flux"
     )
@@ -491,10 +499,9 @@ def measure_permeability_tensor(
     if np.shape(conductance) != (mesh.n_facets,):
         raise ValueError(f"conductance must have shape ({mesh.n_facets},)")
     tensor = np.full((3, 3), np.nan)
-    largest = float(np.max(conductance, initial=0.0))
-    if largest == 0.0:
+    floored = _floored(conductance, conductance_floor)
+    if floored is None:
         return np.zeros((3, 3))
-    floored = np.maximum(conductance, conductance_floor * largest)
     dirichlet = boundary_cell_mask(mesh, list(WALLS))
     if sealed is not None:
         dirichlet &= ~np.asarray(sealed, dtype=bool)
