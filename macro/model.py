@@ -45,9 +45,10 @@ from macro.mixture import (
 )
 from macro.newton import NewtonSettings, PVProblem, solve_pressure_volume
 from macro.packing import Packing
-from macro.transport import conductances, harmonic_mean, mass_rates, stable_time_step
+from macro.transport import conductances, harmonic_mean, implicit_pressures, mass_rates, stable_time_step
 from shared.dem import detect_contacts
-from shared.mesh import Mesh, build_mesh
+from shared.mesh import Mesh, build_mesh, mesh_from_tetrahedra
+from shared.solver import CholeskySolver
 from shared.upscaling import PermeabilityTable
 
 __all__ = ["MacroSettings", "MacroModel", "macro_settings", "Readings"]
@@ -56,10 +57,14 @@ FloatArray = npt.NDArray[np.float64]
 
 VOID_FLOOR = 1e-3
 """Smallest cell void, fraction of the tetrahedron (the script's minVoidVolume ratio is 1e-4)."""
+_REMESH_WEIGHTS = 0.05 + 0.8 * np.array(
+    [(i, j, k, 3 - i - j - k) for i in range(4) for j in range(4 - i) for k in range(4 - i - j)]) / 3.0
+"""Barycentric weights of the 20 points (a lattice of the tetrahedron, shrunk towards its
+centroid) that carry equal shares of an old cell's powder in a remesh."""
+IMPLICIT_LOSS = 0.5
+"""Largest fraction of its water a system may lose in one implicit step."""
 MIN_AREA_FRACTION = 1e-2
 """Smallest powder path through a cell-cell triangle covered by pellets, fraction of it."""
-CONFINED = 1e-3
-"""Powder is confined (presses on its contour) within this fraction of its cell's void."""
 
 
 @dataclass(frozen=True)
@@ -85,6 +90,8 @@ class MacroSettings:
     seed: int
     chi: float
     max_saturation_change: float
+    transport_scheme: str
+    max_time_step: float
     max_time: float
     max_steps: int
     records: int
@@ -95,6 +102,7 @@ class MacroSettings:
     min_cell_void_fraction: float
     dem_substeps: int
     dem_damping: float
+    dem_balance_tolerance: float
 
 
 def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
@@ -132,6 +140,8 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         seed=int(over.get("seed", macro["seed"])),
         chi=float(num["stability_factor"]),
         max_saturation_change=float(num["max_saturation_change"]),
+        transport_scheme=str(num["transport_scheme"]),
+        max_time_step=float(num["max_time_step_s"]),
         max_time=float(num["max_time_s"]),
         max_steps=int(num["max_steps"]),
         records=int(num["records"]),
@@ -149,6 +159,7 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         min_cell_void_fraction=float(num["min_cell_void_fraction"]),
         dem_substeps=int(num["dem_substeps"]),
         dem_damping=float(num["dem_damping"]),
+        dem_balance_tolerance=float(num["dem_balance_tolerance"]),
     )
 
 
@@ -187,7 +198,7 @@ class MacroModel:
     max_volume: FloatArray
     held: npt.NDArray[np.bool_]
     inert: npt.NDArray[np.bool_]
-    initial_cell_porosity: FloatArray
+    initial_void: FloatArray
     time: float = 0.0
     steps: int = 0
     boundary_inflow: float = 0.0
@@ -195,12 +206,15 @@ class MacroModel:
     remeshes: int = 0
     floored_cells: int = 0
     newton_iterations: int = 0
+    dem_substeps_used: int = 0
     phase_seconds: dict[str, float] = field(default_factory=lambda: {
         "remesh": 0.0, "transport": 0.0, "newton": 0.0, "dem": 0.0})
     _omega: FloatArray | None = None
     _exchanges: Exchanges | None = None
     _cell_pressure: FloatArray | None = None
     _readings: Readings | None = None
+    _next_dt: float = 0.0
+    _solver: CholeskySolver = field(default_factory=lambda: CholeskySolver(blas_threads=None))
 
     @property
     def n_pellets(self) -> int:
@@ -237,12 +251,11 @@ class MacroModel:
             positions=packing.positions.copy(), velocities=np.zeros_like(packing.positions),
             radii=packing.radii.copy(), water_mass=water, volume=v0.copy(),
             pressure=np.full(n_p + n_c, -s0), solid_volume=solid, reference_volume=v0,
-            max_volume=v_max, held=held, inert=inert, initial_cell_porosity=n_cell,
+            max_volume=v_max, held=held, inert=inert, initial_void=voids,
         )
         model._omega = omega
         model._hold_boundary()
         model._update_geometry()
-        model._cell_pressure = model.powder_pressure()
         model._readings = model.relax(0)
         return model
 
@@ -276,62 +289,73 @@ class MacroModel:
         self._exchanges = Exchanges(ex.pairs[keep], ex.area[keep], ex.length[keep], ex.kind[keep])
 
     def _remesh(self) -> None:
-        """New Delaunay mesh when a cell inverted; the powder state moves with it.
+        """New Delaunay mesh when an active cell inverted; the powder moves with it.
 
-        Each new cell takes the intensive state (powder fraction of the void, solid
-        fraction, saturation, swelling V/V_0) of the active old cell with the nearest
-        centroid;
-        then the powder's solid and water are rescaled so that their totals over the
-        active cells are conserved exactly. Held cells are re-selected and reset.
+        Conservative transfer: ``REMESH_SAMPLES`` points spread over each old cell (at the
+        pellets' current positions) carry equal shares of its powder solid, water and
+        volume into the new cells that contain them (Qhull point location); shares that
+        land in a new cell without powder (a sliver) go to the nearest active one. The
+        totals are conserved to round-off; what crosses between held and free cells is
+        booked as boundary inflow. The initial void is carried the same way (for the
+        neglected void fraction). Each new cell's reference volume follows from its solid
+        (V_0 = V_s / (1 - phi_powder)), its suction is the water-weighted mean of its
+        donors' (the next local solve corrects it); held cells are re-selected and reset.
         """
-        from scipy.spatial import cKDTree
+        from scipy.spatial import Delaunay, cKDTree
 
         n_p = self.n_pellets
         old = slice(n_p, None)
-        old_centroids = self.mesh.centroids
-        old_void = self.max_volume[old]
-        active_old = ~self.inert[old] & ~self.held[old]
-        fraction = np.where(self.inert[old], 0.0, self.reference_volume[old] / old_void)
-        solid_fraction = self.solid_volume[old] / self.reference_volume[old]
-        sat = np.clip(self.saturations()[old], 0.0, 1.0)
-        swell = self.volume[old] / self.reference_volume[old]
-        porosity0 = self.initial_cell_porosity
-        total_solid = float(self.solid_volume[old][active_old].sum())
-        total_water = float(self.water_mass[old][active_old].sum())
-        mesh = build_mesh(self.positions)
+        interior_before = self.interior_water()
+        triangulation = Delaunay(self.positions)
+        mesh = mesh_from_tetrahedra(triangulation.points, triangulation.simplices, triangulation.neighbors)
         omega = solid_angles(mesh.points, mesh.tetrahedra)
         voids = cell_voids(mesh, self.radii, omega, VOID_FLOOR)
-        donors = np.flatnonzero(~self.inert[old])
-        nearest = donors[cKDTree(old_centroids[donors]).query(mesh.centroids)[1]]
         inert, held = _cell_roles(mesh, voids, self.positions, self.radii, self.settings)
-        v0 = fraction[nearest] * voids
-        vs = solid_fraction[nearest] * v0
-        vol = np.minimum(swell[nearest] * v0, voids * (1.0 - 1e-9))
-        vol = np.maximum(vol, vs * (1.0 + 1e-6))
-        water = self.settings.density * sat[nearest] * (vol - vs)
-        free = ~inert[n_p:] & ~held[n_p:]
-        scale_solid = total_solid / vs[free].sum()
-        vs[free] *= scale_solid
-        v0[free] *= scale_solid
-        vol[free] *= scale_solid
-        water[free] *= total_water / water[free].sum()
-        self.mesh = mesh
-        self._omega = omega
+        # sample points of every old cell and the new cell holding each
+        corners = self.positions[self.mesh.tetrahedra]  # (n_old, 4, 3)
+        samples = np.einsum("ks,csx->ckx", _REMESH_WEIGHTS, corners).reshape(-1, 3)
+        owner = np.repeat(np.arange(self.mesh.n_cells), _REMESH_WEIGHTS.shape[0])
+        target = triangulation.find_simplex(samples)
+        lost = target < 0
+        if lost.any():
+            target[lost] = cKDTree(mesh.centroids).query(samples[lost])[1]
+        share = 1.0 / _REMESH_WEIGHTS.shape[0]
+        n_new = mesh.n_cells
+        initial_void = np.bincount(target, self.initial_void[owner] * share, minlength=n_new)
+        # powder of the active old cells only; shares landing in new inert cells move on
+        carries = ~self.inert[old][owner]
+        dest = target[carries]
+        stray = inert[n_p:][dest]
+        if stray.any():
+            active = np.flatnonzero(~inert[n_p:])
+            dest[stray] = active[cKDTree(mesh.centroids[active]).query(samples[carries][stray])[1]]
+        donor = owner[carries]
+
+        def moved(values: FloatArray) -> FloatArray:
+            return np.bincount(dest, values[old][donor] * share, minlength=n_new)
+
+        solid, water, volume = moved(self.solid_volume), moved(self.water_mass), moved(self.volume)
+        suction = moved(-self.pressure * self.water_mass) / np.maximum(water, 1e-300)
+        empty = solid <= 0.0
+        inert = inert | np.concatenate([np.zeros(n_p, dtype=np.bool_), empty])
+        held &= ~inert
+        phi_powder = float(self.settings.powder["initial_porosity"])
+        v0 = np.where(empty, voids * (1.0 - phi_powder), solid / (1.0 - phi_powder))
+        solid = np.where(empty, (1.0 - phi_powder) * v0, solid)
+        low = solid + water / self.settings.density
+        volume = np.clip(volume, low * (1.0 + 1e-6), np.maximum(voids, low * (1.0 + 1e-3)))
+        self.mesh, self._omega = mesh, omega
         self.inert, self.held = inert, held
-        self.initial_cell_porosity = porosity0[nearest]
+        self.initial_void = initial_void
         self.water_mass = np.concatenate([self.water_mass[:n_p], water])
-        self.solid_volume = np.concatenate([self.solid_volume[:n_p], vs])
+        self.solid_volume = np.concatenate([self.solid_volume[:n_p], solid])
         self.reference_volume = np.concatenate([self.reference_volume[:n_p], v0])
-        self.volume = np.concatenate([self.volume[:n_p], vol])
-        self.max_volume = np.concatenate([self.max_volume[:n_p], np.maximum(voids, vol * (1.0 + 1e-6))])
-        self.pressure = np.concatenate([self.pressure[:n_p], -np.full(voids.size, self.settings.boundary_suction)])
-        cells = slice(n_p, None)
-        porosity = 1.0 - vs / vol
-        s_guess = np.clip(np.nan_to_num(suction_of(sat[nearest], porosity, self.material),
-                                        nan=self.material.initial_suction),
-                          1.0, self.settings.max_suction * 0.999)
-        self.pressure[cells] = -s_guess
+        self.volume = np.concatenate([self.volume[:n_p], volume])
+        self.max_volume = np.concatenate([self.max_volume[:n_p], np.maximum(voids, volume * (1.0 + 1e-6))])
+        self.pressure = np.concatenate([self.pressure[:n_p],
+                                        -np.where(empty, self.material.initial_suction, suction)])
         self._hold_boundary()
+        self.boundary_inflow += self.interior_water() - interior_before
         self.remeshes += 1
 
     # ------------------------------------------------------------------ hydraulics
@@ -409,6 +433,54 @@ class MacroModel:
         free = ~self.held
         self.water_mass[free] += dt * rate[free]
 
+    def capacities(self) -> FloatArray:
+        """(n,) dm/dp of every system at its current state [kg/Pa]: the retention
+        curve's storage rho (V - V_s) dS/dp plus, where the system is not confined, the
+        swelling's rho S dV/dp = rho S V_0 beta exp(-alpha s) (Eq. 4.28)."""
+        m = self.material
+        sat = np.clip(self.saturations(), 1e-12, 1.0 - 1e-12)
+        slope = suction_derivative(sat, self.retention_porosity(), m)
+        pore = self.volume - self.solid_volume
+        swelling = self.reference_volume * m.beta * np.exp(-m.alpha * -self.pressure)
+        confined = self.volume >= self.max_volume * (1.0 - 1e-3)
+        return self.settings.density * (pore / slope + np.where(confined, 0.0, sat * swelling))
+
+    def implicit_transport(self, conductance: FloatArray, max_dt: float) -> float:
+        """Linearised backward-Euler mass update (see :mod:`macro.transport`); returns dt [s].
+
+        The trial step doubles the last accepted one (the first is Eq. 4.58's), capped by
+        ``max_time_step_s``; it shrinks until no free system's water changes by more than
+        ``max_saturation_change`` of its pore volume (at least the median system's) and
+        none loses more than ``IMPLICIT_LOSS`` of its water.
+        """
+        assert self._exchanges is not None
+        s = self.settings
+        pairs = self._exchanges.pairs
+        free = ~self.held & ~self.inert
+        capacity = self.capacities()
+        # a system smaller than the median counts as the median: tiny cells may swing
+        # further within a step (the step is stable; they hold little of the water)
+        pore = (self.volume - self.solid_volume)[free]
+        pore = np.maximum(pore, np.median(pore))
+        limit = s.max_saturation_change
+        if self._next_dt <= 0.0:
+            self._next_dt = self.time_step(conductance)
+        dt = min(self._next_dt, s.max_time_step, max_dt)
+        for _ in range(20):
+            pressure = implicit_pressures(pairs, conductance, self.pressure, capacity, dt, free, self._solver)
+            rate = mass_rates(pairs, conductance, pressure, self.volume.size)
+            change = np.abs(dt * rate[free]) / (s.density * pore)
+            # and none loses more than half its water (positivity of the mass)
+            loss = np.maximum(-dt * rate[free], 0.0) / np.maximum(self.water_mass[free], 1e-300)
+            largest = max(change.max(initial=0.0), limit / IMPLICIT_LOSS * loss.max(initial=0.0))
+            if largest <= limit:
+                break
+            dt *= 0.9 * limit / largest
+        self._next_dt = 2.0 * dt if largest <= 0.5 * limit else dt
+        self.boundary_inflow -= float(dt * rate[self.held].sum())
+        self.water_mass[~self.held] += dt * rate[~self.held]
+        return dt
+
     def solve_local(self) -> None:
         """Pressure-volume problem of every system not held (Sec. 4.3)."""
         free = np.flatnonzero(~self.held & ~self.inert)
@@ -433,39 +505,58 @@ class MacroModel:
             None if self.settings.retention_follows_porosity else self.retention_porosity()[free],
         )
         volume, pressure, iterations, fallbacks = solve_pressure_volume(
-            problem, self.material, self.settings.newton, self.volume[free])
+            problem, self.material, self.settings.newton, self.volume[free], -self.pressure[free])
         self.volume[free], self.pressure[free] = volume, pressure
         self.newton_iterations += iterations
         self.fallbacks += fallbacks
 
     # ------------------------------------------------------------------ mechanics
-    def powder_pressure(self) -> FloatArray:
-        """(n_c,) swelling pressure of the powder on its cell contour [Pa] (Eqs. 4.31-4.33).
+    def powder_pressure(self, mesh: Mesh | None = None,
+                        voids: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
+        """Effective pressure of the powder on its cell contour [Pa] (Eqs. 4.31-4.35) and
+        its derivative with respect to the cell's void [Pa/m3], both (n_c,), for the
+        cells of ``mesh`` with ``voids`` (default: the current ones).
 
-        Confined powder (V within ``CONFINED`` of its void) presses with
-        S_w beta_v exp(alpha_v m_s / V_c) (Eqs. 4.31, 4.33), m_s = rho_grain V_s its solid
-        mass and V_c the void of its cell, the volume it is confined to; free powder does
-        not. Zero everywhere when ``macro.powder_swelling_pressure`` is off.
+        Our reading of Eq. 4.33 and Fig. 4.4: the powder swells freely (no pressure) until
+        it fills its cell's void V_c; held there while its swelling target
+        V_f = V_0 (1 + eps(s)) keeps growing, it presses with the consolidation-line
+        stress between the dry density it is held at and the one it would reach free,
+        S_w [p'_vc(m_s / V_c) - p'_vc(m_s / V_f)] (Eqs. 4.31-4.32), which is zero at the
+        moment of confinement and tends to S_w p'_vc(m_s / V_c) (the thesis's cap) as
+        V_f grows; scaled by the powder's share of the tetrahedron V / V_t (Eq. 4.35).
+        Continuous in the state, so that a cell's push does not switch on and off as
+        the pellets move. Zero everywhere when ``macro.powder_swelling_pressure`` is off.
         """
+        mesh = self.mesh if mesh is None else mesh
         cells = slice(self.n_pellets, None)
+        void = np.maximum(self.max_volume[cells] if voids is None else voids, self.solid_volume[cells])
         if not self.settings.powder_pressure:
-            return np.zeros(self.n_cells)
-        v = self.volume[cells]
-        confined = v >= (1.0 - CONFINED) * self.max_volume[cells]
+            return np.zeros(self.n_cells), np.zeros(self.n_cells)
         grain = float(self.settings.powder["grain_density_kg_m3"])
-        dry = grain * self.solid_volume[cells] / np.maximum(self.max_volume[cells], self.solid_volume[cells])
-        sat = np.clip(self.saturations()[cells], 0.0, 1.0)
-        active = ~self.inert[cells]
-        return np.where(confined & active, sat * consolidation_pressure(dry, self.material), 0.0)
+        solid_mass = grain * self.solid_volume[cells]
+        free = self.reference_volume[cells] * (1.0 + swelling_strain(-self.pressure[cells], self.material))
+        volume = np.minimum(free, void)
+        held = consolidation_pressure(solid_mass / void, self.material)
+        relaxed = consolidation_pressure(solid_mass / np.maximum(free, void), self.material)
+        pore = np.maximum(volume - self.solid_volume[cells], 1e-300)
+        sat = np.clip(self.water_mass[cells] / (self.settings.density * pore), 0.0, 1.0)
+        share = volume / mesh.volumes
+        # a cell squeezed to the smallest porosity is a geometric failure of the void
+        # estimate (pellets protruding through it), not a state of the powder: no push
+        densest = grain * (1.0 - float(self.settings.powder["porosity_clamp"][0]))
+        active = ~self.inert[cells] & (free > void) & (solid_mass / void < densest * (1.0 - 1e-3))
+        pressure = np.where(active, sat * (held - relaxed) * share, 0.0)
+        # d/dV_c of S_w p'_vc(m_s / V_c) V_c / V_t at fixed water (S_w = m_w / rho (V_c - V_s))
+        slope = held * self.material.alpha_v * solid_mass / void**2 * sat * share
+        return pressure, np.where(active, slope, 0.0)
 
-    def hydro_forces(self, cell_pressure: FloatArray) -> FloatArray:
-        """(n_p, 3) forces of the cell pressures on the pellets [N] (Eqs. 4.34-4.38).
+    def hydro_forces(self, cell_pressure: FloatArray, mesh: Mesh) -> FloatArray:
+        """(n_p, 3) forces of the cell pressures on the pellets of ``mesh`` [N] (Eqs. 4.34-4.38).
 
         A pellet's sector A_k = theta r^2 / 2 of each triangle is pushed by the pressure
         difference across it, A_k (P_i - P_j) n_ij (n_ij from cell i to j); on the hull,
         A_k P_i n_out.
         """
-        mesh = self.mesh
         forces = np.zeros((self.n_pellets, 3))
         for verts, cells, normals, outside in (
             (mesh.facet_vertices, mesh.facet_cells, mesh.facet_normals, False),
@@ -483,28 +574,43 @@ class MacroModel:
         return forces
 
     def relax(self, substeps: int) -> Readings:
-        """Quasi-static DEM substeps under the current radii, moduli and hydro forces."""
+        """Quasi-static DEM under the current radii, moduli and powder: damped substeps
+        until the unbalanced force ratio is below ``dem_balance_tolerance``, at most
+        ``substeps`` (counted in ``dem_substeps_used``).
+
+        The powder's push and its stiffness (dP/dV_c A^2 over a pellet's cells, added to
+        the fictitious mass) are those of the step's geometry.
+        """
         s = self.settings
         young = young_modulus(-self.pressure[: self.n_pellets], self.material)
         nu = self.material.poisson_ratio
-        assert self._cell_pressure is not None
-        external = self.hydro_forces(self._cell_pressure)
         z_lo, z_hi = -0.5 * s.height, 0.5 * s.height
         skin = 0.2 * float(self.radii.mean())
         pairs = detect_contacts(self.positions, self.radii, 1.0, skin)
         reference = self.positions.copy()
         # fictitious mass floor: the stiffness of a contact overlapping by 1e-3 r
         floor = 2.0 * young / (1.0 - nu * nu) * self.radii * np.sqrt(1e-3)
+        cap = 1e-3 * self.radii
+        tet = self.mesh.tetrahedra
+        assert self._omega is not None
+        self._cell_pressure, slope = self.powder_pressure()
+        external = self.hydro_forces(self._cell_pressure, self.mesh)
+        area = self._omega * self.radii[tet] ** 2
+        powder_stiffness = np.bincount(tet.ravel(), (slope[:, None] * area**2).ravel(), minlength=self.n_pellets)
         for k in range(substeps + 1):
             if 2.0 * np.sqrt(((self.positions - reference) ** 2).sum(axis=1)).max() > skin:
                 pairs = detect_contacts(self.positions, self.radii, 1.0, skin)
                 reference = self.positions.copy()
             forces = external.copy()
-            stiffness = np.zeros(self.n_pellets)
+            stiffness = powder_stiffness.copy()
             normal = _kernels.hertz_pairs(self.positions, self.radii, young, nu, pairs, forces, stiffness)
             radial, lower, upper = _kernels.container_contacts(
                 self.positions, self.radii, young, nu, s.radius, z_lo, z_hi, forces, stiffness)
-            if k == substeps:
+            carried = np.concatenate([normal[normal > 0.0], radial[radial > 0.0],
+                                      lower[lower > 0.0], upper[upper > 0.0]])
+            resultant = np.sqrt((forces**2).sum(axis=1)).mean()
+            unbalanced = float(resultant / carried.mean()) if carried.size else 0.0
+            if k == substeps or unbalanced < s.dem_balance_tolerance:
                 break
             mass = np.maximum(stiffness, floor)[:, None]
             mid = self.velocities + 0.5 * forces / mass
@@ -513,12 +619,9 @@ class MacroModel:
             # a substep moves a pellet by at most 1e-3 of its radius (Hertz stiffens with
             # the overlap faster than the mass scaling follows)
             speed = np.sqrt((self.velocities**2).sum(axis=1))
-            cap = 1e-3 * self.radii
             self.velocities *= np.minimum(1.0, cap / np.maximum(speed, 1e-300))[:, None]
             self.positions += self.velocities
-        carried = normal[normal > 0.0]
-        resultant = np.sqrt((forces**2).sum(axis=1)).mean()
-        unbalanced = float(resultant / carried.mean()) if carried.size else 0.0
+        self.dem_substeps_used += k
         sensors = self._band_pressures(radial)
         area = np.pi * s.radius**2
         upper_force, lower_force = float(upper.sum()), float(lower.sum())
@@ -574,8 +677,11 @@ class MacroModel:
         self.phase_seconds["remesh"] += now - clock
         clock = now
         conductance = self.conductances()
-        dt = min(self.time_step(conductance), self.saturation_limited_step(conductance), max_dt)
-        self.transport(dt, conductance)
+        if self.settings.transport_scheme == "implicit":
+            dt = self.implicit_transport(conductance, max_dt)
+        else:
+            dt = min(self.time_step(conductance), self.saturation_limited_step(conductance), max_dt)
+            self.transport(dt, conductance)
         now = time.perf_counter()
         self.phase_seconds["transport"] += now - clock
         clock = now
@@ -585,7 +691,6 @@ class MacroModel:
         clock = now
         n_p = self.n_pellets
         self.radii = np.cbrt(3.0 * self.volume[:n_p] / (4.0 * np.pi))
-        self._cell_pressure = self.powder_pressure()
         self._readings = self.relax(self.settings.dem_substeps)
         self.phase_seconds["dem"] += time.perf_counter() - clock
         self.time += dt
@@ -598,10 +703,9 @@ class MacroModel:
         return self._readings
 
     def neglected_void_fraction(self) -> float:
-        """Fraction of the cells' initial void in inert cells [1]."""
+        """Fraction of the cells' initial void in cells without powder [1]."""
         cells = slice(self.n_pellets, None)
-        void = self.reference_volume[cells] / (1.0 - self.initial_cell_porosity)
-        return float(void[self.inert[cells]].sum() / void.sum())
+        return float(self.initial_void[self.inert[cells]].sum() / self.initial_void.sum())
 
     def interior_water(self) -> float:
         """Water mass of the systems not held [kg]."""

@@ -62,3 +62,10 @@ def small_config(**macro: Any) -> dict[str, Any]:
     config["macro"]["numerics"]["packing_iterations"] = 1500
     config["macro"].update(macro)
     return config
+
+
+def swelling(suction):
+    """Eq. 4.28 with the sign of DESIGN section 3, per Pa."""
+    pellet = CONFIG["materials"]["mixture_pellet"]
+    a, b, s0 = pellet["swelling_alpha_per_pa"], pellet["swelling_beta_per_pa"], pellet["initial_suction_pa"]
+    return b / a * (np.exp(-a * suction) - np.exp(-a * s0))

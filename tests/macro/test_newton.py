@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from tests._defaults import CONFIG
+from tests._macro_cases import swelling
 
 from macro.laws import mixture_parameters
 from macro.newton import NewtonError, NewtonSettings, PVProblem, constraints, solve_pressure_volume
@@ -34,13 +35,6 @@ def inverse_van_genuchten(sat, porosity):
     zeta = powder["retention_pressure_reference_pa"] * np.exp(powder["retention_pressure_porosity_factor"] * shift)
     lam = powder["retention_exponent_reference"] * np.exp(powder["retention_exponent_porosity_factor"] * shift)
     return zeta * (sat ** (-1.0 / lam) - 1.0) ** (1.0 - lam)
-
-
-def swelling(suction):
-    """Eq. 4.28 with the sign of DESIGN section 3, per Pa."""
-    pellet = CONFIG["materials"]["mixture_pellet"]
-    a, b, s0 = pellet["swelling_alpha_per_pa"], pellet["swelling_beta_per_pa"], pellet["initial_suction_pa"]
-    return b / a * (np.exp(-a * suction) - np.exp(-a * s0))
 
 
 def random_states(rng, n, largest=1e8):

@@ -7,12 +7,12 @@ import json
 import numpy as np
 import pytest
 import xarray as xr
-from tests._macro_cases import small_config, synthetic_table, write_table
+from tests._macro_cases import small_config, swelling, synthetic_table, write_table
 
 from macro.laws import mixture_parameters
 from macro.model import MacroModel, macro_settings
 from macro.packing import Packing, pack_cylinder
-from macro.run import run
+from macro.run import build_model, run
 from shared.io import OutputError
 from shared.provenance import file_sha256
 from shared.upscaling import PermeabilityTable
@@ -127,3 +127,35 @@ def test_near_equilibrium_stop_criterion():
     assert not near_equilibrium(times, rising, 0.2, 0.01)
     assert not near_equilibrium(times[:5], plateau[:5], 0.2, 0.01)
     assert not near_equilibrium(times, plateau, 0.2, 0.0)
+
+
+def test_powder_pressure_starts_at_confinement_and_stays_below_the_consolidation_line(table_path):
+    """Eqs. 4.31-4.33 as read in MacroModel.powder_pressure: a cell whose free swelling
+    volume V_0 (1 + eps(s)) stays inside its void presses with nothing; wetted past the
+    confinement its push grows continuously from zero and stays below the thesis's cap
+    S_w beta_v exp(alpha_v m_s / V_c) (Eq. 4.33's min), written out here."""
+    config = small_config()
+    model = build_model(config, "small", PermeabilityTable.from_file(table_path, "free"))
+    powder = config["macro"]["powder"]
+    n_p = model.n_pellets
+    cells = np.flatnonzero(~model.inert[n_p:] & ~model.held[n_p:])
+    free_volume = model.reference_volume[n_p + cells] * (1 + swelling(-model.pressure[n_p + cells]))
+    assert np.all(free_volume < model.max_volume[n_p + cells])
+    assert np.all(model.powder_pressure()[0][cells] == 0.0)
+    # wet the cells step by step: the push appears once V_f reaches the void, grows
+    pushes = []
+    for suction in np.geomspace(1.3e8, 1e6, 30):
+        model.pressure[n_p + cells] = -suction
+        pushes.append(model.powder_pressure()[0][cells])
+    pushes = np.array(pushes)
+    assert np.all(np.diff(pushes, axis=0) >= -1e-9 * pushes.max())
+    void = model.max_volume[n_p + cells]
+    solid_mass = powder["grain_density_kg_m3"] * model.solid_volume[n_p + cells]
+    sat = np.minimum(model.water_mass[n_p + cells] / (1000.0 * (void - model.solid_volume[n_p + cells])), 1.0)
+    cap = sat * powder["swelling_beta_v_pa"] * np.exp(powder["swelling_alpha_v_m3_per_kg"] * solid_mass / void)
+    assert pushes[-1].max() > 0.0
+    assert np.all(pushes[-1] <= cap * (1 + 1e-9))
+    # continuity at the confinement: the first nonzero push is small against the cap
+    first = np.argmax(pushes > 0.0, axis=0)
+    rows = first[pushes[-1] > 0.0]
+    assert np.median(pushes[rows, np.flatnonzero(pushes[-1] > 0.0)] / cap[pushes[-1] > 0.0]) < 0.3
