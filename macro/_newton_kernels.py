@@ -7,7 +7,9 @@ retention curve (the formulas of :mod:`shared.retention`, scalar here) and alpha
 beta [1/Pa], s_0 [Pa] of the swelling law (:mod:`shared.swelling`).
 
 Status per system: 0 solved by Newton-Raphson, 1 solved by the bracketed search,
-2 no feasible volume (its water does not fit below V_max), 3 no solution found.
+2 no feasible volume (its water does not fit below V_max), 3 no solution found, 4 drier
+than the retention curve allows at s_max (fixed retention porosity: no root, the system
+sits on the bound without a search).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-NEWTON, BRACKETED, INFEASIBLE, UNSOLVED = 0, 1, 2, 3
+NEWTON, BRACKETED, INFEASIBLE, UNSOLVED, DRIEST = 0, 1, 2, 3, 4
 BOUND = 1e-6
 """A constraint within this relative distance of its bound is active."""
 GRID = 512
@@ -143,10 +145,15 @@ def _gap(s, m, vs, v0, vmax, fixed, rho, law):  # type: ignore[no-untyped-def]
 
 @njit(cache=True)
 def _bracketed(m, vs, v0, vmax, fixed, rho, smax, previous, law):  # type: ignore[no-untyped-def]
-    """Root of g on a log-suction grid nearest the previous suction (roots with V inside
-    its bounds first), bisected; the suction bound when g has no root (too dry: s_max;
-    too wet: the grid's smallest suction)."""
+    """Root of g: with a fixed retention porosity g is monotone and bisected over the
+    whole log-suction range; otherwise the sign change on a log-suction grid nearest the
+    previous suction (roots with V inside its bounds first) is bisected. Without a root,
+    the suction bound (too dry: s_max; too wet: the range's smallest suction)."""
     lo_log, hi_log = np.log(1e-9 * smax), np.log(smax * (1.0 - 1e-9))
+    if fixed == fixed:
+        # fixed retention porosity: g increases with s (V(s) shrinks, S_ret falls), one
+        # root at most, bisected over the whole range
+        return _bisected(lo_log, hi_log, m, vs, v0, vmax, fixed, rho, law)
     best, best_dist = -1, np.inf
     prev_log = np.log(min(max(previous, 1e-9 * smax), smax))
     g_prev = _gap(np.exp(lo_log), m, vs, v0, vmax, fixed, rho, law)
@@ -170,7 +177,19 @@ def _bracketed(m, vs, v0, vmax, fixed, rho, smax, previous, law):  # type: ignor
         return _clipped_volume(s, m, vs, v0, vmax, rho, law), s
     a = lo_log + (hi_log - lo_log) * (best - 1) / (GRID - 1)
     b = lo_log + (hi_log - lo_log) * best / (GRID - 1)
+    return _bisected(a, b, m, vs, v0, vmax, fixed, rho, law)
+
+
+@njit(cache=True)
+def _bisected(a, b, m, vs, v0, vmax, fixed, rho, law):  # type: ignore[no-untyped-def]
+    """(V, s) at the sign change of g in log-suction [a, b]; the end of the interval
+    that g approaches zero from when it does not change sign (a suction bound)."""
     ga = _gap(np.exp(a), m, vs, v0, vmax, fixed, rho, law)
+    gb = _gap(np.exp(b), m, vs, v0, vmax, fixed, rho, law)
+    if ga > 0.0 and gb > 0.0:  # saturated: S = 1 > S_ret everywhere
+        return _clipped_volume(np.exp(a), m, vs, v0, vmax, rho, law), np.exp(a)
+    if ga < 0.0 and gb < 0.0:  # drier than the curve allows at s_max
+        return _clipped_volume(np.exp(b), m, vs, v0, vmax, rho, law), np.exp(b)
     for _ in range(60):
         c = 0.5 * (a + b)
         gc = _gap(np.exp(c), m, vs, v0, vmax, fixed, rho, law)
@@ -219,6 +238,11 @@ def solve_systems(water, solid, v0, vmax, fixed, previous_volume, previous_sucti
             else:
                 hi = c
         s = np.exp(0.5 * (lo + hi))
+        if fixed[i] == fixed[i] and _gap(smax * (1.0 - 1e-9), m, vs, v0[i], vm, fixed[i], rho, law) < 0.0:
+            s = smax * (1.0 - 1e-9)
+            volume[i], suction[i] = _clipped_volume(s, m, vs, v0[i], vm, rho, law), s
+            status[i] = DRIEST
+            continue
         # Eq. 4.48
         v = min(max(_target(s, v0[i], law), low + 1e-3 * gap), vm - 1e-3 * gap)
         v, s, iterations[i] = _newton(m, vs, v0[i], vm, fixed[i], rho, smax, v, s, tol,

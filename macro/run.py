@@ -10,9 +10,11 @@ largest magnitude over the last ``stop_window_fraction`` of the elapsed time) or
 
 from __future__ import annotations
 
+import hashlib
+import json
 import logging
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -20,11 +22,15 @@ import numpy as np
 import numpy.typing as npt
 import xarray as xr
 
+from macro.checkpoint import load_snapshot, save_snapshot
 from macro.laws import mixture_parameters
 from macro.model import MacroModel, MacroSettings, macro_settings
+from macro.newton import NewtonError
+from macro.vtk import SnapshotSeries
 from macro.packing import pack_cylinder
 from shared.io import write_dataset
 from shared.progress import Progress
+from shared.provenance import file_sha256
 from shared.upscaling import PermeabilityTable
 
 __all__ = ["run", "simulate", "near_equilibrium"]
@@ -59,13 +65,26 @@ def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) 
     return model
 
 
-def simulate(model: MacroModel) -> tuple[xr.Dataset, str]:
-    """Hydrate until near equilibrium or a guard; returns the records and the stop reason."""
+def simulate(
+    model: MacroModel,
+    rows: dict[str, list[Any]] | None = None,
+    snapshot: Callable[[MacroModel, dict[str, list[Any]]], None] | None = None,
+    snapshot_every: float = float("inf"),
+    series: SnapshotSeries | None = None,
+) -> tuple[xr.Dataset, str]:
+    """Hydrate until near equilibrium or a guard; returns the records and the stop reason.
+
+    ``rows`` are the records of a resumed run (None: a new run); ``snapshot(model, rows)``
+    is called every ``snapshot_every`` seconds of wall time, after a whole step;
+    ``series`` writes the ParaView snapshots when due and at the end.
+    """
     s: MacroSettings = model.settings
     edges = np.linspace(-0.5 * s.height, 0.5 * s.height, PROFILE_BINS + 1)
-    rows: dict[str, list[Any]] = {k: [] for k in (
-        "time", "sensors", "axial_upper", "axial_lower", "suction", "saturation",
-        "swelling", "suction_profile", "pellet_suction", "unbalanced", "dt")}
+    new = rows is None
+    if rows is None:
+        rows = {k: [] for k in (
+            "time", "sensors", "axial_upper", "axial_lower", "suction", "saturation",
+            "swelling", "suction_profile", "pellet_suction", "unbalanced", "dt")}
 
     def record(dt: float) -> None:
         r = model.readings
@@ -82,24 +101,33 @@ def simulate(model: MacroModel) -> tuple[xr.Dataset, str]:
         rows["unbalanced"].append(r.unbalanced)
         rows["dt"].append(dt)
 
-    record(0.0)
+    if new:
+        record(0.0)
     # progress towards the first guard to stop the run (simulated time or steps)
     progress = Progress(1.0, f"macro ({model.n_pellets} pellets, {model.n_cells} cells), "
                         "fraction of the max_time_s/max_steps guard", LOG)
     reason = "max_steps"
+    last_snapshot = time.monotonic()
     while model.steps < s.max_steps:
         dt = model.step(max_dt=s.max_time - model.time)
         record(dt)
+        if series is not None and series.due(model):
+            series.write(model)
         progress.update(max(model.time / s.max_time, model.steps / s.max_steps))
         if model.time >= s.max_time * (1.0 - 1e-12):
             reason = "max_time"
             break
-        series = np.column_stack([np.array(rows["sensors"]), np.array(rows["axial_upper"]),
-                                  np.array(rows["suction"])])
-        if near_equilibrium(np.array(rows["time"]), series, s.stop_window, s.stop_tolerance):
+        history = np.column_stack([np.array(rows["sensors"]), np.array(rows["axial_upper"]),
+                                   np.array(rows["suction"])])
+        if near_equilibrium(np.array(rows["time"]), history, s.stop_window, s.stop_tolerance):
             reason = "near_equilibrium"
             break
+        if snapshot is not None and time.monotonic() - last_snapshot >= snapshot_every:
+            snapshot(model, rows)
+            last_snapshot = time.monotonic()
     progress.update(max(model.time / s.max_time, model.steps / s.max_steps), force=True)
+    if series is not None:
+        series.write(model)
     LOG.info("stopped (%s) at t = %.4g s after %d steps", reason, model.time, model.steps)
     return _dataset(model, rows, edges), reason
 
@@ -202,19 +230,45 @@ def run(
     start = time.monotonic()
     settings = macro_settings(config["macro"], case)
     table = PermeabilityTable.from_file(table_path, settings.table_condition)
-    model = build_model(config, case, table)
-    LOG.info("case %s: %d pellets (packing fraction %.3f), %d cells (%d held, %.2g %% void inert)",
-             case, model.n_pellets, model.packing.packing_fraction,  # type: ignore[attr-defined]
-             model.n_cells, int(model.held.sum()), 100 * model.neglected_void_fraction())
-    ds, reason = simulate(model)
-    ds.attrs["stop_reason"] = reason
-    ds.attrs["runtime_s"] = time.monotonic() - start
     section = {"macro": config["macro"], "case": case,
                "materials": {k: config["materials"][k] for k in ("mixture_pellet", "mixture_powder")}}
+    digest = hashlib.sha256((json.dumps(section, sort_keys=True, default=str)
+                             + file_sha256(table_path)).encode()).hexdigest()
+    output_path = Path(output_path)
+    snapshot_path = output_path.with_name(f".{output_path.stem}.snapshot.pkl")
+    resumed = load_snapshot(snapshot_path, digest)
+    if resumed is None:
+        model, rows, earlier = build_model(config, case, table), None, 0.0
+        LOG.info("case %s: %d pellets (packing fraction %.3f), %d cells (%d held, %.2g %% void inert)",
+                 case, model.n_pellets, model.packing.packing_fraction,  # type: ignore[attr-defined]
+                 model.n_cells, int(model.held.sum()), 100 * model.neglected_void_fraction())
+    else:
+        model, rows, earlier = resumed
+        LOG.info("case %s: resumed from %s at step %d (t = %.4g s)", case, snapshot_path,
+                 model.steps, model.time)
+
+    def snapshot(current: MacroModel, records: dict[str, list[Any]]) -> None:
+        save_snapshot(snapshot_path, digest, current, records, earlier + time.monotonic() - start)
+
+    series = None
+    if settings.vtk_snapshots > 0:
+        series = SnapshotSeries(output_path.with_name(f"{output_path.stem}_vtk"), output_path.stem,
+                                settings.vtk_snapshots, settings.max_time, resumed is not None)
+        series.entries = [e for e in series.entries if e[0] <= model.time]
+    try:
+        ds, reason = simulate(model, rows, snapshot, settings.snapshot_interval, series)
+    except NewtonError as error:
+        kept = f"; the last snapshot ({snapshot_path}) is kept" if snapshot_path.is_file() else ""
+        raise NewtonError(f"macro case {case} at step {model.steps} (t = {model.time:.6g} s): "
+                          f"{error}{kept}") from error
+    ds.attrs["stop_reason"] = reason
+    ds.attrs["runtime_s"] = earlier + time.monotonic() - start
+    ds.attrs["resumed"] = int(resumed is not None)
     write_dataset(ds, output_path, stage="macro", title=f"claychain macro mock-up {case}",
                   config=section, seed=settings.seed, inputs=[table_path], rule=rule,
                   wildcards={"case": case},
                   references="Caulk (2022) thesis Chap. 4 and Appendix .1")
+    snapshot_path.unlink(missing_ok=True)
     if figure_path is not None:
         from macro.figures import case_figure
 

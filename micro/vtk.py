@@ -28,8 +28,6 @@ its directory and renamed.
 from __future__ import annotations
 
 import re
-import xml.etree.ElementTree as ET
-from collections.abc import Sequence
 from pathlib import Path
 
 import meshio
@@ -39,8 +37,9 @@ import numpy.typing as npt
 from micro.forces import point_suction
 from micro.hydration import PelletState
 from shared.io import atomic_write
+from shared.vtk import write_collection
 
-__all__ = ["snapshot_mesh", "write_snapshot", "write_collection", "write_checkpoint_snapshot",
+__all__ = ["snapshot_mesh", "write_snapshot", "write_checkpoint_snapshot",
            "clear_snapshots", "snapshot_name"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -132,33 +131,6 @@ def write_snapshot(path: str | Path, state: PelletState, cracks: bool = True) ->
     grid = snapshot_mesh(state, cracks)
     # binary, zlib-compressed appended data (meshio's default for vtu)
     return atomic_write(path, lambda tmp: meshio.write(tmp, grid, file_format="vtu"))
-
-
-def write_collection(path: str | Path, entries: Sequence[tuple[float, str]]) -> Path:
-    """Write a ParaView ``.pvd`` collection of snapshots, atomically.
-
-    Parameters
-    ----------
-    path
-        Output ``.pvd`` file.
-    entries
-        (time step, file name relative to the ``.pvd``'s directory) of each snapshot,
-        in increasing time step.
-
-    Returns
-    -------
-    Path
-        ``path``.
-    """
-    root = ET.Element("VTKFile", type="Collection", version="0.1", byte_order="LittleEndian")
-    collection = ET.SubElement(root, "Collection")
-    for timestep, name in entries:
-        ET.SubElement(collection, "DataSet", timestep=repr(float(timestep)), group="",
-                      part="0", file=str(name))
-    ET.indent(root)
-    tree = ET.ElementTree(root)
-    return atomic_write(path, lambda tmp: tree.write(tmp, encoding="utf-8",
-                                                     xml_declaration=True))
 
 
 def _snapshots(directory: Path) -> list[tuple[int, str]]:

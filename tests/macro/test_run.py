@@ -159,3 +159,21 @@ def test_powder_pressure_starts_at_confinement_and_stays_below_the_consolidation
     first = np.argmax(pushes > 0.0, axis=0)
     rows = first[pushes[-1] > 0.0]
     assert np.median(pushes[rows, np.flatnonzero(pushes[-1] > 0.0)] / cap[pushes[-1] > 0.0]) < 0.3
+
+
+def test_paraview_series_lists_its_snapshots(table_path, tmp_path):
+    """The .pvd names every snapshot written, in time order, and each .vtu holds the
+    pellets as points and the cells as tetrahedra with their fields."""
+    import meshio
+
+    config = small_config()
+    config["macro"]["numerics"].update(max_steps=12, max_time_s=2000.0, stop_tolerance=0.0)
+    config["macro"]["vtk_snapshots"] = 4
+    ds = run(config, "small", table_path, tmp_path / "small.nc")
+    pvd = (tmp_path / "small_vtk" / "small.pvd").read_text()
+    files = sorted((tmp_path / "small_vtk").glob("step_*.vtu"))
+    assert 2 <= len(files) <= 5 and all(f.name in pvd for f in files)
+    grid = meshio.read(files[-1])
+    assert grid.points.shape == (ds.sizes["pellet"], 3)
+    assert grid.cells_dict["tetra"].shape[0] == ds.attrs["n_cells"]
+    np.testing.assert_allclose(grid.point_data["radius_m"], ds["pellet_radius_final"].values)
