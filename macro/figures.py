@@ -10,7 +10,7 @@ import xarray as xr
 
 from shared.figures import new_figure, save_figure
 
-__all__ = ["case_figure"]
+__all__ = ["case_figure", "comparison_figure"]
 
 
 def case_figure(ds: xr.Dataset, path: str | Path) -> Path:
@@ -40,4 +40,28 @@ def case_figure(ds: xr.Dataset, path: str | Path) -> Path:
     axes[2].set_xlabel("height [cm]")
     axes[2].set_ylabel("swelling strain V/V0 - 1 [1]")
     axes[2].set_title("swelling along the axis")
+    return save_figure(fig, path)
+
+
+def comparison_figure(cases: dict[str, xr.Dataset], path: str | Path) -> Path:
+    """Cases side by side (e.g. Weibull, homogeneous and random-field powder, with and
+    without the powder's push on the walls): mean sensor pressure, axial pressure and
+    mean pellet suction against time."""
+    fig, grid = new_figure(1, 3, width=4.2, height=3.4)
+    axes = grid[0]  # type: ignore[index]
+    for name, ds in sorted(cases.items()):
+        days = ds["time"].values / 86400.0
+        label = f"{name} ({ds.attrs.get('powder_heterogeneity', '?')}" + (
+            ", powder on walls)" if ds.attrs.get("powder_pressure_on_walls") else ")")
+        axes[0].plot(days, ds["sensor_pressure"].mean("sensor").values / 1e6, label=label)
+        axes[1].plot(days, ds["axial_pressure"].values / 1e6, label=label)
+        axes[2].plot(days, ds["mean_suction"].sel(material="pellet").values / 1e6, label=label)
+    for ax, what in zip(axes, ("mean radial wall pressure [MPa]", "axial pressure [MPa]",
+                               "mean pellet suction [MPa]")):
+        ax.set_xlabel("time [d]")
+        ax.set_ylabel(what)
+    axes[0].legend(fontsize=6)
+    axes[0].set_title("sensors (mean of the bands)")
+    axes[1].set_title("upper plate")
+    axes[2].set_title("hydration")
     return save_figure(fig, path)

@@ -21,13 +21,13 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from scipy.spatial.transform import Rotation
 from threadpoolctl import threadpool_limits
 
 from macro import _kernels
 from macro.field import cell_porosity
 from macro.laws import (
     MixtureParameters,
-    suction as suction_of,
     consolidation_pressure,
     powder_permeability,
     saturation,
@@ -74,10 +74,12 @@ class MacroSettings:
     height: float
     radius: float
     pellet_radius: float
+    pellet_radius_spread: float
     packing_fraction: float
     pellet_porosity: float
     powder: Mapping[str, Any]
     table_condition: str
+    pellet_permeability: str
     boundary_suction: float
     max_suction: float
     density: float
@@ -126,10 +128,12 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         height=float(macro["cylinder_height_m"]),
         radius=float(macro["cylinder_radius_m"]),
         pellet_radius=float(over.get("pellet_radius_m", macro["pellet_radius_m"])),
+        pellet_radius_spread=float(over.get("pellet_radius_spread", macro["pellet_radius_spread"])),
         packing_fraction=float(over.get("packing_fraction", macro["packing_fraction"])),
         pellet_porosity=float(macro["pellet_porosity"]),
         powder=powder,
         table_condition=str(over.get("table_condition", macro["table_condition"])),
+        pellet_permeability=str(over.get("pellet_permeability", macro["pellet_permeability"])),
         boundary_suction=float(macro["boundary_suction_pa"]),
         max_suction=float(macro["max_suction_pa"]),
         density=float(macro["water_density_kg_m3"]),
@@ -218,6 +222,7 @@ class MacroModel:
     _cell_pressure: FloatArray | None = None
     _readings: Readings | None = None
     _next_dt: float = 0.0
+    pellet_frames: FloatArray | None = None
 
     @property
     def n_pellets(self) -> int:
@@ -257,6 +262,8 @@ class MacroModel:
             max_volume=v_max, held=held, inert=inert, initial_void=voids,
         )
         model._omega = omega
+        if settings.pellet_permeability == "tensor":
+            model.pellet_frames = Rotation.random(n_p, random_state=np.random.default_rng(settings.seed + 2)).as_matrix()
         model._hold_boundary()
         model._update_geometry()
         model._readings = model.relax(0)
@@ -394,13 +401,35 @@ class MacroModel:
         assert ex is not None
         k = self.permeabilities()
         i, j = ex.pairs[:, 0], ex.pairs[:, 1]
-        k_edge = harmonic_mean(k[i], k[j])
+        k_i, k_j = k[i], k[j]
+        if self.pellet_frames is not None:
+            k_i, k_j = self._directional_permeabilities(k_i, k_j)
+        k_edge = harmonic_mean(k_i, k_j)
         cc = ex.kind == 2
         sat, por = self.saturations(), self.porosities()
         k_edge[cc] = powder_permeability(0.5 * (sat[i[cc]] + sat[j[cc]]),
                                          0.5 * (por[i[cc]] + por[j[cc]]), self.material)
         s = self.settings
         return conductances(ex.area, ex.length, k_edge, s.density, s.viscosity, s.conductivity_factor)
+
+    def _directional_permeabilities(self, k_i: FloatArray, k_j: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The pellet ends of the exchanges with the table's tensor (thesis Sec. 6.3): each
+        pellet's tensor, rotated into the lab by its random frame (its compaction axis),
+        read along the exchange, d^T R K R^T d (d the unit vector between the systems'
+        centres); the cell ends keep the powder's."""
+        assert self._exchanges is not None and self.pellet_frames is not None
+        n_p = self.n_pellets
+        frames = self.pellet_frames
+        tensor = frames @ self.table.tensor(-self.pressure[:n_p], "water") @ np.swapaxes(frames, 1, 2)
+        centres = np.concatenate([self.positions, self.mesh.centroids])
+        i, j = self._exchanges.pairs[:, 0], self._exchanges.pairs[:, 1]
+        d = centres[j] - centres[i]
+        d /= np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+        k_i, k_j = k_i.copy(), k_j.copy()
+        for k_end, end in ((k_i, i), (k_j, j)):
+            pellet = end < n_p
+            k_end[pellet] = np.einsum("ea,eab,eb->e", d[pellet], tensor[end[pellet]], d[pellet])
+        return k_i, k_j
 
     def time_step(self, conductance: FloatArray) -> float:
         """Stable explicit step of Eq. 4.58 [s]."""

@@ -59,7 +59,7 @@ def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) 
     material = mixture_parameters(config["materials"], settings.powder)
     packing = pack_cylinder(settings.height, settings.radius, settings.pellet_radius,
                             settings.packing_fraction, np.random.default_rng(settings.seed),
-                            settings.packing_sweeps)
+                            settings.packing_sweeps, settings.pellet_radius_spread)
     model = MacroModel.create(settings, material, table, packing)
     model.packing = packing  # type: ignore[attr-defined]
     return model

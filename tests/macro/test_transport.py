@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests._macro_cases import small_config
+from tests._macro_cases import small_config, synthetic_table
 
 from macro.run import build_model
 from macro.transport import implicit_pressures, mass_rates, stable_time_step
+from shared.io import write_dataset
 from shared.upscaling import PermeabilityTable
 
 
@@ -148,3 +149,35 @@ def test_explicit_and_implicit_schemes_agree(table_path):
     drop = s0 - suctions["explicit"]
     assert drop.min() > 0.01 * s0  # both did hydrate
     np.testing.assert_allclose(s0 - suctions["implicit"], drop, rtol=0.1)
+
+
+def test_tensor_permeability_is_read_along_the_exchange(tmp_path):
+    """A table whose tensor is 10x larger along the compaction axis z: with every pellet's
+    frame the identity, an exchange along z reads k_zz and one along x reads k_xx, and
+    d^T K d in general; with random frames the reading changes but stays between them."""
+    table = synthetic_table()
+    table["k_tensor"].values[..., 2, 2] *= 10.0
+    path = tmp_path / "aniso.nc"
+    write_dataset(table, path, stage="upscaling", title="anisotropic synthetic table")
+    config = small_config()
+    config["macro"]["pellet_permeability"] = "tensor"
+    model = build_model(config, "small", PermeabilityTable.from_file(path, "free"))
+    n_p = model.n_pellets
+    model.pellet_frames = np.broadcast_to(np.eye(3), (n_p, 3, 3)).copy()
+    k = model.permeabilities()
+    k_i, _ = model._directional_permeabilities(k[model._exchanges.pairs[:, 0]], k[model._exchanges.pairs[:, 1]])
+    tensor = model.table.tensor(-model.pressure[:n_p], "water")
+    pairs = model._exchanges.pairs
+    centres = np.concatenate([model.positions, model.mesh.centroids])
+    d = centres[pairs[:, 1]] - centres[pairs[:, 0]]
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    pellet = pairs[:, 0] < n_p
+    xx, zz = tensor[pairs[pellet, 0], 0, 0], tensor[pairs[pellet, 0], 2, 2]
+    expected = xx * (d[pellet, 0] ** 2 + d[pellet, 1] ** 2) + zz * d[pellet, 2] ** 2
+    np.testing.assert_allclose(k_i[pellet], expected, rtol=1e-10)
+    np.testing.assert_allclose(zz / xx, 10.0, rtol=1e-6)
+    model.pellet_frames = None
+    random = build_model(config, "small", PermeabilityTable.from_file(path, "free"))
+    k_r, _ = random._directional_permeabilities(k[pairs[:, 0]], k[pairs[:, 1]])
+    assert np.all(k_r[pellet] >= xx * (1 - 1e-9)) and np.all(k_r[pellet] <= zz * (1 + 1e-9))
+    assert not np.allclose(k_r[pellet], expected, rtol=1e-3, atol=0.0)

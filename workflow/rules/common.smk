@@ -153,11 +153,12 @@ def get_macro_materials(wildcards):
 
 
 def get_macro_outputs():
-    """One result and figure per macro case."""
-    return expand(
+    """One result and figure per macro case; the cases on one figure when there are several."""
+    outputs = expand(
         ["results/macro/{macro_case}.nc", "results/macro/{macro_case}.png"],
         macro_case=MACRO_CASES,
     )
+    return outputs + (["results/macro/comparison.png"] if len(MACRO_CASES) > 1 else [])
 
 
 def get_study_outputs():

@@ -19,3 +19,20 @@ rule macro_case:
         "results/benchmarks/macro_case/{macro_case}.tsv"
     script:
         "../scripts/macro_case.py"
+
+
+rule macro_comparison:
+    input:
+        cases=expand("results/macro/{macro_case}.nc", macro_case=MACRO_CASES),
+    output:
+        figure="results/macro/comparison.png",
+    params:
+        code=MACRO_CODE,
+    conda:
+        "../envs/claychain.yaml"
+    log:
+        "results/logs/macro_comparison.log",
+    benchmark:
+        "results/benchmarks/macro_comparison.tsv"
+    script:
+        "../scripts/macro_comparison.py"
