@@ -23,7 +23,7 @@ from benchmarks.parameters import CONFIG
 from shared.io import write_dataset
 from shared.upscaling import PermeabilityTable
 
-__all__ = ["bench_macro_steps", "synthetic_table"]
+__all__ = ["bench_macro_scaling", "bench_macro_steps", "synthetic_table"]
 
 
 def synthetic_table() -> xr.Dataset:
@@ -47,15 +47,21 @@ def synthetic_table() -> xr.Dataset:
     )
 
 
-def bench_macro_steps(steps: int = 100) -> dict:
-    """Steps per second and seconds per phase of the default macro case."""
+def bench_macro_steps(steps: int = 100, pellet_radius: float | None = None) -> dict:
+    """Steps per second and seconds per phase of the default macro case (optionally with
+    another pellet radius [m], the container unchanged)."""
+    import copy
+
     from macro.run import build_model
 
-    case = sorted(CONFIG["macro"]["cases"])[0]
+    config = copy.deepcopy(CONFIG)
+    if pellet_radius is not None:
+        config["macro"]["pellet_radius_m"] = pellet_radius
+    case = sorted(config["macro"]["cases"])[0]
     with tempfile.TemporaryDirectory() as folder:
         path = write_dataset(synthetic_table(), Path(folder) / "table.nc", stage="upscaling", title="synthetic")
         start = time.perf_counter()
-        model = build_model(CONFIG, case, PermeabilityTable.from_file(path, "free"))
+        model = build_model(config, case, PermeabilityTable.from_file(path, "free"))
         setup = time.perf_counter() - start
         model.step()  # compiles what the set-up did not
         for key in model.phase_seconds:
@@ -78,6 +84,19 @@ def bench_macro_steps(steps: int = 100) -> dict:
         "newton_fallbacks": model.fallbacks,
         "remeshes": model.remeshes,
     }
+
+
+def bench_macro_scaling(steps: int = 100, radii: tuple[float, ...] = (5.99e-3, 4.73e-3, 3.65e-3, 3.0e-3)) -> dict:
+    """Cost per step against the pellet count (the Appendix .1 radii and a smaller one)
+    and the exponent of a power-law fit, per phase and in total."""
+    rows = [bench_macro_steps(steps, r) for r in radii]
+    count = np.array([r["n_pellets"] for r in rows], dtype=float)
+    fits = {}
+    for phase in ("total", *rows[0]["phase_s"]):
+        per_step = np.array([(1.0 / r["steps_per_s"]) if phase == "total" else r["phase_s"][phase] / steps
+                             for r in rows])
+        fits[phase] = float(np.polyfit(np.log(count), np.log(per_step), 1)[0])
+    return {"runs": rows, "exponent_per_step": fits}
 
 
 def main() -> None:

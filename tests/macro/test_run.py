@@ -13,7 +13,7 @@ from macro.laws import mixture_parameters
 from macro.model import MacroModel, macro_settings
 from macro.packing import Packing, pack_cylinder
 from macro.run import build_model, run
-from shared.io import OutputError
+from shared.io import OutputError, write_dataset
 from shared.provenance import file_sha256
 from shared.upscaling import PermeabilityTable
 
@@ -127,6 +127,12 @@ def test_near_equilibrium_stop_criterion():
     assert not near_equilibrium(times, rising, 0.2, 0.01)
     assert not near_equilibrium(times[:5], plateau[:5], 0.2, 0.01)
     assert not near_equilibrium(times, plateau, 0.2, 0.0)
+    # fluctuations of 10 % around a level (a quasi-static DEM's readings) do not hold the
+    # run, a slow drift under them does
+    long = np.linspace(0.0, 100.0, 2000)
+    noise = 0.1 * np.random.default_rng(0).standard_normal(long.size)
+    assert near_equilibrium(long, (1.0 + noise)[:, None], 0.2, 0.02)
+    assert not near_equilibrium(long, (1.0 + noise + 0.002 * long)[:, None], 0.2, 0.02)
 
 
 def test_powder_pressure_starts_at_confinement_and_stays_below_the_consolidation_line(table_path):
@@ -177,3 +183,34 @@ def test_paraview_series_lists_its_snapshots(table_path, tmp_path):
     assert grid.points.shape == (ds.sizes["pellet"], 3)
     assert grid.cells_dict["tetra"].shape[0] == ds.attrs["n_cells"]
     np.testing.assert_allclose(grid.point_data["radius_m"], ds["pellet_radius_final"].values)
+
+
+@pytest.mark.parametrize(("spoil", "message"), [
+    (lambda t: t["k"].values.__setitem__((0, 0, 0, 3), np.nan), "non-positive or NaN permeabilities"),
+    (lambda t: t["k"].values.__setitem__((0, 0, 1, 2), -1e-19), "non-positive or NaN permeabilities"),
+    (lambda t: t["k_tensor"].values.__setitem__((0, 0, 4, 0, 0), np.nan), "NaN in 'k_tensor'"),
+    (lambda t: t.__setitem__("suction", t["suction"].values[::-1]), "strictly increasing"),
+])
+def test_spoiled_table_is_refused_naming_the_file(table_path, tmp_path, spoil, message):
+    """NaN, non-positive k or a reversed suction axis: one error naming the file, no output."""
+    table = synthetic_table()
+    spoil(table)
+    path = tmp_path / "spoiled.nc"
+    table.to_netcdf(path)
+    with pytest.raises(OutputError, match=f"spoiled.nc.*{message}"):
+        run(small_config(), "small", path, tmp_path / "out.nc")
+    assert not (tmp_path / "out.nc").exists()
+
+
+def test_clamped_table_lookups_are_counted(tmp_path):
+    """A table covering only 1-10 MPa: the pellets at 132 MPa read beyond it, and every
+    such look-up is counted in the output."""
+    table = synthetic_table().isel(suction=slice(6, 9))
+    assert float(table["suction"].max()) < 1.32e8
+    path = tmp_path / "narrow.nc"
+    write_dataset(table, path, stage="upscaling", title="narrow table")
+    config = small_config()
+    config["macro"]["numerics"]["max_steps"] = 3
+    ds = run(config, "small", path, tmp_path / "out.nc")
+    assert ds.attrs["table_clamped_lookups"] > 0
+    assert ds.attrs["table_clamped_lookups"] <= ds.attrs["table_lookups"]
