@@ -1,4 +1,4 @@
-"""numba kernels of the macro model: packing relaxation, Hertz contacts, the container.
+"""numba kernels of the macro model: packing relaxation, Hertz-Mindlin contacts, the container.
 
 Arrays in, arrays out; serial loops that scatter into per-pellet arrays (deterministic).
 """
@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from shared.dem._kernels import _turned_shear
 
 
 @njit(cache=True)
@@ -64,12 +66,19 @@ def relax_overlaps(positions, radii, pairs, cylinder_radius, z_low, z_high, frac
 
 
 @njit(cache=True)
-def hertz_pairs(positions, radii, young, poisson, pairs, forces, stiffness):
-    """Frictionless Hertz forces F = 4/3 E* sqrt(R*) delta^(3/2) (Eqs. 4.1-4.2).
+def hertz_mindlin_pairs(positions, velocities, spins, radii, young, poisson, friction, pairs,
+                        shear, forces, torques, stiffness):
+    """Hertz-Mindlin forces between pellets (Eqs. 4.1-4.9); updates ``shear`` in place.
 
-    E* = E_a E_b / (E_b (1 - nu^2) + E_a (1 - nu^2)) from each pellet's modulus. Adds the
-    forces and the tangent stiffness 2 E* sqrt(R* delta) per pellet; returns the normal
-    force of each pair [N] (0 if apart).
+    Normal: F_n = 4/3 E* sqrt(R*) delta^(3/2), E* = E_a E_b / ((E_a + E_b)(1 - nu^2))
+    from each pellet's modulus (Eq. 4.2). Shear (Eqs. 4.5-4.9): the stored force, turned
+    into the current tangent plane, changes by -k_t times the tangential part of the
+    contact point's relative displacement in the substep (velocities and spins are per
+    substep: time unit 1), k_t = 4 G a / (2 - nu), G the mean of the two shear moduli
+    E / (2 (1 + nu)), a = sqrt(R* delta); Coulomb's limit |F_s| <= tan(phi) F_n with
+    ``friction`` = tan(phi). ``shear[k]`` is the force on ``pairs[k, 0]`` [N]. Adds the
+    forces, the torques and the normal tangent stiffness 2 E* a per pellet; returns the
+    normal force of each pair [N] (0 if apart).
     """
     normal = np.zeros(pairs.shape[0])
     factor = 1.0 - poisson * poisson
@@ -77,18 +86,45 @@ def hertz_pairs(positions, radii, young, poisson, pairs, forces, stiffness):
         i, j = pairs[k, 0], pairs[k, 1]
         dx, dy, dz, dist, overlap = _pair_overlap(positions, radii, i, j)
         if overlap <= 0.0 or dist == 0.0:
+            shear[k, 0] = shear[k, 1] = shear[k, 2] = 0.0
             continue
+        nx, ny, nz = dx / dist, dy / dist, dz / dist
         e_star = young[i] * young[j] / (factor * (young[i] + young[j]))
         a = np.sqrt(radii[i] * radii[j] / (radii[i] + radii[j]) * overlap)
         fn = 4.0 / 3.0 * e_star * a * overlap
         normal[k] = fn
-        s = fn / dist
-        forces[i, 0] -= s * dx
-        forces[i, 1] -= s * dy
-        forces[i, 2] -= s * dz
-        forces[j, 0] += s * dx
-        forces[j, 1] += s * dy
-        forces[j, 2] += s * dz
+        arm_i, arm_j = radii[i] - 0.5 * overlap, radii[j] - 0.5 * overlap
+        wx = arm_i * spins[i, 0] + arm_j * spins[j, 0]
+        wy = arm_i * spins[i, 1] + arm_j * spins[j, 1]
+        wz = arm_i * spins[i, 2] + arm_j * spins[j, 2]
+        vx = velocities[i, 0] - velocities[j, 0] + wy * nz - wz * ny
+        vy = velocities[i, 1] - velocities[j, 1] + wz * nx - wx * nz
+        vz = velocities[i, 2] - velocities[j, 2] + wx * ny - wy * nx
+        vn = vx * nx + vy * ny + vz * nz
+        sx, sy, sz = _turned_shear(shear[k, 0], shear[k, 1], shear[k, 2], nx, ny, nz)
+        shear_modulus = 0.25 * (young[i] + young[j]) / (1.0 + poisson)
+        k_t = 4.0 * shear_modulus * a / (2.0 - poisson)
+        sx -= k_t * (vx - vn * nx)
+        sy -= k_t * (vy - vn * ny)
+        sz -= k_t * (vz - vn * nz)
+        magnitude = np.sqrt(sx * sx + sy * sy + sz * sz)
+        if magnitude > friction * fn:
+            scale = friction * fn / magnitude
+            sx, sy, sz = sx * scale, sy * scale, sz * scale
+        shear[k, 0], shear[k, 1], shear[k, 2] = sx, sy, sz
+        forces[i, 0] += sx - fn * nx
+        forces[i, 1] += sy - fn * ny
+        forces[i, 2] += sz - fn * nz
+        forces[j, 0] += fn * nx - sx
+        forces[j, 1] += fn * ny - sy
+        forces[j, 2] += fn * nz - sz
+        tx, ty, tz = ny * sz - nz * sy, nz * sx - nx * sz, nx * sy - ny * sx
+        torques[i, 0] += arm_i * tx
+        torques[i, 1] += arm_i * ty
+        torques[i, 2] += arm_i * tz
+        torques[j, 0] += arm_j * tx
+        torques[j, 1] += arm_j * ty
+        torques[j, 2] += arm_j * tz
         stiffness[i] += 2.0 * e_star * a
         stiffness[j] += 2.0 * e_star * a
     return normal

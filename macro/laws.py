@@ -61,6 +61,8 @@ class MixtureParameters:
         s_0 [Pa].
     poisson_ratio
         nu [1].
+    friction
+        tan of the pellet-pellet friction angle [1].
     young_bounds
         (min, max) of E(s) [Pa].
     grain_density
@@ -83,6 +85,7 @@ class MixtureParameters:
     beta: float
     initial_suction: float
     poisson_ratio: float
+    friction: float
     young_bounds: tuple[float, float]
     grain_density: float
     beta_v: float
@@ -111,6 +114,7 @@ def mixture_parameters(materials: Mapping[str, Any], powder: Mapping[str, Any]) 
         beta=float(pellet["swelling_beta_per_pa"]),
         initial_suction=float(pellet["initial_suction_pa"]),
         poisson_ratio=float(pellet["poisson_ratio"]),
+        friction=float(np.tan(np.radians(pellet["friction_angle_deg"]))),
         young_bounds=(low, high),
         grain_density=float(powder["grain_density_kg_m3"]),
         beta_v=float(powder["swelling_beta_v_pa"]),

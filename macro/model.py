@@ -222,6 +222,9 @@ class MacroModel:
     _cell_pressure: FloatArray | None = None
     _readings: Readings | None = None
     _next_dt: float = 0.0
+    spins: FloatArray | None = None
+    _contact_pairs: npt.NDArray[np.int64] | None = None
+    _shear: FloatArray | None = None
     pellet_frames: FloatArray | None = None
 
     @property
@@ -262,6 +265,7 @@ class MacroModel:
             max_volume=v_max, held=held, inert=inert, initial_void=voids,
         )
         model._omega = omega
+        model.spins = np.zeros_like(packing.positions)
         if settings.pellet_permeability == "tensor":
             model.pellet_frames = Rotation.random(n_p, random_state=np.random.default_rng(settings.seed + 2)).as_matrix()
         model._hold_boundary()
@@ -617,11 +621,12 @@ class MacroModel:
         the fictitious mass) are those of the step's geometry.
         """
         s = self.settings
-        young = young_modulus(-self.pressure[: self.n_pellets], self.material)
+        n_p = self.n_pellets
+        young = young_modulus(-self.pressure[:n_p], self.material)
         nu = self.material.poisson_ratio
         z_lo, z_hi = -0.5 * s.height, 0.5 * s.height
         skin = 0.2 * float(self.radii.mean())
-        pairs = detect_contacts(self.positions, self.radii, 1.0, skin)
+        pairs, shear = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin))
         reference = self.positions.copy()
         # fictitious mass floor: the stiffness of a contact overlapping by 1e-3 r
         floor = 2.0 * young / (1.0 - nu * nu) * self.radii * np.sqrt(1e-3)
@@ -631,14 +636,19 @@ class MacroModel:
         self._cell_pressure, slope = self.powder_pressure()
         external = self.hydro_forces(self._cell_pressure, self.mesh)
         area = self._omega * self.radii[tet] ** 2
-        powder_stiffness = np.bincount(tet.ravel(), (slope[:, None] * area**2).ravel(), minlength=self.n_pellets)
+        powder_stiffness = np.bincount(tet.ravel(), (slope[:, None] * area**2).ravel(), minlength=n_p)
+        # displacement and rotation of the last substep (none before the first)
+        moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))
         for k in range(substeps + 1):
             if 2.0 * np.sqrt(((self.positions - reference) ** 2).sum(axis=1)).max() > skin:
-                pairs = detect_contacts(self.positions, self.radii, 1.0, skin)
+                pairs, shear = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin), pairs, shear)
                 reference = self.positions.copy()
             forces = external.copy()
+            torques = np.zeros((n_p, 3))
             stiffness = powder_stiffness.copy()
-            normal = _kernels.hertz_pairs(self.positions, self.radii, young, nu, pairs, forces, stiffness)
+            normal = _kernels.hertz_mindlin_pairs(self.positions, moved, turned, self.radii, young, nu,
+                                                  self.material.friction, pairs, shear, forces, torques,
+                                                  stiffness)
             radial, lower, upper = _kernels.container_contacts(
                 self.positions, self.radii, young, nu, s.radius, z_lo, z_hi, forces, stiffness)
             carried = np.concatenate([normal[normal > 0.0], radial[radial > 0.0],
@@ -648,14 +658,12 @@ class MacroModel:
             if k == substeps or unbalanced < s.dem_balance_tolerance:
                 break
             mass = np.maximum(stiffness, floor)[:, None]
-            mid = self.velocities + 0.5 * forces / mass
-            damped = forces * (1.0 - s.dem_damping * np.sign(forces * mid))
-            self.velocities += damped / mass
-            # a substep moves a pellet by at most 1e-3 of its radius (Hertz stiffens with
-            # the overlap faster than the mass scaling follows)
-            speed = np.sqrt((self.velocities**2).sum(axis=1))
-            self.velocities *= np.minimum(1.0, cap / np.maximum(speed, 1e-300))[:, None]
+            self.velocities = _damped_update(self.velocities, forces, mass, s.dem_damping, cap)
+            self.spins = _damped_update(self.spins, torques, mass * self.radii[:, None] ** 2, s.dem_damping,
+                                        cap / self.radii)
+            moved, turned = self.velocities, self.spins
             self.positions += self.velocities
+        self._contact_pairs, self._shear = pairs, shear
         self.dem_substeps_used += k
         sensors = self._band_pressures(radial)
         area = np.pi * s.radius**2
@@ -666,6 +674,26 @@ class MacroModel:
             upper_force += extra_upper
             lower_force += extra_lower
         return Readings(sensors, upper_force / area, lower_force / area, unbalanced)
+
+    def _contacts(self, pairs: npt.NDArray[np.int64], old_pairs: npt.NDArray[np.int64] | None = None,
+                  old_shear: FloatArray | None = None) -> tuple[npt.NDArray[np.int64], FloatArray]:
+        """Detected pairs and their shear forces carried over from the same pairs before
+        (by default the contacts at the end of the last relaxation); new pairs start at 0."""
+        if old_pairs is None:
+            old_pairs, old_shear = self._contact_pairs, self._shear
+        shear = np.zeros((pairs.shape[0], 3))
+        if old_pairs is not None and old_shear is not None and old_pairs.size and pairs.size:
+            n = self.n_pellets
+            old_code = old_pairs.min(axis=1) * n + old_pairs.max(axis=1)
+            code = pairs.min(axis=1) * n + pairs.max(axis=1)
+            order = np.argsort(old_code)
+            where = np.clip(np.searchsorted(old_code[order], code), 0, old_code.size - 1)
+            found = old_code[order][where] == code
+            source = order[where[found]]
+            # the stored force acts on the pair's first pellet: flip where the order flipped
+            sign = np.where(old_pairs[source, 0] == pairs[found, 0], 1.0, -1.0)
+            shear[found] = old_shear[source] * sign[:, None]
+        return pairs, shear
 
     def _band_edges(self) -> FloatArray:
         s = self.settings
@@ -794,3 +822,13 @@ def _cell_roles(mesh: Mesh, voids: FloatArray, positions: FloatArray, radii: Flo
     layer = (z > positions[:, 2].max() - margin) | (z < positions[:, 2].min() + margin)
     held = (end_cells(mesh) | layer) & ~inert
     return np.concatenate([none, inert]), np.concatenate([none, held])
+
+
+def _damped_update(rate: FloatArray, drive: FloatArray, inertia: FloatArray, damping: float,
+                   cap: FloatArray) -> FloatArray:
+    """A damped substep of a velocity (or spin) per substep: Cundall's damping of the
+    drive (force or torque) against the half-step rate, then the rate capped per pellet."""
+    mid = rate + 0.5 * drive / inertia
+    rate = rate + drive * (1.0 - damping * np.sign(drive * mid)) / inertia
+    speed = np.sqrt((rate**2).sum(axis=1))
+    return rate * np.minimum(1.0, cap / np.maximum(speed, 1e-300))[:, None]
