@@ -9,7 +9,8 @@ beta [1/Pa], s_0 [Pa] of the swelling law (:mod:`shared.swelling`).
 Status per system: 0 solved by Newton-Raphson, 1 solved by the bracketed search,
 2 no feasible volume (its water does not fit below V_max), 3 no solution found, 4 drier
 than the retention curve allows at s_max (fixed retention porosity: no root, the system
-sits on the bound without a search).
+sits on the bound without a search), 5 confined (fixed retention porosity: at V_max its
+water's suction, Eq. 4.24 inverted, has a swelling target beyond V_max; the one solution).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-NEWTON, BRACKETED, INFEASIBLE, UNSOLVED, DRIEST = 0, 1, 2, 3, 4
+NEWTON, BRACKETED, INFEASIBLE, UNSOLVED, DRIEST, CONFINED = 0, 1, 2, 3, 4, 5
 BOUND = 1e-6
 """A constraint within this relative distance of its bound is active."""
 GRID = 512
@@ -33,6 +34,15 @@ def _retention(suction, porosity, law):  # type: ignore[no-untyped-def]
     if suction <= 0.0:
         return 1.0
     return (1.0 + (suction / zeta) ** (1.0 / (1.0 - lam))) ** (-lam)
+
+
+@njit(cache=True)
+def _inverse_retention(saturation, porosity, law):  # type: ignore[no-untyped-def]
+    """s(S, phi) = zeta (S^(-1/lambda) - 1)^(1 - lambda) [Pa] (Eq. 4.24)."""
+    shift = law[4] - porosity
+    zeta = law[0] * np.exp(law[2] * shift)
+    lam = law[1] * np.exp(law[3] * shift)
+    return zeta * max(saturation ** (-1.0 / lam) - 1.0, 0.0) ** (1.0 - lam)
 
 
 @njit(cache=True)
@@ -226,23 +236,23 @@ def solve_systems(water, solid, v0, vmax, fixed, previous_volume, previous_sucti
         gap = vm - low
         v = min(max(previous_volume[i], low + 1e-3 * gap), vm - 1e-3 * gap)
         s = previous_suction[i]
-        # Eq. 4.47: suction from the retention curve at the previous volume (bisection
-        # on the monotone S_ret(s) = S, the inverse of Eq. 4.24 at that porosity)
-        sat = m / (rho * (v - vs))
-        lo, hi = np.log(1e-6 * smax), np.log((1.0 - 1e-6) * smax)
-        phi = _porosity(v, vs, fixed[i])
-        for _ in range(50):
-            c = 0.5 * (lo + hi)
-            if _retention(np.exp(c), phi, law) > sat:
-                lo = c
-            else:
-                hi = c
-        s = np.exp(0.5 * (lo + hi))
+        # Eq. 4.47: suction from the retention curve at the previous volume (Eq. 4.24
+        # inverted in closed form at that porosity)
+        sat = min(m / (rho * (v - vs)), 1.0)
+        s = min(max(_inverse_retention(sat, _porosity(v, vs, fixed[i]), law), 1e-6 * smax),
+                (1.0 - 1e-6) * smax)
         if fixed[i] == fixed[i] and _gap(smax * (1.0 - 1e-9), m, vs, v0[i], vm, fixed[i], rho, law) < 0.0:
             s = smax * (1.0 - 1e-9)
             volume[i], suction[i] = _clipped_volume(s, m, vs, v0[i], vm, rho, law), s
             status[i] = DRIEST
             continue
+        if fixed[i] == fixed[i]:
+            top = vm * (1.0 - 1e-12)
+            s_top = _inverse_retention(min(m / (rho * (top - vs)), 1.0), fixed[i], law)
+            if 0.0 < s_top < smax and _target(s_top, v0[i], law) >= top:
+                volume[i], suction[i] = top, s_top
+                status[i] = CONFINED
+                continue
         # Eq. 4.48
         v = min(max(_target(s, v0[i], law), low + 1e-3 * gap), vm - 1e-3 * gap)
         v, s, iterations[i] = _newton(m, vs, v0[i], vm, fixed[i], rho, smax, v, s, tol,
