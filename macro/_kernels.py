@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shared.dem._kernels import _turned_shear
+from shared.dem._kernels import _turned_shear, apply_contact
 
 
 @njit(cache=True)
@@ -112,19 +112,7 @@ def hertz_mindlin_pairs(positions, velocities, spins, radii, young, poisson, fri
             scale = friction * fn / magnitude
             sx, sy, sz = sx * scale, sy * scale, sz * scale
         shear[k, 0], shear[k, 1], shear[k, 2] = sx, sy, sz
-        forces[i, 0] += sx - fn * nx
-        forces[i, 1] += sy - fn * ny
-        forces[i, 2] += sz - fn * nz
-        forces[j, 0] += fn * nx - sx
-        forces[j, 1] += fn * ny - sy
-        forces[j, 2] += fn * nz - sz
-        tx, ty, tz = ny * sz - nz * sy, nz * sx - nx * sz, nx * sy - ny * sx
-        torques[i, 0] += arm_i * tx
-        torques[i, 1] += arm_i * ty
-        torques[i, 2] += arm_i * tz
-        torques[j, 0] += arm_j * tx
-        torques[j, 1] += arm_j * ty
-        torques[j, 2] += arm_j * tz
+        apply_contact(forces, torques, i, j, fn, nx, ny, nz, sx, sy, sz, arm_i, arm_j)
         stiffness[i] += 2.0 * e_star * a
         stiffness[j] += 2.0 * e_star * a
     return normal

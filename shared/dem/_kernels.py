@@ -128,21 +128,28 @@ def hertz_mindlin(positions, velocities, spins, radii, reference_radii, pairs,
         sy -= kdt * (vy - vn * ny)
         sz -= kdt * (vz - vn * nz)
         shear_forces[k, 0], shear_forces[k, 1], shear_forces[k, 2] = sx, sy, sz
-        forces[i, 0] += sx - fn * nx
-        forces[i, 1] += sy - fn * ny
-        forces[i, 2] += sz - fn * nz
-        forces[j, 0] += fn * nx - sx
-        forces[j, 1] += fn * ny - sy
-        forces[j, 2] += fn * nz - sz
-        # torques arm_i n x F_s on i and (-arm_j n) x (-F_s) on j point the same way
-        tx, ty, tz = ny * sz - nz * sy, nz * sx - nx * sz, nx * sy - ny * sx
-        torques[i, 0] += arm_i * tx
-        torques[i, 1] += arm_i * ty
-        torques[i, 2] += arm_i * tz
-        torques[j, 0] += arm_j * tx
-        torques[j, 1] += arm_j * ty
-        torques[j, 2] += arm_j * tz
+        apply_contact(forces, torques, i, j, fn, nx, ny, nz, sx, sy, sz, arm_i, arm_j)
     return normal_forces
+
+
+@njit(cache=True)
+def apply_contact(forces, torques, i, j, fn, nx, ny, nz, sx, sy, sz, arm_i, arm_j):  # type: ignore[no-untyped-def]
+    """Add a contact's normal force fn along -n and shear (sx, sy, sz) on i, the opposite
+    on j, and the shear's torques about each centre (arms to the contact point)."""
+    forces[i, 0] += sx - fn * nx
+    forces[i, 1] += sy - fn * ny
+    forces[i, 2] += sz - fn * nz
+    forces[j, 0] += fn * nx - sx
+    forces[j, 1] += fn * ny - sy
+    forces[j, 2] += fn * nz - sz
+    # torques arm_i n x F_s on i and (-arm_j n) x (-F_s) on j point the same way
+    tx, ty, tz = ny * sz - nz * sy, nz * sx - nx * sz, nx * sy - ny * sx
+    torques[i, 0] += arm_i * tx
+    torques[i, 1] += arm_i * ty
+    torques[i, 2] += arm_i * tz
+    torques[j, 0] += arm_j * tx
+    torques[j, 1] += arm_j * ty
+    torques[j, 2] += arm_j * tz
 
 
 @njit(cache=True)

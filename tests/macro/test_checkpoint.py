@@ -19,17 +19,23 @@ def _config(steps):
     return config
 
 
-def test_resume_after_a_kill_is_bit_identical(table_path, tmp_path, monkeypatch):
-    steps = 10
-    whole = run(_config(steps), "small", table_path, tmp_path / "whole.nc")
+def _kill_at(monkeypatch, step):
+    """Make MacroModel.step raise KeyboardInterrupt (a kill) when it reaches ``step``."""
     original = MacroModel.step
 
     def killed(self, max_dt=float("inf")):
-        if self.steps == 6:
+        if self.steps == step:
             raise KeyboardInterrupt("killed")
         return original(self, max_dt)
 
     monkeypatch.setattr(MacroModel, "step", killed)
+    return original
+
+
+def test_resume_after_a_kill_is_bit_identical(table_path, tmp_path, monkeypatch):
+    steps = 10
+    whole = run(_config(steps), "small", table_path, tmp_path / "whole.nc")
+    original = _kill_at(monkeypatch, 6)
     out = tmp_path / "resumed.nc"
     with pytest.raises(KeyboardInterrupt):
         run(_config(steps), "small", table_path, out)
@@ -55,14 +61,7 @@ def test_snapshot_of_another_configuration_is_ignored_and_a_broken_one_named(tab
     snapshot.unlink()
     other = _config(3)
     other["macro"]["seed"] = 5
-    original = MacroModel.step
-
-    def killed(self, max_dt=float("inf")):
-        if self.steps == 2:
-            raise KeyboardInterrupt("killed")
-        return original(self, max_dt)
-
-    monkeypatch.setattr(MacroModel, "step", killed)
+    original = _kill_at(monkeypatch, 2)
     with pytest.raises(KeyboardInterrupt):
         run(other, "small", table_path, out)
     monkeypatch.setattr(MacroModel, "step", original)
