@@ -811,8 +811,11 @@ def _cell_roles(mesh: Mesh, voids: FloatArray, positions: FloatArray, radii: Flo
                 settings: MacroSettings) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     """Inert (sliver) and held (hydrated end) flags over all systems (pellets never).
 
-    Held: active cells facing an end of the hull, or whose centroid lies within half a
-    pellet radius of the outermost pellet centres along the axis.
+    Inert: cells whose void is below ``min_cell_void_fraction`` of the mean void (hull
+    slivers at first; after remeshes also cells squeezed by swollen pellets, whose powder
+    the remesh hands to their neighbours). Held: active cells facing an end of the hull,
+    or whose centroid lies within half a pellet radius of the outermost pellet centres
+    along the axis.
     """
     n_p = positions.shape[0]
     none = np.zeros(n_p, dtype=np.bool_)
