@@ -39,6 +39,8 @@ __all__ = ["run", "simulate", "near_equilibrium"]
 LOG = logging.getLogger("claychain.macro")
 FloatArray = npt.NDArray[np.float64]
 PROFILE_BINS = 24
+PACKING_TOLERANCE = 0.05
+"""Largest overlap left by the packing, as a fraction of the pellet radius."""
 STOP_CHECK_STEPS = 20
 """Steps between two checks of the near-equilibrium criterion."""
 
@@ -66,6 +68,12 @@ def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) 
     packing = pack_cylinder(settings.height, settings.radius, settings.pellet_radius,
                             settings.packing_fraction, np.random.default_rng(settings.seed),
                             settings.packing_sweeps, settings.pellet_radius_spread)
+    if packing.largest_overlap > PACKING_TOLERANCE * settings.pellet_radius:
+        raise ValueError(
+            f"macro.packing_fraction = {settings.packing_fraction}: the packing left pellets overlapping "
+            f"each other or the container by {packing.largest_overlap / settings.pellet_radius:.2g} of a "
+            f"radius after {settings.packing_sweeps} sweeps (macro.numerics.packing_iterations); lower the "
+            "packing fraction or raise the sweeps")
     model = MacroModel.create(settings, material, table, packing)
     model.packing = packing  # type: ignore[attr-defined]
     return model

@@ -214,3 +214,13 @@ def test_clamped_table_lookups_are_counted(tmp_path):
     ds = run(config, "small", path, tmp_path / "out.nc")
     assert ds.attrs["table_clamped_lookups"] > 0
     assert ds.attrs["table_clamped_lookups"] <= ds.attrs["table_lookups"]
+
+
+def test_jammed_packing_is_refused_naming_the_keys(table_path, tmp_path):
+    """A packing fraction the radius growth cannot reach leaves pellets overlapping the
+    container or each other: refused, naming the key, nothing written."""
+    config = small_config(packing_fraction=0.62)
+    config["macro"]["numerics"]["packing_iterations"] = 20
+    with pytest.raises(ValueError, match=r"macro.packing_fraction = 0.62: .*packing_iterations"):
+        run(config, "small", table_path, tmp_path / "out.nc")
+    assert not (tmp_path / "out.nc").exists()
