@@ -23,6 +23,7 @@ CASE_MODULES = (
     "benchmarks.dem",
     "benchmarks.yade_compare",
     "benchmarks.macro",
+    "benchmarks.micro_profile",
 )
 OUT = Path("results/benchmarks")
 

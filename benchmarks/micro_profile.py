@@ -1,0 +1,69 @@
+"""Where a whole micro run spends its time (issue: the micro model at 150k points).
+
+``python -m benchmarks run micro_profile --size N`` runs the default configuration's
+heterogeneous case at N DEM points (default protocol: every checkpoint from 132 MPa to
+1 kPa, balanced) under cProfile, on the porosity grid of ``results/porosity/pellet.nc``
+(``bash claychain run`` makes it), and reports the cumulative wall time of the functions
+that make up the phases: DEM relaxation, flow steps and their linear solves, remeshes
+(triangulations), permeability measurements, the initial settling, and output. Phases
+nest (a flow step contains its solve; balancing a checkpoint contains flow steps and
+relaxations), so the numbers are cumulative, not a partition. Timings are measured,
+never asserted.
+"""
+
+from __future__ import annotations
+
+import copy
+import cProfile
+import pstats
+import tempfile
+import time
+from pathlib import Path
+
+from benchmarks.parameters import CONFIG
+
+__all__ = ["bench_micro_profile"]
+
+PHASES = {
+    "checkpoint_balance": ("micro/hydration.py", "advance_to_balance"),
+    "dem_relaxation": ("micro/hydration.py", "relax"),
+    "flow_step": ("micro/hydration.py", "_flow_step"),
+    "linear_solve": ("shared/solver.py", "solve"),
+    "factorisation": ("shared/solver.py", "_factorise"),
+    "remesh": ("micro/hydration.py", "triangulate"),
+    "geometry_update": ("micro/hydration.py", "update_geometry"),
+    "cracks": ("micro/hydration.py", "update_cracks"),
+    "permeability_measurement": ("micro/pellet.py", "measure_checkpoint"),
+    "initial_settling": ("micro/pellet.py", "settle"),
+    "netcdf_output": ("shared/io.py", "write_dataset"),
+    "checkpoint_files": ("micro/checkpoint.py", "save_checkpoint"),
+}
+
+
+def bench_micro_profile(points: int = 8000, grid: str = "results/porosity/pellet.nc") -> dict:
+    """Cumulative wall time per phase of one heterogeneous micro run at ``points`` points."""
+    from micro.run import run
+
+    config = copy.deepcopy(CONFIG)
+    config["micro"]["n_points"] = points
+    config["micro"]["vtk_snapshots"] = False
+    case = "heterogeneous"
+    profiler = cProfile.Profile()
+    with tempfile.TemporaryDirectory() as folder:
+        start = time.perf_counter()
+        profiler.enable()
+        ds = run(config, case, grid, Path(folder) / "case.nc", Path(folder) / "case.png")
+        profiler.disable()
+        wall = time.perf_counter() - start
+    stats = pstats.Stats(profiler).stats  # type: ignore[attr-defined]
+    phases = {}
+    for phase, (module, name) in PHASES.items():
+        phases[phase] = sum(row[3] for (path, _, function), row in stats.items()
+                            if function == name and path.endswith(module))
+    return {
+        "n_points": points,
+        "remeshes": int(ds["n_remesh"].values[-1]),
+        "wall_s": wall,
+        "cumulative_s": phases,
+        "fraction_of_wall": {k: v / wall for k, v in phases.items()},
+    }
