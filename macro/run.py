@@ -3,10 +3,11 @@
 ``run(config, case, table_path, output_path, figure_path)`` packs the pellets, builds the
 mixture on the Delaunay mesh of their centres, hydrates it from both ends and records the
 wall readings (DESIGN section 2). It stops near equilibrium (the trend of the mean sensor
-pressure and of the axial pressure over the last ``stop_window_fraction`` of the elapsed
-time moved them by less than ``stop_tolerance`` of their largest magnitude; single bands
-jump when force chains rearrange) or at the ``max_time_s`` / ``max_steps`` guards,
-whichever comes first; the reason is recorded.
+pressure, of the axial pressure and of both mean suctions over the last
+``stop_window_fraction`` of the elapsed time moved each by less than ``stop_tolerance``
+of its largest magnitude, the initial suction for the suctions; single bands jump when
+force chains rearrange) or at the ``max_time_s`` / ``max_steps`` guards, whichever comes
+first; the reason is recorded.
 """
 
 from __future__ import annotations
@@ -133,7 +134,8 @@ def simulate(
             break
         if model.steps % STOP_CHECK_STEPS == 0 and near_equilibrium(
                 np.array(rows["time"]),
-                np.column_stack([np.array(rows["sensors"]).mean(axis=1), np.array(rows["axial_upper"])]),
+                np.column_stack([np.array(rows["sensors"]).mean(axis=1), np.array(rows["axial_upper"]),
+                                 np.array(rows["suction"])]),
                 s.stop_window, s.stop_tolerance):
             reason = "near_equilibrium"
             break
