@@ -26,7 +26,8 @@ import numpy.typing as npt
 from shared.mesh import Mesh
 
 __all__ = [
-    "Exchanges", "cell_voids", "end_cells", "exchanges", "facet_angles", "moved_mesh", "solid_angles",
+    "Exchanges", "cell_voids", "end_cells", "exchanges", "facet_angles", "mesh_edges", "moved_mesh",
+    "solid_angles",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -77,18 +78,27 @@ class Exchanges:
     kind: npt.NDArray[np.int8]
 
 
-def exchanges(mesh: Mesh, radii: FloatArray, omega: FloatArray, min_area_fraction: float) -> Exchanges:
+def mesh_edges(mesh: Mesh) -> IntArray:
+    """(m, 2) the Delaunay edges of the mesh, each once (i < j)."""
+    tet = mesh.tetrahedra
+    edges = np.concatenate([tet[:, [a, b]] for a in range(4) for b in range(a + 1, 4)])
+    return np.unique(np.sort(edges, axis=1), axis=0)
+
+
+def exchanges(mesh: Mesh, radii: FloatArray, omega: FloatArray, min_area_fraction: float,
+              edges: IntArray | None = None) -> Exchanges:
     """All exchanges of the mesh for the current pellet radii (see the module docstring).
 
     Cell-cell areas are floored at ``min_area_fraction`` of the triangle so that a facet
-    covered by swollen pellets keeps a small powder path.
+    covered by swollen pellets keeps a small powder path. ``edges``: the mesh's
+    :func:`mesh_edges`, when the caller keeps them between steps (same connectivity).
     """
     points = mesh.points
     n_p = points.shape[0]
     # pellet-pellet: Delaunay edges whose pellets overlap
     tet = mesh.tetrahedra
-    edges = np.concatenate([tet[:, [a, b]] for a in range(4) for b in range(a + 1, 4)])
-    edges = np.unique(np.sort(edges, axis=1), axis=0)
+    if edges is None:
+        edges = mesh_edges(mesh)
     d = np.linalg.norm(points[edges[:, 1]] - points[edges[:, 0]], axis=1)
     ri, rj = radii[edges[:, 0]], radii[edges[:, 1]]
     touching = ri + rj > d

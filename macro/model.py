@@ -41,6 +41,7 @@ from macro.mixture import (
     end_cells,
     exchanges,
     facet_angles,
+    mesh_edges,
     moved_mesh,
     solid_angles,
 )
@@ -225,6 +226,8 @@ class MacroModel:
     spins: FloatArray | None = None
     _contact_pairs: npt.NDArray[np.int64] | None = None
     _shear: FloatArray | None = None
+    _edges: npt.NDArray[np.int64] | None = None
+    _edges_of: npt.NDArray[np.int64] | None = None
     pellet_frames: FloatArray | None = None
 
     @property
@@ -298,7 +301,9 @@ class MacroModel:
         voids = cell_voids(self.mesh, self.radii, self._omega, VOID_FLOOR)
         cells = slice(n_p, None)
         self.max_volume[cells] = voids
-        ex = exchanges(self.mesh, self.radii, self._omega, MIN_AREA_FRACTION)
+        if self._edges is None or self._edges_of is not self.mesh.tetrahedra:
+            self._edges, self._edges_of = mesh_edges(self.mesh), self.mesh.tetrahedra
+        ex = exchanges(self.mesh, self.radii, self._omega, MIN_AREA_FRACTION, self._edges)
         keep = ~self.inert[ex.pairs].any(axis=1)
         self._exchanges = Exchanges(ex.pairs[keep], ex.area[keep], ex.length[keep], ex.kind[keep])
 
