@@ -102,6 +102,7 @@ class MacroSettings:
     snapshot_interval: float
     stop_window: float
     stop_tolerance: float
+    stop_after: float
     newton: NewtonSettings
     packing_sweeps: int
     min_cell_void_fraction: float
@@ -156,6 +157,7 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         snapshot_interval=float(num["snapshot_interval_s"]),
         stop_window=float(num["stop_window_fraction"]),
         stop_tolerance=float(num["stop_tolerance"]),
+        stop_after=float(num["stop_after_s"]),
         newton=NewtonSettings(
             tolerance=float(num["newton_tolerance"]),
             max_iterations=int(num["newton_max_iterations"]),

@@ -42,6 +42,8 @@ FloatArray = npt.NDArray[np.float64]
 PROFILE_BINS = 24
 PACKING_TOLERANCE = 0.05
 """Largest overlap left by the packing, as a fraction of the pellet radius."""
+THIN_ABOVE = 4000
+"""Records kept in memory before every other one is dropped (see ``simulate``)."""
 STOP_CHECK_STEPS = 20
 """Steps between two checks of the near-equilibrium criterion."""
 
@@ -99,7 +101,7 @@ def simulate(
     if rows is None:
         rows = {k: [] for k in (
             "time", "sensors", "axial_upper", "axial_lower", "suction", "saturation",
-            "swelling", "suction_profile", "pellet_suction", "unbalanced", "dt")}
+            "swelling", "suction_profile", "pellet_suction", "unbalanced", "dt", "step")}
 
     def record(dt: float) -> None:
         r = model.readings
@@ -115,6 +117,14 @@ def simulate(
         rows["pellet_suction"].append(-model.pressure[: model.n_pellets].copy())
         rows["unbalanced"].append(r.unbalanced)
         rows["dt"].append(dt)
+        rows["step"].append(model.steps)
+
+    def thin() -> None:
+        """Every other record (the first and last kept) once there are more than
+        ``THIN_ABOVE``: memory and snapshots stay bounded over long runs."""
+        if len(rows["time"]) > THIN_ABOVE:
+            for values in rows.values():
+                values[:] = values[:-1:2] + values[-1:]
 
     if new:
         record(0.0)
@@ -126,13 +136,14 @@ def simulate(
     while model.steps < s.max_steps:
         dt = model.step(max_dt=s.max_time - model.time)
         record(dt)
+        thin()
         if series is not None and series.due(model):
             series.write(model)
         progress.update(max(model.time / s.max_time, model.steps / s.max_steps))
         if model.time >= s.max_time * (1.0 - 1e-12):
             reason = "max_time"
             break
-        if model.steps % STOP_CHECK_STEPS == 0 and near_equilibrium(
+        if model.steps % STOP_CHECK_STEPS == 0 and model.time >= s.stop_after and near_equilibrium(
                 np.array(rows["time"]),
                 np.column_stack([np.array(rows["sensors"]).mean(axis=1), np.array(rows["axial_upper"]),
                                  np.array(rows["suction"])]),
@@ -149,14 +160,18 @@ def simulate(
     return _dataset(model, rows, edges), reason
 
 
-def _keep(n: int, wanted: int) -> npt.NDArray[np.int64]:
-    """Indices of at most ``wanted`` records, equally spaced, first and last included."""
-    return np.unique(np.round(np.linspace(0, n - 1, min(n, wanted))).astype(np.int64))
+def _keep(steps: npt.NDArray[np.int64], wanted: int) -> npt.NDArray[np.int64]:
+    """Indices of at most ``wanted`` records nearest to equally spaced step numbers, the
+    first and last included (the records in memory are thinned unevenly)."""
+    targets = np.linspace(steps[0], steps[-1], min(steps.size, wanted))
+    nearest = np.clip(np.searchsorted(steps, targets), 1, steps.size - 1)
+    nearest -= (targets - steps[nearest - 1]) < (steps[nearest] - targets)
+    return np.unique(nearest)
 
 
 def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray) -> xr.Dataset:
     s = model.settings
-    keep = _keep(len(rows["time"]), s.records)
+    keep = _keep(np.asarray(rows["step"]), s.records)
     pick = {k: np.asarray(v)[keep] for k, v in rows.items()}
     bands = np.linspace(-0.5 * s.height, 0.5 * s.height, s.sensor_bands + 1)
     sensor_z = 0.5 * (bands[:-1] + bands[1:]) + 0.5 * s.height
