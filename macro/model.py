@@ -62,7 +62,9 @@ _REMESH_WEIGHTS = 0.05 + 0.8 * np.array(
     [(i, j, k, 3 - i - j - k) for i in range(4) for j in range(4 - i) for k in range(4 - i - j)]) / 3.0
 """Barycentric weights of the 20 points (a lattice of the tetrahedron, shrunk towards its
 centroid) that carry equal shares of an old cell's powder in a remesh."""
-IMPLICIT_LOSS = 0.9
+PICARD_ITERATIONS = 3
+"""Modified Picard iterations of an implicit step."""
+IMPLICIT_LOSS = 0.99
 """Largest fraction of its water a system may lose in one implicit step (positivity)."""
 MIN_AREA_FRACTION = 1e-2
 """Smallest powder path through a cell-cell triangle covered by pellets, fraction of it."""
@@ -491,6 +493,15 @@ class MacroModel:
         confined = self.volume >= self.max_volume * (1.0 - 1e-3)
         return self.settings.density * (pore / slope + np.where(confined, 0.0, sat * swelling))
 
+    def water_at(self, pressure: FloatArray) -> FloatArray:
+        """(n,) water each system would hold at ``pressure`` [kg]: the local problem with p
+        given, rho S_ret(s) (V(s) - V_s), V(s) its swelling volume capped by V_max."""
+        suction = np.clip(-pressure, 0.0, self.settings.max_suction)
+        volume = np.minimum(self.reference_volume * (1.0 + swelling_strain(suction, self.material)),
+                            self.max_volume)
+        sat = saturation(suction, self.retention_porosity(), self.material)
+        return self.settings.density * sat * np.maximum(volume - self.solid_volume, 0.0)
+
     def implicit_transport(self, conductance: FloatArray, max_dt: float) -> float:
         """Linearised backward-Euler mass update (see :mod:`macro.transport`); returns dt [s].
 
@@ -512,8 +523,21 @@ class MacroModel:
         if self._next_dt <= 0.0:
             self._next_dt = self.time_step(conductance)
         dt = min(self._next_dt, s.max_time_step, max_dt)
+        start = self.water_at(self.pressure)
         for _ in range(20):
-            pressure = implicit_pressures(pairs, conductance, self.pressure, capacity, dt, free)
+            # modified Picard (Celia et al. 1990): the storage of each iterate from the
+            # retention and swelling laws themselves, with the secant capacity between
+            # the step's start and the iterate (the tangent one at first)
+            pressure = self.pressure
+            for _ in range(PICARD_ITERATIONS):
+                stored = self.water_at(pressure) - start
+                moved = pressure - self.pressure
+                big = np.abs(moved) > 1e-9 * np.abs(self.pressure)
+                secant = np.where(big, stored / np.where(big, moved, 1.0), capacity)
+                secant = np.where(secant > 0.0, secant, capacity)
+                effective = pressure - stored / secant
+                pressure = np.clip(implicit_pressures(pairs, conductance, effective, secant, dt, free),
+                                   -s.max_suction, 0.0)
             rate = mass_rates(pairs, conductance, pressure, self.volume.size)
             change = np.abs(dt * rate[free]) / (s.density * pore)
             # and none loses more than IMPLICIT_LOSS of its water (positivity of the mass)
