@@ -47,7 +47,9 @@ from macro.mixture import (
 )
 from macro.newton import NewtonSettings, PVProblem, solve_pressure_volume
 from macro.packing import Packing
-from macro.transport import conductances, harmonic_mean, implicit_pressures, mass_rates, stable_time_step
+from macro.transport import (
+    conductances, harmonic_mean, implicit_pressures, limited_rates, mass_rates, stable_time_step,
+)
 from shared.dem import detect_contacts
 from shared.mesh import Mesh, build_mesh, mesh_from_tetrahedra
 from shared.upscaling import PermeabilityTable
@@ -220,6 +222,7 @@ class MacroModel:
     floored_cells: int = 0
     newton_iterations: int = 0
     dem_substeps_used: int = 0
+    limited_systems: int = 0
     phase_seconds: dict[str, float] = field(default_factory=lambda: {
         "remesh": 0.0, "transport": 0.0, "newton": 0.0, "dem": 0.0})
     _omega: FloatArray | None = None
@@ -507,8 +510,9 @@ class MacroModel:
 
         The trial step doubles the last accepted one (the first is Eq. 4.58's), capped by
         ``max_time_step_s``; it shrinks until no free system's water changes by more than
-        ``max_saturation_change`` of its pore volume (at least the median system's) and
-        none loses more than ``IMPLICIT_LOSS`` of its water.
+        ``max_saturation_change`` of its pore volume (at least the median system's); the
+        outflows of a system that would lose more than ``IMPLICIT_LOSS`` of its water are
+        limited (:func:`macro.transport.limited_rates`, counted in ``limited_systems``).
         """
         assert self._exchanges is not None
         s = self.settings
@@ -538,14 +542,16 @@ class MacroModel:
                 effective = pressure - stored / secant
                 pressure = np.clip(implicit_pressures(pairs, conductance, effective, secant, dt, free),
                                    -s.max_suction, 0.0)
-            rate = mass_rates(pairs, conductance, pressure, self.volume.size)
+            # a tiny cell draining into a large dry neighbour would lose all its water
+            # in a long step: its outflows are limited (conservatively) instead
+            rate, limited = limited_rates(pairs, conductance, pressure, self.water_mass, dt, free,
+                                          1.0 - IMPLICIT_LOSS)
             change = np.abs(dt * rate[free]) / (s.density * pore)
-            # and none loses more than IMPLICIT_LOSS of its water (positivity of the mass)
-            loss = np.maximum(-dt * rate[free], 0.0) / np.maximum(self.water_mass[free], 1e-300)
-            largest = max(change.max(initial=0.0), limit / IMPLICIT_LOSS * loss.max(initial=0.0))
+            largest = change.max(initial=0.0)
             if largest <= limit:
                 break
             dt *= 0.9 * limit / largest
+        self.limited_systems += limited
         self._next_dt = 2.0 * dt if largest <= 0.5 * limit else dt
         self.boundary_inflow -= float(dt * rate[self.held].sum())
         self.water_mass[~self.held] += dt * rate[~self.held]

@@ -212,6 +212,7 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
         "newton_iterations": model.newton_iterations,
         "newton_fallbacks": model.fallbacks,
         "floored_cell_steps": model.floored_cells,
+        "flux_limited_system_steps": model.limited_systems,
         "remeshes": model.remeshes,
         "steps": model.steps,
         "inert_void_fraction": model.neglected_void_fraction(),
