@@ -587,11 +587,9 @@ class MacroModel:
         self.fallbacks += fallbacks
 
     # ------------------------------------------------------------------ mechanics
-    def powder_pressure(self, mesh: Mesh | None = None,
-                        voids: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
+    def powder_pressure(self) -> tuple[FloatArray, FloatArray]:
         """Effective pressure of the powder on its cell contour [Pa] (Eqs. 4.31-4.35) and
-        its derivative with respect to the cell's void [Pa/m3], both (n_c,), for the
-        cells of ``mesh`` with ``voids`` (default: the current ones).
+        its derivative with respect to the cell's void [Pa/m3], both (n_c,).
 
         Our reading of Eq. 4.33 and Fig. 4.4: the powder swells freely (no pressure) until
         it fills its cell's void V_c; held there while its swelling target
@@ -603,9 +601,8 @@ class MacroModel:
         Continuous in the state, so that a cell's push does not switch on and off as
         the pellets move. Zero everywhere when ``macro.powder_swelling_pressure`` is off.
         """
-        mesh = self.mesh if mesh is None else mesh
         cells = slice(self.n_pellets, None)
-        void = np.maximum(self.max_volume[cells] if voids is None else voids, self.solid_volume[cells])
+        void = np.maximum(self.max_volume[cells], self.solid_volume[cells])
         if not self.settings.powder_pressure:
             return np.zeros(self.n_cells), np.zeros(self.n_cells)
         grain = float(self.settings.powder["grain_density_kg_m3"])
@@ -616,7 +613,7 @@ class MacroModel:
         relaxed = consolidation_pressure(solid_mass / np.maximum(free, void), self.material)
         pore = np.maximum(volume - self.solid_volume[cells], 1e-300)
         sat = np.clip(self.water_mass[cells] / (self.settings.density * pore), 0.0, 1.0)
-        share = volume / mesh.volumes
+        share = volume / self.mesh.volumes
         # a cell squeezed to the smallest porosity is a geometric failure of the void
         # estimate (pellets protruding through it), not a state of the powder: no push
         densest = grain * (1.0 - float(self.settings.powder["porosity_clamp"][0]))
@@ -626,13 +623,14 @@ class MacroModel:
         slope = held * self.material.alpha_v * solid_mass / void**2 * sat * share
         return pressure, np.where(active, slope, 0.0)
 
-    def hydro_forces(self, cell_pressure: FloatArray, mesh: Mesh) -> FloatArray:
-        """(n_p, 3) forces of the cell pressures on the pellets of ``mesh`` [N] (Eqs. 4.34-4.38).
+    def hydro_forces(self, cell_pressure: FloatArray) -> FloatArray:
+        """(n_p, 3) forces of the cell pressures on the pellets [N] (Eqs. 4.34-4.38).
 
         A pellet's sector A_k = theta r^2 / 2 of each triangle is pushed by the pressure
         difference across it, A_k (P_i - P_j) n_ij (n_ij from cell i to j); on the hull,
         A_k P_i n_out.
         """
+        mesh = self.mesh
         forces = np.zeros((self.n_pellets, 3))
         for verts, cells, normals, outside in (
             (mesh.facet_vertices, mesh.facet_cells, mesh.facet_normals, False),
@@ -671,7 +669,7 @@ class MacroModel:
         tet = self.mesh.tetrahedra
         assert self._omega is not None
         self._cell_pressure, slope = self.powder_pressure()
-        external = self.hydro_forces(self._cell_pressure, self.mesh)
+        external = self.hydro_forces(self._cell_pressure)
         area = self._omega * self.radii[tet] ** 2
         powder_stiffness = np.bincount(tet.ravel(), (slope[:, None] * area**2).ravel(), minlength=n_p)
         # displacement and rotation of the last substep (none before the first)
