@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shared.dem._kernels import _turned_shear, apply_contact
+from shared.dem._kernels import _turned_shear, apply_contact, contact_velocity
 
 
 @njit(cache=True)
@@ -94,12 +94,7 @@ def hertz_mindlin_pairs(positions, velocities, spins, radii, young, poisson, fri
         fn = 4.0 / 3.0 * e_star * a * overlap
         normal[k] = fn
         arm_i, arm_j = radii[i] - 0.5 * overlap, radii[j] - 0.5 * overlap
-        wx = arm_i * spins[i, 0] + arm_j * spins[j, 0]
-        wy = arm_i * spins[i, 1] + arm_j * spins[j, 1]
-        wz = arm_i * spins[i, 2] + arm_j * spins[j, 2]
-        vx = velocities[i, 0] - velocities[j, 0] + wy * nz - wz * ny
-        vy = velocities[i, 1] - velocities[j, 1] + wz * nx - wx * nz
-        vz = velocities[i, 2] - velocities[j, 2] + wx * ny - wy * nx
+        vx, vy, vz = contact_velocity(velocities, spins, i, j, nx, ny, nz, arm_i, arm_j)
         vn = vx * nx + vy * ny + vz * nz
         sx, sy, sz = _turned_shear(shear[k, 0], shear[k, 1], shear[k, 2], nx, ny, nz)
         shear_modulus = 0.25 * (young[i] + young[j]) / (1.0 + poisson)

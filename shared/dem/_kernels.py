@@ -113,13 +113,7 @@ def hertz_mindlin(positions, velocities, spins, radii, reference_radii, pairs,
         normal_forces[k] = fn
         # branch lengths from each centre to the contact point, mid-overlap
         arm_i, arm_j = radii[i] - 0.5 * overlap, radii[j] - 0.5 * overlap
-        # contact-point velocity of i relative to j (Eq. 3.6): v + omega x branch
-        wx = arm_i * spins[i, 0] + arm_j * spins[j, 0]
-        wy = arm_i * spins[i, 1] + arm_j * spins[j, 1]
-        wz = arm_i * spins[i, 2] + arm_j * spins[j, 2]
-        vx = velocities[i, 0] - velocities[j, 0] + wy * nz - wz * ny
-        vy = velocities[i, 1] - velocities[j, 1] + wz * nx - wx * nz
-        vz = velocities[i, 2] - velocities[j, 2] + wx * ny - wy * nx
+        vx, vy, vz = contact_velocity(velocities, spins, i, j, nx, ny, nz, arm_i, arm_j)
         sx, sy, sz = _turned_shear(shear_forces[k, 0], shear_forces[k, 1],
                                    shear_forces[k, 2], nx, ny, nz)
         vn = vx * nx + vy * ny + vz * nz
@@ -130,6 +124,19 @@ def hertz_mindlin(positions, velocities, spins, radii, reference_radii, pairs,
         shear_forces[k, 0], shear_forces[k, 1], shear_forces[k, 2] = sx, sy, sz
         apply_contact(forces, torques, i, j, fn, nx, ny, nz, sx, sy, sz, arm_i, arm_j)
     return normal_forces
+
+
+@njit(cache=True)
+def contact_velocity(velocities, spins, i, j, nx, ny, nz, arm_i, arm_j):  # type: ignore[no-untyped-def]
+    """Velocity of i's contact point relative to j's (Eq. 3.6): v + omega x branch, the
+    branches ``arm_i`` n from i and -``arm_j`` n from j."""
+    wx = arm_i * spins[i, 0] + arm_j * spins[j, 0]
+    wy = arm_i * spins[i, 1] + arm_j * spins[j, 1]
+    wz = arm_i * spins[i, 2] + arm_j * spins[j, 2]
+    vx = velocities[i, 0] - velocities[j, 0] + wy * nz - wz * ny
+    vy = velocities[i, 1] - velocities[j, 1] + wz * nx - wx * nz
+    vz = velocities[i, 2] - velocities[j, 2] + wx * ny - wy * nx
+    return vx, vy, vz
 
 
 @njit(cache=True)
