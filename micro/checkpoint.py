@@ -19,12 +19,17 @@ Without the first two, a 1000-point run killed after checkpoint 3, 6 or 9 of 14 
 with a final gas permeability 5.4, 1.4 and 1.1 % lower and 7 more, 7 and 3 fewer
 remeshes than the uninterrupted run.
 
-Files are written to a temporary name and renamed.
+Files are written to a temporary name and renamed. A file that cannot be read (damaged
+on disk, not a checkpoint) stops the run with :class:`CheckpointError`, which names it:
+it is neither used nor overwritten.
 """
 
 from __future__ import annotations
 
 import json
+import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +44,26 @@ from shared.io import atomic_write
 from shared.mesh import mesh_from_tetrahedra
 from shared.solver import CholeskySolver
 
-__all__ = ["save_checkpoint", "load_checkpoint", "checkpoint_wall_time"]
+__all__ = ["CheckpointError", "save_checkpoint", "load_checkpoint", "checkpoint_wall_time"]
+
+
+class CheckpointError(ValueError):
+    """A checkpoint file that exists but cannot be read; the message names it."""
+
+
+@contextmanager
+def _opened(path: Path) -> Iterator[Any]:
+    """The checkpoint's arrays, or :class:`CheckpointError` naming the file."""
+    try:
+        with np.load(path) as data:
+            yield data
+    except (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile) as err:
+        if isinstance(err, CheckpointError):
+            raise
+        raise CheckpointError(
+            f"{path}: unreadable checkpoint file ({type(err).__name__}: {err}); move or "
+            "delete it to run the case from the start, or restore it to resume"
+        ) from err
 
 _DEM_ARRAYS = ("positions", "velocities", "spins", "radii", "reference_radii", "masses",
                "inertia", "bonds", "bond_overlaps", "bond_broken", "fixed")
@@ -92,10 +116,15 @@ def load_checkpoint(
     A file written under another configuration (different hash) or by a version of the
     code that saved fewer arrays is ignored. The crack network, a function of the saved
     state, is rebuilt.
+
+    Raises
+    ------
+    CheckpointError
+        If the file exists but cannot be read.
     """
     if not path.is_file():
         return None
-    with np.load(path) as data:
+    with _opened(path) as data:
         meta = json.loads(str(data["meta"]))
         needed = ([f"dem_{k}" for k in _DEM_ARRAYS] + [f"contacts_{k}" for k in _CONTACT_ARRAYS]
                   + [f"pattern_{k}" for k in _PATTERN_ARRAYS])
@@ -132,5 +161,5 @@ def load_checkpoint(
 
 def checkpoint_wall_time(path: Path) -> float:
     """Wall time [s] the run had taken when it wrote the checkpoint file ``path``."""
-    with np.load(path) as data:
+    with _opened(path) as data:
         return float(json.loads(str(data["meta"])).get("wall_time", 0.0))

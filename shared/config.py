@@ -15,6 +15,7 @@ __all__ = [
     "validate_config",
     "load_config",
     "default_config",
+    "sample_imaging",
     "SCHEMA_PATH",
     "DEFAULT_CONFIG_PATH",
 ]
@@ -61,8 +62,8 @@ def load_schema(path: str | Path = SCHEMA_PATH) -> dict[str, Any]:
         return yaml.safe_load(handle)
 
 
-def _key_path(error: jsonschema.ValidationError) -> str:
-    path = ".".join(str(p) for p in error.absolute_path)
+def _key_path(error: jsonschema.ValidationError, prefix: str = "") -> str:
+    path = ".".join([prefix] * bool(prefix) + [str(p) for p in error.absolute_path])
     if error.validator == "additionalProperties":
         extra = sorted(set(error.instance) - set(error.schema.get("properties", {})))
         path = ".".join(filter(None, [path, extra[0] if extra else ""]))
@@ -101,7 +102,63 @@ def validate_config(
     for check in (_check_samples, _check_micro, _check_upscaling, *checks):
         check(config)
     _check_case_materials(config, schema)
+    for sample in config["samples"]:
+        sample_imaging(config, sample, schema)
     return config
+
+
+def _merged(base: Mapping[str, Any], override: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` with the keys of ``override`` replacing its own, mapping by mapping."""
+    out = _copy(base)
+    for key, value in override.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = _merged(out[key], value)
+        else:
+            out[key] = _copy(value)
+    return out
+
+
+def sample_imaging(
+    config: Mapping[str, Any], sample: str, schema: Mapping[str, Any] | None = None
+) -> dict[str, Any]:
+    """The imaging settings of one sample: its ``samples.<name>.imaging`` keys merged over
+    the ``imaging`` section (validated, defaults filled in).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``samples.<name>.imaging.<key>`` if the merged settings are invalid.
+    """
+    schema = schema if schema is not None else load_schema()
+    merged = _merged(config["imaging"], config["samples"][sample].get("imaging", {}))
+    errors = sorted(_Validator(schema["properties"]["imaging"]).iter_errors(merged),
+                    key=lambda e: list(e.absolute_path))
+    if errors:
+        raise ConfigError(f"{_key_path(errors[0], f'samples.{sample}.imaging')}: {errors[0].message}")
+    _check_imaging(merged, f"samples.{sample}.imaging" if "imaging" in config["samples"][sample]
+                   and config["samples"][sample]["imaging"] else "imaging")
+    return merged
+
+
+def _check_imaging(imaging: Mapping[str, Any], prefix: str) -> None:
+    """The keys that a mask mode or an anchor choice requires."""
+    mask, calibration = imaging["mask"], imaging["calibration"]
+    if mask["mode"] == "cylinder" and mask["cylinder_radius_m"] is None:
+        raise ConfigError(
+            f"config key '{prefix}.mask.cylinder_radius_m': required by mask mode cylinder"
+        )
+    if calibration["anchors"] == "histogram_peaks":
+        if calibration["peak_densities_kg_m3"] is None:
+            raise ConfigError(
+                f"config key '{prefix}.calibration.peak_densities_kg_m3': required by "
+                "anchors histogram_peaks (the densities of the two peaks' phases)"
+            )
+        for key in ("grey_air", "grey_muscovite"):
+            if calibration[key] is not None:
+                raise ConfigError(
+                    f"config key '{prefix}.calibration.{key}': anchors histogram_peaks "
+                    "takes both anchors from the histogram; remove it or use air_muscovite"
+                )
 
 
 def _check_samples(config: Mapping[str, Any]) -> None:

@@ -11,7 +11,14 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-__all__ = ["code_sha256", "code_version", "config_sha256", "file_sha256", "inputs_record"]
+__all__ = [
+    "code_sha256",
+    "code_version",
+    "config_sha256",
+    "file_sha256",
+    "folder_sha256",
+    "inputs_record",
+]
 
 _REPO_ROOT = Path(__file__).resolve().parent.parent
 
@@ -23,6 +30,21 @@ def file_sha256(path: str | Path, chunk_bytes: int = 1 << 20) -> str:
         for block in iter(lambda: handle.read(chunk_bytes), b""):
             digest.update(block)
     return digest.hexdigest()
+
+
+def folder_sha256(path: str | Path) -> tuple[str, int]:
+    """Return one sha256 over a folder's files (names relative to it, then bytes, in name
+    order; hidden files skipped) and the number of files: a slice folder's input hash."""
+    folder = Path(path)
+    files = sorted(
+        f for f in folder.rglob("*")
+        if f.is_file() and not any(part.startswith(".") for part in f.relative_to(folder).parts)
+    )
+    digest = hashlib.sha256()
+    for file in files:
+        digest.update(str(file.relative_to(folder)).encode())
+        digest.update(bytes.fromhex(file_sha256(file)))
+    return digest.hexdigest(), len(files)
 
 
 def config_sha256(section: Mapping[str, Any] | None) -> str:
@@ -81,8 +103,13 @@ def code_version() -> str:
 
 
 def inputs_record(paths: Iterable[str | Path]) -> str:
-    """Return a JSON list of ``{"path", "sha256"}`` records for existing input files."""
-    records = [
-        {"path": str(p), "sha256": file_sha256(p)} for p in paths if Path(p).is_file()
-    ]
+    """Return a JSON list of ``{"path", "sha256"}`` records for existing input files, and
+    ``{"path", "sha256", "files"}`` for input folders (:func:`folder_sha256`)."""
+    records: list[dict[str, Any]] = []
+    for path in map(Path, paths):
+        if path.is_file():
+            records.append({"path": str(path), "sha256": file_sha256(path)})
+        elif path.is_dir():
+            digest, count = folder_sha256(path)
+            records.append({"path": str(path), "sha256": digest, "files": count})
     return json.dumps(records)

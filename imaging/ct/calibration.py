@@ -4,6 +4,11 @@ Grey values are taken linear in density, with black (air) and the brightest grey
 (muscovite) as anchors. Porosity is taken linear in density, with the density of air at
 porosity 1 and the measured mean dry density of the pellet at its measured mean porosity.
 The values are in the configuration (``imaging.calibration``).
+
+A scan without air or without muscovite can anchor the grey-density line on two other
+phases of known density instead: the two most prominent peaks of its grey histogram
+(:func:`histogram_peaks`), mapped to the equivalent air and muscovite greys
+(:func:`anchors_through`) so that the rest of the calibration is unchanged.
 """
 
 from __future__ import annotations
@@ -13,7 +18,20 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["Calibration", "grey_anchors", "grey_to_density", "density_to_porosity"]
+__all__ = [
+    "Calibration",
+    "grey_anchors",
+    "histogram_peaks",
+    "anchors_through",
+    "grey_to_density",
+    "density_to_porosity",
+]
+
+_HISTOGRAM_SAMPLE = 1 << 22
+_HISTOGRAM_BINS = 512
+PEAK_PROMINENCE = 0.05
+"""A histogram peak counts if it rises this fraction of the highest bin above its
+surroundings (:func:`scipy.signal.find_peaks` prominence)."""
 
 
 @dataclass(frozen=True)
@@ -72,6 +90,79 @@ def grey_anchors(
     grey_air = float(np.median(outside))
     grey_muscovite = float(np.percentile(volume[specimen], muscovite_percentile))
     return grey_air, grey_muscovite
+
+
+def histogram_peaks(
+    volume: npt.NDArray[np.unsignedinteger], n_peaks: int = 2
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """The ``n_peaks`` most prominent peaks of a volume's grey histogram.
+
+    The histogram of an evenly strided sample of at most 4 Mi voxels (sqrt(n)/2 bins, 16
+    to 512, over the grey range) is smoothed by a Gaussian of one bin before the peaks
+    are found (:func:`scipy.signal.find_peaks`, prominence ``PEAK_PROMINENCE``); a peak's
+    grey is then refined by a mean shift over the voxels within two bins of it.
+
+    Returns
+    -------
+    greys, prominences : ndarray
+        The peaks' grey values in increasing order, and their prominence as a fraction of
+        the highest bin.
+
+    Raises
+    ------
+    ValueError
+        If the histogram has fewer than ``n_peaks`` peaks (the message lists those found).
+    """
+    from scipy.ndimage import gaussian_filter1d
+    from scipy.signal import find_peaks
+
+    stride = max(1, int(np.ceil(volume.size / _HISTOGRAM_SAMPLE)))
+    sample = volume.reshape(-1)[::stride]
+    low, high = float(sample.min()), float(sample.max())
+    if high <= low:
+        raise ValueError("the scan is uniform: its grey histogram has no two peaks")
+    bins = int(np.clip(np.sqrt(sample.size) / 2.0, 16, _HISTOGRAM_BINS))
+    counts, edges = np.histogram(sample, bins=bins, range=(low, high))
+    smooth = gaussian_filter1d(counts.astype(np.float64), 1.0, mode="constant")
+    padded = np.concatenate([[0.0], smooth, [0.0]])  # a peak may sit in an end bin
+    found, props = find_peaks(padded, prominence=PEAK_PROMINENCE * smooth.max())
+    found -= 1
+    prominence = props["prominences"] / smooth.max()
+    greys = 0.5 * (edges[found] + edges[found + 1])
+    if found.size < n_peaks:
+        listed = ", ".join(f"{g:.6g}" for g in greys) or "none"
+        raise ValueError(
+            f"the grey histogram has {found.size} peak(s) ({listed}), not {n_peaks}"
+        )
+    best = np.sort(np.argsort(prominence)[::-1][:n_peaks])
+    values = np.sort(sample.astype(np.float64))
+    reach = 2.0 * (edges[1] - edges[0])
+    refined = []
+    for grey in greys[best]:
+        for _ in range(5):  # mean shift with a flat window: to the mode of a symmetric peak
+            window = values[np.searchsorted(values, grey - reach):
+                            np.searchsorted(values, grey + reach, side="right")]
+            grey = float(window.mean()) if window.size else grey
+        refined.append(grey)
+    return np.array(refined), prominence[best]
+
+
+def anchors_through(
+    greys: tuple[float, float],
+    densities: tuple[float, float],
+    air_density: float,
+    muscovite_density: float,
+) -> tuple[float, float]:
+    """The air and muscovite greys of the grey-density line through two (grey, density)
+    points [-]: the anchors of :class:`Calibration` equivalent to those two phases."""
+    (g1, g2), (rho1, rho2) = greys, densities
+    if not (g2 - g1) * (rho2 - rho1) > 0:
+        raise ValueError(
+            f"the phases at greys {g1:.6g} and {g2:.6g} need increasing densities, got "
+            f"{rho1:g} and {rho2:g} kg/m3"
+        )
+    slope = (g2 - g1) / (rho2 - rho1)
+    return g1 + slope * (air_density - rho1), g1 + slope * (muscovite_density - rho1)
 
 
 def grey_to_density(

@@ -96,23 +96,37 @@ def porosity_dataset(
     )
 
 
-def rev_dataset(rev: RevResult, chords: ChordResult, voxel_size: float) -> xr.Dataset:
-    """REV statistics and chord-length distributions (DESIGN §2, ``results/rev``)."""
-    window = _coord(rev.window * voxel_size, "window", "m", "window edge")
+def rev_dataset(
+    rev: RevResult, calibrated: RevResult, chords: ChordResult, voxel_size: float
+) -> xr.Dataset:
+    """REV statistics and chord-length distributions (DESIGN §2, ``results/rev``).
+
+    ``rev`` is the analysis of the binary pore image (the paper's porosity and interface),
+    ``calibrated`` that of the calibrated voxel porosity (``calibrated_porosity_*``).
+    """
+    window = _coord(rev.window * voxel_size, "window", "m", "random window edge")
+    centred = _coord(rev.window_centred * voxel_size, "window_centred", "m", "centred window edge")
     scalar = {"units": "m"}
+    binary = "binary image's porosity (pore fraction)"
     data = {
-        "porosity_mean": ("window", rev.porosity_mean, {"units": "1", "long_name": "mean porosity over random windows"}),
-        "porosity_std": ("window", rev.porosity_std, {"units": "1", "long_name": "std of porosity over random windows"}),
-        "porosity_centred": ("window", rev.porosity_centred, {"units": "1", "long_name": "porosity of the centred window"}),
+        "porosity_mean": ("window", rev.porosity_mean, {"units": "1", "long_name": f"mean {binary} over random windows"}),
+        "porosity_std": ("window", rev.porosity_std, {"units": "1", "long_name": f"std of the {binary} over random windows"}),
+        "porosity_centred": ("window_centred", rev.porosity_centred, {"units": "1", "long_name": f"{binary} of the centred window"}),
         "interface_mean": ("window", rev.interface_mean, {"units": "m-1", "long_name": "mean solid-pore interface density over random windows"}),
         "interface_std": ("window", rev.interface_std, {"units": "m-1", "long_name": "std of interface density over random windows"}),
-        "interface_centred": ("window", rev.interface_centred, {"units": "m-1", "long_name": "interface density of the centred window"}),
-        "porosity_total": ((), rev.porosity_total, {"units": "1", "long_name": "porosity of the analysed image"}),
-        "interface_total": ((), rev.interface_total, {"units": "m-1", "long_name": "interface density of the analysed image"}),
+        "interface_centred": ("window_centred", rev.interface_centred, {"units": "m-1", "long_name": "interface density of the centred window"}),
+        "porosity_total": ((), rev.porosity_total, {"units": "1", "long_name": f"{binary}, whole analysed cube"}),
+        "interface_total": ((), rev.interface_total, {"units": "m-1", "long_name": "interface density of the analysed cube"}),
         "w_rev_porosity": ((), rev.w_rev_porosity, {**scalar, "long_name": "REV edge for porosity (relative std criterion)"}),
         "w_rev_interface": ((), rev.w_rev_interface, {**scalar, "long_name": "REV edge for interface density (relative std criterion)"}),
-        "w_rev_porosity_centred": ((), rev.w_rev_porosity_centred, {**scalar, "long_name": "REV edge for porosity (centred window criterion, Ferrage 2015)"}),
+        "w_rev_porosity_centred": ((), rev.w_rev_porosity_centred, {**scalar, "long_name": "REV edge for porosity (centred window criterion, Ferrage 2015 Sec. V C)"}),
         "w_rev_interface_centred": ((), rev.w_rev_interface_centred, {**scalar, "long_name": "REV edge for interface density (centred window criterion)"}),
+        "calibrated_porosity_mean": ("window", calibrated.porosity_mean, {"units": "1", "long_name": "mean calibrated porosity over random windows"}),
+        "calibrated_porosity_std": ("window", calibrated.porosity_std, {"units": "1", "long_name": "std of calibrated porosity over random windows"}),
+        "calibrated_porosity_centred": ("window_centred", calibrated.porosity_centred, {"units": "1", "long_name": "calibrated porosity of the centred window"}),
+        "calibrated_porosity_total": ((), calibrated.porosity_total, {"units": "1", "long_name": "calibrated porosity, whole analysed cube"}),
+        "w_rev_calibrated_porosity": ((), calibrated.w_rev_porosity, {**scalar, "long_name": "REV edge for calibrated porosity (relative std criterion)"}),
+        "w_rev_calibrated_porosity_centred": ((), calibrated.w_rev_porosity_centred, {**scalar, "long_name": "REV edge for calibrated porosity (centred window criterion)"}),
         "chord_pore": (("direction", "length"), chords.f_pore, {"units": "m-1", "long_name": "pore chord-length probability density f_p(r)"}),
         "chord_solid": (("direction", "length"), chords.f_solid, {"units": "m-1", "long_name": "solid chord-length probability density f_s(r)"}),
         "chord_count_pore": (("direction", "length"), chords.count_pore, {"units": "1", "long_name": "number of pore chords"}),
@@ -124,6 +138,7 @@ def rev_dataset(rev: RevResult, chords: ChordResult, voxel_size: float) -> xr.Da
     }
     coords = {
         "window": window,
+        "window_centred": centred,
         "length": _coord(chords.length, "length", "m", "chord length"),
         "direction": xr.Variable(("direction",), np.array(chords.direction), {"long_name": "lattice direction"}),
     }

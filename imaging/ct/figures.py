@@ -44,18 +44,26 @@ def porosity_figure(image: xr.Dataset, porosity: xr.Dataset, path: str | Path) -
 
 
 def rev_figure(rev: xr.Dataset, path: str | Path) -> Path:
-    """REV curves (mean +- std and centred window) and chord-length distributions r f(r)."""
+    """REV curves (random windows mean +- std, band clipped at 0, and the centred window;
+    the calibrated porosity beside the binary one) and chord-length distributions r f(r)."""
     fig, axes = new_figure(2, 2)
     window_mm = rev["window"].values * 1e3
+    centred_mm = rev["window_centred"].values * 1e3
     for ax, name, unit in ((axes[0, 0], "porosity", "-"), (axes[0, 1], "interface", "1/m")):
         mean, std = rev[f"{name}_mean"].values, rev[f"{name}_std"].values
-        ax.fill_between(window_mm, mean - std, mean + std, alpha=0.3, label="random windows, +-1 std")
-        ax.plot(window_mm, mean, "o-", label="mean")
-        ax.plot(window_mm, rev[f"{name}_centred"].values, "s--", label="centred window")
-        w_rev = float(rev[f"w_rev_{name}"])
+        label = "binary image" if name == "porosity" else "random windows"
+        ax.fill_between(window_mm, np.maximum(mean - std, 0.0), mean + std, alpha=0.3,
+                        label=f"{label}, +-1 std")
+        ax.plot(window_mm, mean, "o-", label=f"{label}, mean")
+        ax.plot(centred_mm, rev[f"{name}_centred"].values, "s--", ms=3, label="centred window")
+        if name == "porosity":
+            ax.plot(window_mm, rev["calibrated_porosity_mean"].values, "^-", color="tab:gray",
+                    label="calibrated porosity, mean")
+        w_rev = float(rev[f"w_rev_{name}_centred"])
         if np.isfinite(w_rev):
-            ax.axvline(w_rev * 1e3, color="k", ls=":", label=f"REV {w_rev * 1e3:.2g} mm")
+            ax.axvline(w_rev * 1e3, color="k", ls=":", label=f"REV (centred) {w_rev * 1e3:.2g} mm")
         ax.set(xscale="log", xlabel="window edge [mm]", ylabel=f"{name} [{unit}]", title=f"REV: {name}")
+        ax.set_ylim(bottom=0.0)
         ax.legend(fontsize="small")
     length_um = rev["length"].values * 1e6
     for ax, phase in ((axes[1, 0], "pore"), (axes[1, 1], "solid")):

@@ -24,6 +24,7 @@ __all__ = [
     "read_volume",
     "read_tiff_stack",
     "read_slice_folder",
+    "slice_files",
     "read_raw",
     "read_netcdf_volume",
     "write_tiff_stack",
@@ -164,8 +165,14 @@ def _natural_key(name: str) -> list[int | str]:
     return [int(tok) if tok.isdigit() else tok for tok in re.split(r"(\d+)", name)]
 
 
-def read_slice_folder(folder: str | Path) -> npt.NDArray[np.unsignedinteger]:
-    """Read a folder of 2-D greyscale slices (TIFF or PNG), ordered by natural name sort."""
+def slice_files(folder: str | Path) -> list[Path]:
+    """The slice files of a folder (TIFF or PNG), in natural name order (``2`` before ``10``).
+
+    Raises
+    ------
+    ImageError
+        If the path is a file, missing, or a folder without slice files.
+    """
     folder = Path(folder)
     if folder.is_file():
         raise ImageError(f"{folder}: is a file, expected a folder of 2-D slices (use source: "
@@ -178,6 +185,12 @@ def read_slice_folder(folder: str | Path) -> npt.NDArray[np.unsignedinteger]:
     )
     if not files:
         raise ImageError(f"{folder}: no slice files ({', '.join(_SLICE_SUFFIXES)})")
+    return files
+
+
+def read_slice_folder(folder: str | Path) -> npt.NDArray[np.unsignedinteger]:
+    """Read a folder of 2-D greyscale slices (TIFF or PNG), ordered by natural name sort."""
+    files = slice_files(folder)
     slices = []
     for file in files:
         page = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)

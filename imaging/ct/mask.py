@@ -1,10 +1,13 @@
 """Specimen mask: which voxels belong to the scanned specimen rather than the air around it.
 
-Air must not bias calibration or averages. The mask is a threshold (Otsu's by default)
-followed, slice by slice, by the largest connected component with its holes filled:
-cracks and flaws inside the specimen are part of its pore space, not outside air.
-Slices whose specimen section is small compared with the largest one (the ends of the
-specimen, stray bright voxels) are dropped.
+Air must not bias calibration or averages. By default (``threshold`` mode) the mask is a
+threshold (Otsu's by default) followed, slice by slice, by the largest connected
+component with its holes filled: cracks and flaws inside the specimen are part of its
+pore space, not outside air. Slices whose specimen section is small compared with the
+largest one (the ends of the specimen, stray bright voxels) are dropped. A scan without
+air around the specimen (it fills the field of view) or of a specimen inside a container
+needs another mode: the whole field (``full``) or a given vertical cylinder
+(``cylinder``, e.g. the container's inner wall).
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["otsu_threshold", "specimen_mask", "inscribed_box"]
+__all__ = ["otsu_threshold", "specimen_mask", "cylinder_mask", "border_fraction", "inscribed_box"]
 
 _OTSU_SAMPLE = 1 << 22
 
@@ -73,6 +76,60 @@ def specimen_mask(
         raise ValueError(f"no voxel above the threshold {level:g}: no specimen found")
     mask[areas < min_slice_fraction * areas.max()] = 0
     return mask.view(bool)
+
+
+def cylinder_mask(
+    shape: tuple[int, int, int],
+    voxel_size: float,
+    radius: float,
+    centre: tuple[float, float] | None = None,
+    z_range: tuple[float, float] | None = None,
+) -> npt.NDArray[np.bool_]:
+    """Voxels whose centre lies inside a vertical cylinder (axis along z).
+
+    Parameters
+    ----------
+    shape
+        Volume shape ``(z, y, x)``.
+    voxel_size
+        Voxel edge [m].
+    radius
+        Cylinder radius [m].
+    centre
+        ``(y, x)`` of the axis from the volume's corner [m]; the field's centre when None.
+    z_range
+        ``(bottom, top)`` of the cylinder from the first slice's lower face [m]; every
+        slice when None.
+
+    Raises
+    ------
+    ValueError
+        If the cylinder holds no voxel centre.
+    """
+    _, ny, nx = shape
+    if centre is None:
+        centre = (0.5 * ny * voxel_size, 0.5 * nx * voxel_size)
+    y = (np.arange(ny) + 0.5) * voxel_size - centre[0]
+    x = (np.arange(nx) + 0.5) * voxel_size - centre[1]
+    z = (np.arange(shape[0]) + 0.5) * voxel_size
+    low, high = (-np.inf, np.inf) if z_range is None else z_range
+    inside = (y[:, None] ** 2 + x[None, :] ** 2 <= radius**2)[None] & (
+        (z >= low) & (z <= high))[:, None, None]
+    if not inside.any():
+        raise ValueError(f"the cylinder of radius {radius:g} m at {tuple(centre)} m, z in "
+                         f"{[low, high]} m, holds no voxel")
+    return inside
+
+
+def border_fraction(mask: npt.NDArray[np.bool_]) -> float:
+    """Fraction of the lateral border voxels of the field (the outermost rows and columns
+    of the slices holding specimen) that lie inside the mask: near 0 for a specimen with
+    air around it, near 1 for one that fills the field of view."""
+    kept = mask[mask.any(axis=(1, 2))]
+    if kept.size == 0:
+        return 0.0
+    edges = [kept[:, 0, :], kept[:, -1, :], kept[:, 1:-1, 0], kept[:, 1:-1, -1]]
+    return float(sum(int(e.sum()) for e in edges) / sum(e.size for e in edges))
 
 
 def inscribed_box(mask: npt.NDArray[np.bool_]) -> tuple[slice, slice, slice]:

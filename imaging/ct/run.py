@@ -17,11 +17,18 @@ import numpy as np
 import xarray as xr
 
 from imaging.ct import figures
-from imaging.ct.calibration import Calibration, density_to_porosity, grey_anchors, grey_to_density
+from imaging.ct.calibration import (
+    Calibration,
+    anchors_through,
+    density_to_porosity,
+    grey_anchors,
+    grey_to_density,
+    histogram_peaks,
+)
 from imaging.ct.datasets import image_dataset, porosity_dataset, rev_dataset
 from imaging.ct.grid import block_average, block_size_voxels
 from imaging.ct.io import read_volume, write_tiff_stack
-from imaging.ct.mask import inscribed_box, specimen_mask
+from imaging.ct.mask import border_fraction, cylinder_mask, inscribed_box, specimen_mask
 from imaging.ct.phantom import PhantomSpec, pellet_phantom
 from imaging.morphology import chord_lengths, rev_analysis
 from shared.io import read_dataset, write_dataset
@@ -115,21 +122,88 @@ def phantom(
     return write_tiff_stack(grey, output)
 
 
-def _calibration(section: Mapping[str, Any], material: Mapping[str, Any], grey: np.ndarray,
-                 specimen: np.ndarray) -> Calibration:
+def _keys(sample: str, key: str) -> str:
+    """How a message names an imaging key: globally or for this sample alone."""
+    return f"imaging.{key} (or samples.{sample}.imaging.{key} for this sample alone)"
+
+
+_NO_AIR_HINT = ("; a specimen that fills the field of view or sits in a container needs "
+                "imaging.mask.mode full or cylinder and imaging.calibration.anchors "
+                "histogram_peaks (or grey_air)")
+
+BORDER_FRACTION_LIMIT = 0.5
+"""A threshold mask covering more of the field's lateral border than this is taken for a
+specimen that fills the field of view (the threshold then splits its own phases)."""
+
+
+def _specimen(sample: str, scan: str | Path, grey: np.ndarray, section: Mapping[str, Any],
+              voxel_size: float) -> np.ndarray:
+    """The specimen mask in the configured mode, or an error that names the setting."""
+    if section["mode"] == "full":
+        return np.ones(grey.shape, dtype=bool)
+    if section["mode"] == "cylinder":
+        centre, z_range = section["cylinder_centre_m"], section["cylinder_z_m"]
+        try:
+            return cylinder_mask(grey.shape, voxel_size, section["cylinder_radius_m"],
+                                 None if centre is None else tuple(centre),
+                                 None if z_range is None else tuple(z_range))
+        except ValueError as err:
+            raise ValueError(f"{scan}: {err}; check {_keys(sample, 'mask')}") from err
+    try:
+        specimen = specimen_mask(grey, section["threshold"], section["min_slice_fraction"])
+    except ValueError as err:
+        raise ValueError(f"{scan}: {err}; check {_keys(sample, 'mask')}") from err
+    touching = border_fraction(specimen)
+    if touching > BORDER_FRACTION_LIMIT:
+        raise ValueError(
+            f"{scan}: the specimen mask covers {touching:.0%} of the field's border, as if the "
+            f"specimen filled the field of view (no air around it): set "
+            f"{_keys(sample, 'mask.mode')} to full (or to cylinder with cylinder_radius_m), "
+            "and the calibration anchors (calibration.anchors: histogram_peaks, or grey_air)"
+        )
+    return specimen
+
+
+def _calibration(sample: str, scan: str | Path, section: Mapping[str, Any],
+                 material: Mapping[str, Any], grey: np.ndarray, specimen: np.ndarray
+                 ) -> tuple[Calibration, dict[str, Any]]:
+    """The calibration, and the attributes that say where its anchors come from."""
     grey_air, grey_muscovite = section["grey_air"], section["grey_muscovite"]
-    if grey_air is None or grey_muscovite is None:
-        auto_air, auto_muscovite = grey_anchors(grey, specimen, section["muscovite_percentile"])
-        grey_air = auto_air if grey_air is None else grey_air
-        grey_muscovite = auto_muscovite if grey_muscovite is None else grey_muscovite
-    return Calibration(
-        grey_air=float(grey_air),
-        grey_muscovite=float(grey_muscovite),
-        air_density=section["air_density_kg_m3"],
-        muscovite_density=section["muscovite_density_kg_m3"],
-        dry_density=material["dry_density_kg_m3"],
-        mean_porosity=material["reference_porosity"],
-    )
+    record: dict[str, Any] = {"calibration_anchors": section["anchors"]}
+    try:
+        if section["anchors"] == "histogram_peaks":
+            peaks, prominence = histogram_peaks(grey)
+            log.info("%s: grey histogram peaks %s (prominence %s)", sample,
+                     np.round(peaks, 1).tolist(), np.round(prominence, 3).tolist())
+            densities = section["peak_densities_kg_m3"]
+            grey_air, grey_muscovite = anchors_through(
+                tuple(peaks), tuple(densities), section["air_density_kg_m3"],
+                section["muscovite_density_kg_m3"])
+            record.update(histogram_peak_greys=peaks, histogram_peak_densities=np.asarray(densities))
+        elif grey_air is None or grey_muscovite is None:
+            if grey_air is None and specimen.all():
+                raise ValueError(
+                    "no air around the specimen to estimate grey_air from: set "
+                    f"{_keys(sample, 'calibration.grey_air')}, or calibration.anchors: "
+                    "histogram_peaks with peak_densities_kg_m3")
+            auto_air, auto_muscovite = grey_anchors(grey, specimen, section["muscovite_percentile"])
+            grey_air = auto_air if grey_air is None else grey_air
+            grey_muscovite = auto_muscovite if grey_muscovite is None else grey_muscovite
+        calibration = Calibration(
+            grey_air=float(grey_air),
+            grey_muscovite=float(grey_muscovite),
+            air_density=section["air_density_kg_m3"],
+            muscovite_density=section["muscovite_density_kg_m3"],
+            dry_density=section["dry_density_kg_m3"] or material["dry_density_kg_m3"],
+            mean_porosity=section["reference_porosity"] or material["reference_porosity"],
+        )
+    except ValueError as err:
+        raise ValueError(
+            f"{scan}: {err}; check {_keys(sample, 'calibration')} (anchors, grey_air, "
+            "grey_muscovite, densities, dry_density_kg_m3, reference_porosity) and "
+            "materials.pellet"
+        ) from err
+    return calibration, record
 
 
 def _grid_warnings(
@@ -162,7 +236,7 @@ def _grid_warnings(
             f"{scan}: every block of the porosity grid lies outside "
             f"imaging.calibration.porosity_bounds [{low:g}, {high:g}] (porosity "
             f"{finite.min():.3g} to {finite.max():.3g}): check {key} "
-            f"({voxel_size:g} m) and the imaging.calibration anchors"
+            f"({voxel_size:g} m) and the imaging.calibration anchors{_NO_AIR_HINT}"
         )
     warnings = []
     if spacing < voxel_size:
@@ -190,7 +264,7 @@ def _grid_warnings(
         warnings.append(
             f"{clamped:.0%} of the grid blocks are clamped to "
             f"imaging.calibration.porosity_bounds [{low:g}, {high:g}]: check {key} and the "
-            "imaging.calibration anchors"
+            f"imaging.calibration anchors{_NO_AIR_HINT}"
         )
     for warning in warnings:
         log.warning("%s (%s): %s", sample, scan, warning)
@@ -258,18 +332,9 @@ def porosity(
         raw_byte_order=raw.get("byte_order", "little"),
     )
     log.info("%s: read %s volume %s from %s", sample, grey.dtype, grey.shape, scan)
-    mask_cfg = imaging["mask"]
-    try:
-        specimen = specimen_mask(grey, mask_cfg["threshold"], mask_cfg["min_slice_fraction"])
-    except ValueError as err:
-        raise ValueError(f"{scan}: {err}; check imaging.mask") from err
-    try:
-        calibration = _calibration(imaging["calibration"], material, grey, specimen)
-    except ValueError as err:
-        raise ValueError(
-            f"{scan}: {err}; check imaging.calibration (grey_air, grey_muscovite, densities) "
-            "and materials.pellet"
-        ) from err
+    specimen = _specimen(sample, scan, grey, imaging["mask"], voxel_size)
+    calibration, anchors = _calibration(sample, scan, imaging["calibration"], material, grey,
+                                        specimen)
     spacing = grid_spacing(imaging["grid_spacing_m"], micro_spacing)
     block = block_size_voxels(spacing, voxel_size)
     grid = block_average(
@@ -285,9 +350,9 @@ def porosity(
     section = {"sample": dict(entry), "imaging": dict(imaging)}
     image_ds = image_dataset(grey, specimen, voxel_size)
     write_dataset(image_ds, image_output, stage="imaging", title=f"CT scan of {sample}",
-                  config=section, inputs=[scan] if Path(scan).is_file() else [], rule=rule)
+                  config=section, inputs=[scan], rule=rule)
     ds = porosity_dataset(grid, calibration, bounds, voxel_size)
-    ds.attrs["warnings"] = "; ".join(warnings)
+    ds.attrs.update(anchors, mask_mode=imaging["mask"]["mode"], warnings="; ".join(warnings))
     write_dataset(ds, porosity_output, stage="imaging", title=f"porosity grid of {sample}",
                   config=section, inputs=[image_output], rule=rule, references=_REFERENCE)
     figures.porosity_figure(image_ds, ds, figure_output)
@@ -307,10 +372,13 @@ def rev(
     figure_output: str | Path,
     rule: str | None = None,
 ) -> xr.Dataset:
-    """REV and chord-length analyses of the calibrated voxels inside the specimen.
+    """REV and chord-length analyses of the voxels inside the specimen.
 
-    The analysed region is the largest cube inside the specimen mask, so that outside
-    air does not enter any window. The calibration is read from the porosity file.
+    The voxels are calibrated (the calibration is read from the porosity file) and
+    thresholded at ``pore_porosity_threshold`` into the binary pore image that both the
+    REV (as Ferrage et al. 2015, Sec. V C define it) and the chords analyse; the REV of
+    the calibrated (continuous) porosity is a second set of variables. The analysed region
+    is the largest cube inside the specimen mask, so that outside air enters no window.
 
     Parameters
     ----------
@@ -338,13 +406,17 @@ def rev(
     voxel_porosity = np.clip(density_to_porosity(grey_to_density(grey, calibration), calibration), 0, 1)
     threshold = chords_settings["pore_porosity_threshold"]
     pore = voxel_porosity > threshold
-    result = rev_analysis(
-        voxel_porosity, voxel_size, np.random.default_rng(rev_settings["seed"]), binary=pore,
-        n_sizes=rev_settings["n_sizes"], n_positions=rev_settings["n_positions"],
-        tolerance=rev_settings["tolerance"], max_window_fraction=rev_settings["max_window_fraction"],
-    )
+    windows = {key: rev_settings[key] for key in ("n_sizes", "n_positions", "tolerance",
+                                                 "max_window_fraction")}
+    windows["n_centred_sizes"] = rev_settings["centred_n_sizes"]
+    # the paper's REV is that of the binary image (Sec. V C), the pore space of the chords;
+    # the calibrated porosity's REV follows with the same window positions (same seed)
+    result = rev_analysis(pore, voxel_size, np.random.default_rng(rev_settings["seed"]),
+                          binary=pore, **windows)
+    calibrated = rev_analysis(voxel_porosity, voxel_size,
+                              np.random.default_rng(rev_settings["seed"]), **windows)
     chords = chord_lengths(pore, voxel_size, chords_settings["include_edges"])
-    ds = rev_dataset(result, chords, voxel_size)
+    ds = rev_dataset(result, calibrated, chords, voxel_size)
     ds.attrs.update(analysed_cube_edge=voxel_porosity.shape[0] * voxel_size,
                     pore_porosity_threshold=threshold,
                     rev_tolerance=rev_settings["tolerance"])
@@ -353,6 +425,11 @@ def rev(
                   seed=rev_settings["seed"], inputs=[image_input, porosity_input],
                   rule=rule, references="Ferrage et al. (2015), Phys. Rev. E 91, 062210, Sec. V.C")
     figures.rev_figure(ds, figure_output)
-    log.info("%s: REV porosity %.3g m, interface %.3g m; R_p %.3g, R_s %.3g", sample,
-             result.w_rev_porosity, result.w_rev_interface, chords.R_p, chords.R_s)
+    log.info("%s: REV edges (centred / random windows) of the binary porosity %.4f: "
+             "%.3g / %.3g m, of its interface: %.3g / %.3g m, of the calibrated porosity "
+             "%.4f: %.3g / %.3g m; R_p %.3g, R_s %.3g", sample, result.porosity_total,
+             result.w_rev_porosity_centred, result.w_rev_porosity,
+             result.w_rev_interface_centred, result.w_rev_interface,
+             calibrated.porosity_total, calibrated.w_rev_porosity_centred,
+             calibrated.w_rev_porosity, chords.R_p, chords.R_s)
     return ds

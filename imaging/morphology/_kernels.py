@@ -1,53 +1,14 @@
-"""numba kernels of the image analyses: window sums, interface face counts, chord runs.
+"""numba kernels of the image analyses: chord runs along image lines.
 
-Arrays in, arrays out; no Python objects. Each kernel has a ``prange`` loop over
-independent items (windows or image lines) whose results go to separate slots, so the
-result does not depend on the thread count.
+Arrays in, arrays out; no Python objects. The ``prange`` loop runs over chunks of lines
+whose integer histograms go to separate slots, so the result does not depend on the
+thread count.
 """
 
 from __future__ import annotations
 
 import numba as nb
 import numpy as np
-
-
-@nb.njit(cache=True, parallel=True)
-def window_sums(values, starts, edges):  # pragma: no cover - compiled
-    """Sum of ``values`` over boxes of edges ``edges`` whose lowest corners are ``starts``."""
-    n = starts.shape[0]
-    out = np.zeros(n, dtype=np.float64)
-    for k in nb.prange(n):
-        z0, y0, x0 = starts[k, 0], starts[k, 1], starts[k, 2]
-        total = 0.0
-        for i in range(z0, z0 + edges[0]):
-            for j in range(y0, y0 + edges[1]):
-                for m in range(x0, x0 + edges[2]):
-                    total += values[i, j, m]
-        out[k] = total
-    return out
-
-
-@nb.njit(cache=True, parallel=True)
-def window_interface_faces(binary, starts, edges):  # pragma: no cover - compiled
-    """Number of voxel faces between unlike phases inside each box window."""
-    n = starts.shape[0]
-    out = np.zeros(n, dtype=np.int64)
-    for k in nb.prange(n):
-        z0, y0, x0 = starts[k, 0], starts[k, 1], starts[k, 2]
-        z1, y1, x1 = z0 + edges[0], y0 + edges[1], x0 + edges[2]
-        faces = 0
-        for i in range(z0, z1):
-            for j in range(y0, y1):
-                for m in range(x0, x1):
-                    v = binary[i, j, m]
-                    if m + 1 < x1 and binary[i, j, m + 1] != v:
-                        faces += 1
-                    if j + 1 < y1 and binary[i, j + 1, m] != v:
-                        faces += 1
-                    if i + 1 < z1 and binary[i + 1, j, m] != v:
-                        faces += 1
-        out[k] = faces
-    return out
 
 
 @nb.njit(cache=True, parallel=True)

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from imaging.morphology import chord_lengths, rev_analysis, rev_size
+from imaging.morphology import chord_lengths, rev_analysis
 from imaging.packing.config import parameters_of, population_of
 from imaging.packing.deposition import Packing, deposit
 from imaging.packing.figures import packing_figure
@@ -86,17 +86,6 @@ _NOT_REACHED = ("NaN: no window smaller than the image satisfies the criterion, 
                 "is not reached inside the image")
 
 
-def _centred_rev(edges: np.ndarray, deviation: np.ndarray, whole: bool, tolerance: float) -> float:
-    """Smallest window edge [m] from which the centred window stays within the tolerance of
-    the whole image for every larger window; NaN when only the whole image does (it agrees
-    with itself by construction, so reaching the REV there says nothing)."""
-    if whole:
-        edges, deviation = edges[:-1], deviation[:-1]
-    if edges.size == 0:
-        return float("nan")
-    return rev_size(edges, deviation, tolerance)
-
-
 def _image_analysis_variables(
     image: VoxelImage, section: Mapping[str, Any], rng: np.random.Generator
 ) -> tuple[dict[str, xr.Variable], dict[str, xr.Variable]]:
@@ -114,29 +103,17 @@ def _image_analysis_variables(
     if min(pore.shape) < 8:
         log.warning("REV and chord analyses skipped: image %s too thin", pore.shape)
         return {}, {}
-    field = pore.astype(np.float32)
     tolerance = float(section["rev_tolerance"])
-    rev = rev_analysis(field, image.voxel_size, rng, binary=pore, tolerance=tolerance,
+    rev = rev_analysis(pore, image.voxel_size, rng, binary=pore, tolerance=tolerance,
                        n_sizes=int(section["rev_n_sizes"]),
                        n_positions=int(section["rev_n_positions"]),
-                       max_window_fraction=float(section["rev_max_window_fraction"]))
-    # One position per edge: only the centred window is used from this second pass (its
-    # random-window spread, 0 / 0 in small all-solid windows, is discarded).
-    with np.errstate(invalid="ignore", divide="ignore"):
-        centred = rev_analysis(field, image.voxel_size, rng, binary=pore, tolerance=tolerance,
-                               n_sizes=int(section["rev_centred_n_sizes"]), n_positions=1,
-                               max_window_fraction=1.0)
-    whole = bool(np.all(np.asarray(pore.shape) == centred.window[-1]))
-    edges_c = centred.window * image.voxel_size
-    with np.errstate(invalid="ignore", divide="ignore"):
-        dev_porosity = np.abs(centred.porosity_centred / centred.porosity_total - 1.0)
-        dev_interface = np.abs(centred.interface_centred / centred.interface_total - 1.0)
+                       max_window_fraction=float(section["rev_max_window_fraction"]),
+                       n_centred_sizes=int(section["rev_centred_n_sizes"]))
+    edges_c = rev.window_centred * image.voxel_size
     chords = chord_lengths(pore, image.voxel_size, bool(section["chords_include_edges"]))
     cd = ("direction", "chord_length")
     random_note = ("NaN: the relative standard deviation over random windows exceeds the "
                    "tolerance at the largest window (rev_max_window_fraction of the image)")
-    w_porosity_c = _centred_rev(edges_c, dev_porosity, whole, tolerance)
-    w_interface_c = _centred_rev(edges_c, dev_interface, whole, tolerance)
     out = {
         "rev_porosity_std": _var(("window",), rev.porosity_std, "1",
                                  "std of porosity over random windows"),
@@ -146,13 +123,13 @@ def _image_analysis_variables(
                                "REV edge for porosity, random-window criterion"),
         "w_rev_interface": _var((), rev.w_rev_interface, "m",
                                 "REV edge for interface density, random-window criterion"),
-        "rev_porosity_centred": _var(("window_centred",), centred.porosity_centred, "1",
+        "rev_porosity_centred": _var(("window_centred",), rev.porosity_centred, "1",
                                      "porosity of the centred window"),
-        "rev_interface_centred": _var(("window_centred",), centred.interface_centred, "m-1",
+        "rev_interface_centred": _var(("window_centred",), rev.interface_centred, "m-1",
                                       "interface density of the centred window"),
-        "w_rev_porosity_centred": _var((), w_porosity_c, "m",
+        "w_rev_porosity_centred": _var((), rev.w_rev_porosity_centred, "m",
                                        "REV edge for porosity, centred-window criterion"),
-        "w_rev_interface_centred": _var((), w_interface_c, "m",
+        "w_rev_interface_centred": _var((), rev.w_rev_interface_centred, "m",
                                         "REV edge for interface density, centred-window "
                                         "criterion"),
         "chord_pore": _var(cd, chords.f_pore, "m-1", "pore chord length distribution"),

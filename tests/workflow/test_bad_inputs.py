@@ -218,6 +218,15 @@ GRID_SETTINGS = {
     "anchors_swapped": (
         {"calibration.grey_air": 60000.0, "calibration.grey_muscovite": 100.0},
         ["imaging.calibration"]),
+    "cylinder_outside_the_field": (
+        {"mask.mode": "cylinder", "mask.cylinder_radius_m": 1e-4,
+         "mask.cylinder_centre_m": [1.0, 1.0]}, ["holds no voxel", "imaging.mask"]),
+    "full_field_without_an_air_anchor": (
+        {"mask.mode": "full"}, ["no air", "imaging.calibration.grey_air", "histogram_peaks"]),
+    "histogram_peaks_of_the_wrong_order": (
+        {"calibration.anchors": "histogram_peaks",
+         "calibration.peak_densities_kg_m3": [2000.0, 1.13]},
+        ["increasing densities", "imaging.calibration"]),
 }
 
 
@@ -232,6 +241,55 @@ def test_a_scan_giving_no_usable_grid_is_refused_naming_the_keys(case, volume, t
     for key in keys:
         assert key in message
     assert not _files(tmp_path / "results")
+
+
+def _core(volume: np.ndarray, grains: int = 0) -> np.ndarray:
+    """The phantom's clay alone (a block inside its cylinder, no air around it), with
+    ``grains`` bright muscovite grains."""
+    spec = ct_run.phantom_spec(dict(CONFIG["phantom"], shape=[32, 32, 32], seed=3,
+                                    n_muscovite_grains=grains),
+                               CONFIG["imaging"]["calibration"], VOXEL)
+    return np.ascontiguousarray(pellet_phantom(spec)[0][10:22, 10:22, 10:22])
+
+
+def _one_phase(volume: np.ndarray) -> np.ndarray:
+    """A single phase filling the field: one peak in the grey histogram."""
+    rng = np.random.default_rng(0)
+    return np.clip(rng.normal(30000.0, 500.0, (16, 16, 16)), 0, 65535).astype(np.uint16)
+
+
+FILLED_FIELD = {
+    # (scan filling its field of view, imaging settings, words of the message)
+    "threshold_mask": (_core, {}, ["fill", "imaging.mask.mode",
+                                   "samples.scan.imaging.mask.mode", "full", "histogram_peaks"]),
+    "histogram_with_one_peak": (
+        _one_phase, {"mask.mode": "full", "calibration.anchors": "histogram_peaks",
+                     "calibration.peak_densities_kg_m3": [1.13, 2120.0]},
+        ["1 peak(s)", "imaging.calibration"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(FILLED_FIELD))
+def test_a_scan_without_air_is_refused_with_the_setting_to_change(case, volume, tmp_path):
+    make, changes, words = FILLED_FIELD[case]
+    scan = write_tiff_stack(make(volume), tmp_path / "core.tif")
+    with pytest.raises(ValueError) as err:
+        _porosity(tmp_path, "tiff", scan, imaging=_imaging(**changes))
+    message = str(err.value)
+    assert str(scan) in message and "\n" not in message
+    for word in words:
+        assert word in message
+    assert not _files(tmp_path / "results")
+
+
+def test_a_scan_without_air_whose_mask_looks_plausible_is_warned(volume, tmp_path, caplog):
+    """Clay with bright grains and no air: the threshold takes the grains for the specimen
+    and the clay for air; the clamped blocks' warning names the settings to change."""
+    scan = write_tiff_stack(_core(volume, grains=12), tmp_path / "core.tif")
+    with caplog.at_level(logging.WARNING, logger="imaging.ct"):
+        ds = _porosity(tmp_path, "tiff", scan)
+    assert "imaging.mask.mode" in ds.attrs["warnings"]
+    assert any("histogram_peaks" in r.getMessage() for r in caplog.records)
 
 
 @pytest.mark.parametrize("factor", [1e3, 1e-3])
@@ -359,6 +417,32 @@ def test_an_unknown_case_is_refused_naming_the_key(tmp_path):
     assert not _files(tmp_path / "results")
 
 
+@pytest.mark.parametrize("damage", ["garbage", "cut", "empty"])
+def test_a_damaged_checkpoint_file_is_named_and_kept(damage, tmp_path):
+    """A checkpoint file that cannot be read stops the case with one line naming it; the
+    file is neither used nor overwritten, and no result is written."""
+    from micro.checkpoint import CheckpointError
+
+    path = _grid_file(tmp_path, _grid(np.full((20, 20, 20), 0.3)))
+    results = tmp_path / "results" / "micro"
+    results.mkdir(parents=True)
+    state_file = results / "heterogeneous.checkpoint.npz"
+    content = {"garbage": b"PK\x03\x04 not a zip archive",
+               "cut": b"",
+               "empty": b""}[damage]
+    if damage == "cut":
+        np.savez(state_file, meta=np.array("{}"), x=np.zeros(1000))
+        content = state_file.read_bytes()[:300]
+    state_file.write_bytes(content)
+    with pytest.raises(CheckpointError) as err:
+        micro_run.run(MICRO, "heterogeneous", path, results / "heterogeneous.nc",
+                      results / "heterogeneous.png")
+    message = str(err.value)
+    assert str(state_file) in message and "\n" not in message
+    assert state_file.read_bytes() == content
+    assert _files(tmp_path / "results") == {state_file}
+
+
 def test_a_divergence_names_the_case_and_leaves_no_result(tmp_path, monkeypatch):
     path = _grid_file(tmp_path, _grid(np.full((20, 20, 20), 0.3)))
 
@@ -416,6 +500,21 @@ CONFIGS = {
                                  "upscaling.suction_range_pa"),
     "packing_without_particles": (_set("packings", {"flat": {"n_particles": 0}}),
                                   "packings.flat.n_particles"),
+    "cylinder_mask_without_radius": (_set("imaging.mask.mode", "cylinder"),
+                                     "imaging.mask.cylinder_radius_m"),
+    "histogram_peaks_without_densities": (_set("imaging.calibration.anchors", "histogram_peaks"),
+                                          "imaging.calibration.peak_densities_kg_m3"),
+    "histogram_peaks_and_a_grey_anchor": (
+        _set("imaging.calibration", {"anchors": "histogram_peaks", "grey_air": 10.0,
+                                     "peak_densities_kg_m3": [1.13, 2000.0]}),
+        "imaging.calibration.grey_air"),
+    "sample_imaging_unknown_key": (_set("samples.pellet.imaging", {"mask": {"colour": 1}}),
+                                   "samples.pellet.imaging.mask.colour"),
+    "sample_imaging_bad_value": (_set("samples.pellet.imaging", {"grid_spacing_m": -1.0}),
+                                 "samples.pellet.imaging.grid_spacing_m"),
+    "sample_cylinder_without_radius": (_set("samples.pellet.imaging",
+                                            {"mask": {"mode": "cylinder"}}),
+                                       "samples.pellet.imaging.mask.cylinder_radius_m"),
 }
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import shutil
 import subprocess
 import sys
@@ -222,3 +223,102 @@ def test_bad_packing_key_is_named(tmp_path):
     config = yaml.safe_load(yaml.safe_dump(TINY))
     config["packings"] = {"flat": {"n_particles": 0}}
     _fails_with(tmp_path, config, "packings.flat.n_particles")
+
+
+@pytest.fixture(scope="module")
+def two_samples(tmp_path_factory):
+    """The CT rules for two samples: the phantom, and a scan given as a folder of slices
+    (the same phantom written slice by slice), each with its own REV setting."""
+    from imaging.ct.io import write_slice_folder
+    from imaging.ct.run import phantom_spec
+    from imaging.ct.phantom import pellet_phantom
+    from shared.config import default_config
+
+    tmp = tmp_path_factory.mktemp("wf_samples")
+    defaults = default_config()
+    spec = phantom_spec(dict(defaults["phantom"], shape=[32, 32, 32], seed=2),
+                        defaults["imaging"]["calibration"], 3.0e-4)
+    folder = write_slice_folder(pellet_phantom(spec)[0], tmp / "scan_slices")
+    config = yaml.safe_load(yaml.safe_dump(TINY))
+    config["samples"]["sliced"] = {"source": "slices", "path": str(folder),
+                                   "voxel_size_m": 3.0e-4,
+                                   "imaging": {"rev": {"tolerance": 0.1}}}
+    (tmp / "wf").mkdir()
+    workdir = _workdir(tmp / "wf", config)
+    result = _snakemake(workdir, "results/rev/pellet.nc", "results/rev/sliced.nc")
+    assert result.returncode == 0, result.stderr[-3000:]
+    return workdir, folder
+
+
+def _copy_with(workdir: Path, tmp: Path, edit) -> tuple[Path, set[str]]:
+    """A copy of a finished run with a config edit, and the outputs whose params changed."""
+    copy = tmp / "wf"
+    shutil.copytree(workdir, copy, symlinks=True)
+    path = copy / "config" / "config.yaml"
+    config = yaml.safe_load(path.read_text())
+    edit(config)
+    path.write_text(yaml.safe_dump(config))
+    result = _snakemake(copy, "--list-changes", "params")
+    assert result.returncode == 0, result.stderr[-3000:]
+    return copy, {line.strip() for line in result.stdout.splitlines()
+                  if line.startswith("results/")}
+
+
+@pytest.mark.parametrize(
+    ("section", "value", "changed"),
+    [
+        ("rev", {"tolerance": 0.2}, {"results/rev/sliced.nc", "results/rev/sliced.png"}),
+        ("mask", {"min_slice_fraction": 0.3},
+         {"results/images/sliced.nc", "results/porosity/sliced.nc",
+          "results/porosity/sliced.png"}),
+    ],
+)
+def test_a_samples_own_setting_reruns_that_sample_alone(two_samples, tmp_path, section,
+                                                        value, changed):
+    workdir, _ = two_samples
+
+    def edit(config):
+        config["samples"]["sliced"]["imaging"][section] = value
+
+    _, listed = _copy_with(workdir, tmp_path, edit)
+    assert listed == changed
+
+
+def test_the_section_default_reaches_samples_without_their_own_value(two_samples, tmp_path):
+    """imaging.rev.tolerance is the phantom's (it sets none), not the sliced scan's."""
+    workdir, _ = two_samples
+
+    def edit(config):
+        config["imaging"]["rev"]["tolerance"] = 0.3
+
+    _, listed = _copy_with(workdir, tmp_path, edit)
+    assert listed == {"results/rev/pellet.nc", "results/rev/pellet.png"}
+
+
+def test_editing_one_slice_reruns_its_sample_and_is_in_the_provenance(two_samples, tmp_path):
+    workdir, folder = two_samples
+    record = json.loads(read_dataset(workdir / "results/images/sliced.nc", ["grey"])
+                        .attrs["inputs"])
+    assert record[0]["path"] == str(folder) and record[0]["files"] == 32
+    assert len(record[0]["sha256"]) == 64
+    copy = tmp_path / "wf"
+    shutil.copytree(workdir, copy, symlinks=True)
+    edited = tmp_path / "slices"
+    shutil.copytree(folder, edited)
+    path = copy / "config" / "config.yaml"
+    config = yaml.safe_load(path.read_text())
+    config["samples"]["sliced"]["path"] = str(edited)
+    path.write_text(yaml.safe_dump(config))
+    # the copied folder is newer than the outputs: let the dates settle first
+    assert _snakemake(copy, "--touch", "results/rev/sliced.nc").returncode == 0
+    assert "Nothing to be done" in _snakemake(copy, "-n", "results/rev/sliced.nc").stdout
+    import cv2
+
+    page = sorted(edited.glob("*.tif"))[16]
+    image = cv2.imread(str(page), cv2.IMREAD_UNCHANGED)
+    cv2.imwrite(str(page), image // 2)
+    dry = _snakemake(copy, "-n", "results/rev/sliced.nc", "results/rev/pellet.nc")
+    assert dry.returncode == 0, dry.stderr[-3000:]
+    stats = dry.stdout.split("Job stats:")[1].split("total")[0]
+    assert "imaging_porosity" in stats and "imaging_rev" in stats
+    assert "sample=sliced" in dry.stdout and "sample=pellet" not in dry.stdout

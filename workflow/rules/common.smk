@@ -1,6 +1,7 @@
 # Shared helpers of the rules: validation, sample sheet, code hash, input functions.
 import sys
 
+from imaging.ct.io import ImageError, slice_files
 from imaging.packing.config import check_packings
 from micro.run import MATERIAL_KEYS
 from micro.upscaling.run import source_names
@@ -11,7 +12,7 @@ from micro.studies import (
     realization_case,
     scale_realizations,
 )
-from shared.config import ConfigError, load_schema, validate_config
+from shared.config import ConfigError, load_schema, sample_imaging, validate_config
 from shared.provenance import code_sha256
 
 try:
@@ -44,8 +45,24 @@ def code_hash(*packages):
 
 
 def get_sample_config(wildcards):
-    """The configuration entry of a sample (a param, so that its edits rerun the rule)."""
-    return config["samples"][wildcards.sample]
+    """The configuration entry of a sample without its imaging settings (a param, so that
+    its edits rerun the rule)."""
+    return {
+        key: value
+        for key, value in config["samples"][wildcards.sample].items()
+        if key != "imaging"
+    }
+
+
+def sample_settings(*keys):
+    """Input function: these keys of the sample's imaging settings (``imaging`` with the
+    sample's own keys merged over it), so that one sample's settings rerun it alone."""
+
+    def settings(wildcards):
+        imaging = sample_imaging(config, wildcards.sample)
+        return {key: imaging[key] for key in keys}
+
+    return settings
 
 
 def get_scan(wildcards):
@@ -54,6 +71,19 @@ def get_scan(wildcards):
     if entry["source"] == "phantom":
         return f"results/phantom/{wildcards.sample}.tif"
     return entry["path"]
+
+
+def get_slice_files(wildcards):
+    """The files of a slice-folder scan, as inputs, so that editing one slice reruns the
+    sample (a folder input alone is dated by its own entries, not by its files' content).
+    """
+    entry = config["samples"][wildcards.sample]
+    if entry["source"] != "slices":
+        return []
+    try:
+        return [str(path) for path in slice_files(entry["path"])]
+    except ImageError:  # the job itself refuses the folder, in one line
+        return []
 
 
 def get_packing_config(wildcards):

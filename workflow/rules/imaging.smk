@@ -10,8 +10,8 @@ rule imaging_phantom:
         phantom=config["phantom"],
         sample=get_sample_config,
         # the phantom maps density to grey with the anchors that calibration inverts
-        calibration={
-            key: config["imaging"]["calibration"][key]
+        calibration=lambda wildcards: {
+            key: sample_settings("calibration")(wildcards)["calibration"][key]
             for key in ("air_density_kg_m3", "muscovite_density_kg_m3")
         },
     conda:
@@ -27,6 +27,7 @@ rule imaging_phantom:
 rule imaging_porosity:
     input:
         scan=get_scan,
+        slices=get_slice_files,
     output:
         image="results/images/{sample}.nc",
         porosity="results/porosity/{sample}.nc",
@@ -34,15 +35,9 @@ rule imaging_porosity:
     params:
         code=IMAGING_CODE,
         sample=get_sample_config,
-        imaging={
-            key: config["imaging"][key]
-            for key in (
-                "calibration",
-                "mask",
-                "grid_spacing_m",
-                "min_specimen_fraction",
-            )
-        },
+        imaging=sample_settings(
+            "calibration", "mask", "grid_spacing_m", "min_specimen_fraction"
+        ),
         # one phi_0: the calibration anchors the mean dry density at the pellet's
         # reference porosity, that of the retention and permeability laws
         material={
@@ -69,8 +64,7 @@ rule imaging_rev:
         figure="results/rev/{sample}.png",
     params:
         code=IMAGING_CODE,
-        rev=config["imaging"]["rev"],
-        chords=config["imaging"]["chords"],
+        settings=sample_settings("rev", "chords"),
     conda:
         "../envs/claychain.yaml"
     log:

@@ -12,7 +12,7 @@ import yaml
 
 from imaging.packing.config import population_of
 from imaging.packing.population import sample_semi_axes
-from imaging.packing.run import _centred_rev, run
+from imaging.packing.run import run
 from shared.config import ConfigError
 from shared.io import read_dataset
 
@@ -55,18 +55,6 @@ def test_run_writes_the_contract(tmp_path: Path, caplog: pytest.LogCaptureFixtur
     window = solid[lo[0]:lo[0] + k, lo[1]:lo[1] + k, lo[2]:lo[2] + k]
     assert k == min(solid.shape)
     assert float(back["rev_porosity_centred"][-1]) == pytest.approx(1.0 - window.mean(), rel=1e-6)
-
-
-def test_centred_rev_ignores_the_whole_image() -> None:
-    """The centred-window REV is the smallest edge from which every larger window is within
-    the tolerance; the whole image matches itself, so it alone does not count."""
-    edges = np.array([1.0, 2.0, 4.0, 8.0])
-    assert _centred_rev(edges, np.array([0.5, 0.005, 0.002, 0.0]), True, 0.01) == 2.0
-    assert _centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), True, 0.01) != 8.0
-    assert np.isnan(_centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), True, 0.01))
-    assert _centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), False, 0.01) == 8.0
-    # the tolerance is the entry's rev_tolerance
-    assert _centred_rev(edges, np.array([0.5, 0.005, 0.03, 0.0]), True, 0.05) == 2.0
 
 
 @pytest.mark.parametrize(
