@@ -18,16 +18,19 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from imaging.ct.mask import grey_sample
+
 __all__ = [
     "Calibration",
     "grey_anchors",
+    "histogram_quantile",
+    "anchors_from_histograms",
     "histogram_peaks",
     "anchors_through",
     "grey_to_density",
     "density_to_porosity",
 ]
 
-_HISTOGRAM_SAMPLE = 1 << 22
 _HISTOGRAM_BINS = 512
 PEAK_PROMINENCE = 0.05
 """A histogram peak counts if it rises this fraction of the highest bin above its
@@ -75,7 +78,35 @@ def grey_anchors(
     specimen: npt.NDArray[np.bool_],
     muscovite_percentile: float = 99.99,
 ) -> tuple[float, float]:
-    """Estimate the air and muscovite grey values of a scan.
+    """Estimate the air and muscovite grey values of a scan (:func:`anchors_from_histograms`
+    of its greys outside and inside the specimen)."""
+    size = 1 << (8 * volume.dtype.itemsize)
+    return anchors_from_histograms(np.bincount(volume[~specimen].ravel(), minlength=size),
+                                   np.bincount(volume[specimen].ravel(), minlength=size),
+                                   muscovite_percentile)
+
+
+def histogram_quantile(counts: npt.NDArray[np.integer], percentile: float) -> float:
+    """The ``percentile`` of the integer values whose histogram is ``counts`` (value ``v``
+    counted ``counts[v]`` times), interpolated linearly between ranks as
+    :func:`numpy.percentile` does on the values themselves."""
+    cumulative = np.cumsum(counts, dtype=np.int64)
+    total = int(cumulative[-1])
+    if total == 0:
+        raise ValueError("no value to take a percentile of")
+    rank = percentile / 100.0 * (total - 1)
+    below, above = int(np.floor(rank)), int(np.ceil(rank))
+    low = float(np.searchsorted(cumulative, below, side="right"))
+    high = float(np.searchsorted(cumulative, above, side="right"))
+    return low + (rank - below) * (high - low)
+
+
+def anchors_from_histograms(
+    outside: npt.NDArray[np.integer],
+    inside: npt.NDArray[np.integer],
+    muscovite_percentile: float = 99.99,
+) -> tuple[float, float]:
+    """Air and muscovite greys from the grey histograms outside and inside the specimen.
 
     Air is the median grey outside the specimen; muscovite is a high percentile inside
     it (a percentile rather than the maximum, so a single noisy voxel does not set it).
@@ -84,12 +115,9 @@ def grey_anchors(
     -------
     grey_air, grey_muscovite : float
     """
-    outside = volume[~specimen]
-    if outside.size == 0:
+    if outside.sum() == 0:
         raise ValueError("no air around the specimen: set the grey anchors in the config")
-    grey_air = float(np.median(outside))
-    grey_muscovite = float(np.percentile(volume[specimen], muscovite_percentile))
-    return grey_air, grey_muscovite
+    return histogram_quantile(outside, 50.0), histogram_quantile(inside, muscovite_percentile)
 
 
 def histogram_peaks(
@@ -97,7 +125,8 @@ def histogram_peaks(
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """The ``n_peaks`` most prominent peaks of a volume's grey histogram.
 
-    The histogram of an evenly strided sample of at most 4 Mi voxels (sqrt(n)/2 bins, 16
+    The histogram of an evenly strided sample of at most 4 Mi voxels
+    (:func:`imaging.ct.mask.grey_sample`, or that sample itself; sqrt(n)/2 bins, 16
     to 512, over the grey range) is smoothed by a Gaussian of one bin before the peaks
     are found (:func:`scipy.signal.find_peaks`, prominence ``PEAK_PROMINENCE``); a peak's
     grey is then refined by a mean shift over the voxels within two bins of it.
@@ -116,8 +145,7 @@ def histogram_peaks(
     from scipy.ndimage import gaussian_filter1d
     from scipy.signal import find_peaks
 
-    stride = max(1, int(np.ceil(volume.size / _HISTOGRAM_SAMPLE)))
-    sample = volume.reshape(-1)[::stride]
+    sample = grey_sample(volume)
     low, high = float(sample.min()), float(sample.max())
     if high <= low:
         raise ValueError("the scan is uniform: its grey histogram has no two peaks")

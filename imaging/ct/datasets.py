@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import numpy.typing as npt
 import xarray as xr
@@ -26,21 +28,31 @@ def voxel_coordinates(shape: tuple[int, ...], voxel_size: float) -> dict[str, xr
 
 
 def image_dataset(
-    grey: npt.NDArray[np.unsignedinteger], specimen: npt.NDArray[np.bool_], voxel_size: float
+    specimen: Any,
+    voxel_size: float,
+    preview: npt.NDArray[np.unsignedinteger],
+    preview_step: int,
+    grey: Any | None = None,
 ) -> xr.Dataset:
-    """Greyscale volume and specimen mask with coordinates in metres."""
-    return xr.Dataset(
-        {
-            "grey": (("z", "y", "x"), grey, {"units": "1", "long_name": "CT grey value"}),
-            "specimen": (
-                ("z", "y", "x"),
-                specimen.astype(np.uint8),
-                {"units": "1", "long_name": "specimen mask (1 inside, 0 air)"},
-            ),
-        },
-        coords=voxel_coordinates(grey.shape, voxel_size),
-        attrs={"voxel_size": voxel_size, "voxel_size_units": "m"},
-    )
+    """The specimen mask, a strided preview of the scan and, if given, the scan itself,
+    with coordinates in metres (numpy or lazy dask arrays: written slab by slab)."""
+    coords = voxel_coordinates(tuple(specimen.shape), voxel_size)
+    preview_coords = {
+        f"{axis}_preview": _coord(coords[axis].values[::preview_step], f"{axis}_preview", "m",
+                                  f"{axis} position of preview voxel centre")
+        for axis in "zyx"
+    }
+    data = {
+        "specimen": (("z", "y", "x"), specimen,
+                     {"units": "1", "long_name": "specimen mask (1 inside, 0 outside)"}),
+        "grey_preview": (("z_preview", "y_preview", "x_preview"), preview,
+                         {"units": "1", "long_name": f"CT grey value, every {preview_step}th voxel"}),
+    }
+    if grey is not None:
+        data["grey"] = (("z", "y", "x"), grey, {"units": "1", "long_name": "CT grey value"})
+    return xr.Dataset(data, coords={**coords, **preview_coords},
+                      attrs={"voxel_size": voxel_size, "voxel_size_units": "m",
+                             "preview_step": preview_step, "scan_stored": int(grey is not None)})
 
 
 def porosity_dataset(

@@ -17,9 +17,11 @@ def _mid(n: int) -> int:
 
 
 def porosity_figure(image: xr.Dataset, porosity: xr.Dataset, path: str | Path) -> Path:
-    """Grey and porosity slices (xy and xz through the centre) and the porosity histogram."""
+    """Grey (the stored preview) and porosity slices (xy and xz through the centre) and the
+    porosity and density histograms."""
     fig, axes = new_figure(2, 3)
-    grey, phi = image["grey"], porosity["porosity"]
+    grey = image["grey_preview"].rename(z_preview="z", y_preview="y", x_preview="x")
+    phi = porosity["porosity"]
     mm = 1e3
     panels = [
         (axes[0, 0], grey.isel(z=_mid(grey.sizes["z"])), "x", "y", "grey, xy (mid z)", "gray"),

@@ -1,9 +1,9 @@
 """Block averaging of a calibrated volume onto a coarse porosity grid.
 
 The micro model assigns each tetrahedron the porosity of the grid at its centroid, with
-a grid spacing equal to the mean DEM point spacing (thesis Sec. 3.3.4). The volume is
-processed in slabs of one block row at a time, so that memory stays close to the size of
-the greyscale volume itself.
+a grid spacing equal to the mean DEM point spacing (thesis Sec. 3.3.4). A volume is
+summed slab by slab (:func:`block_sums`, slabs a whole number of blocks thick), so that
+memory is set by the slab, and the sums make the grid (:func:`block_grid`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy.typing as npt
 
 from imaging.ct.calibration import Calibration, density_to_porosity, grey_to_density
 
-__all__ = ["BlockGrid", "block_average", "block_size_voxels"]
+__all__ = ["BlockGrid", "block_average", "block_sums", "block_grid", "block_size_voxels"]
 
 
 @dataclass(frozen=True)
@@ -63,6 +63,65 @@ def _block_centres(n: int, size: int, voxel_size: float) -> npt.NDArray[np.float
     return 0.5 * (starts + ends) * voxel_size
 
 
+def block_sums(
+    slab: npt.NDArray[np.unsignedinteger],
+    specimen: npt.NDArray[np.bool_],
+    calibration: Calibration,
+    block: int,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Sums of calibrated density [kg/m3] and counts of specimen voxels per block, for a
+    slab whose thickness is a whole number of blocks (or the volume's last rows).
+
+    Returns
+    -------
+    density_sum, counts : ndarray, shape (block rows in z, blocks in y, blocks in x)
+    """
+    nz, ny, nx = slab.shape
+    y_starts, x_starts = _block_starts(ny, block), _block_starts(nx, block)
+    z_starts = _block_starts(nz, block)
+    density_sum = np.zeros((z_starts.size, y_starts.size, x_starts.size), dtype=np.float64)
+    counts = np.zeros_like(density_sum)
+    for row, z0 in enumerate(z_starts):
+        slab_mask = specimen[z0 : z0 + block]
+        density = grey_to_density(slab[z0 : z0 + block].astype(np.float32), calibration)
+        density *= slab_mask
+        column = density.sum(axis=0, dtype=np.float64)
+        column_count = slab_mask.sum(axis=0, dtype=np.int64).astype(np.float64)
+        density_sum[row] = np.add.reduceat(np.add.reduceat(column, y_starts, 0), x_starts, 1)
+        counts[row] = np.add.reduceat(np.add.reduceat(column_count, y_starts, 0), x_starts, 1)
+    return density_sum, counts
+
+
+def block_grid(
+    density_sum: npt.NDArray[np.float64],
+    counts: npt.NDArray[np.float64],
+    shape: tuple[int, int, int],
+    calibration: Calibration,
+    block: int,
+    voxel_size: float,
+    min_specimen_fraction: float = 0.5,
+) -> BlockGrid:
+    """The grid of a volume of ``shape`` from its :func:`block_sums` (all rows)."""
+    nz, ny, nx = shape
+    starts = [_block_starts(n, block) for n in shape]
+    sizes = np.multiply.outer(
+        np.multiply.outer(np.diff(np.append(starts[0], nz)), np.diff(np.append(starts[1], ny))),
+        np.diff(np.append(starts[2], nx)),
+    ).astype(np.float64)
+    fraction = counts / sizes
+    with np.errstate(invalid="ignore", divide="ignore"):
+        density = np.where(fraction >= min_specimen_fraction, density_sum / counts, np.nan)
+    return BlockGrid(
+        density=density,
+        porosity=density_to_porosity(density, calibration),
+        specimen_fraction=fraction,
+        z=_block_centres(nz, block, voxel_size),
+        y=_block_centres(ny, block, voxel_size),
+        x=_block_centres(nx, block, voxel_size),
+        block=(block, block, block),
+    )
+
+
 def block_average(
     volume: npt.NDArray[np.unsignedinteger],
     specimen: npt.NDArray[np.bool_],
@@ -94,32 +153,6 @@ def block_average(
     """
     if volume.shape != specimen.shape:
         raise ValueError(f"volume {volume.shape} and mask {specimen.shape} differ in shape")
-    nz, ny, nx = volume.shape
-    y_starts, x_starts = _block_starts(ny, block), _block_starts(nx, block)
-    z_starts = _block_starts(nz, block)
-    density_sum = np.zeros((z_starts.size, y_starts.size, x_starts.size), dtype=np.float64)
-    counts = np.zeros_like(density_sum)
-    for row, z0 in enumerate(z_starts):
-        slab_mask = specimen[z0 : z0 + block]
-        slab = grey_to_density(volume[z0 : z0 + block].astype(np.float32), calibration)
-        slab *= slab_mask
-        column = slab.sum(axis=0, dtype=np.float64)
-        column_count = slab_mask.sum(axis=0, dtype=np.int64).astype(np.float64)
-        density_sum[row] = np.add.reduceat(np.add.reduceat(column, y_starts, 0), x_starts, 1)
-        counts[row] = np.add.reduceat(np.add.reduceat(column_count, y_starts, 0), x_starts, 1)
-    sizes = np.multiply.outer(
-        np.multiply.outer(np.diff(np.append(z_starts, nz)), np.diff(np.append(y_starts, ny))),
-        np.diff(np.append(x_starts, nx)),
-    ).astype(np.float64)
-    fraction = counts / sizes
-    with np.errstate(invalid="ignore", divide="ignore"):
-        density = np.where(fraction >= min_specimen_fraction, density_sum / counts, np.nan)
-    return BlockGrid(
-        density=density,
-        porosity=density_to_porosity(density, calibration),
-        specimen_fraction=fraction,
-        z=_block_centres(nz, block, voxel_size),
-        y=_block_centres(ny, block, voxel_size),
-        x=_block_centres(nx, block, voxel_size),
-        block=(block, block, block),
-    )
+    density_sum, counts = block_sums(volume, specimen, calibration, block)
+    return block_grid(density_sum, counts, volume.shape, calibration, block, voxel_size,
+                      min_specimen_fraction)

@@ -10,9 +10,13 @@ from __future__ import annotations
 import mmap
 import re
 import struct
+from functools import partial
 from pathlib import Path
+from typing import Any
 
 import cv2
+import dask
+import dask.array as da
 import numpy as np
 import numpy.typing as npt
 import xarray as xr
@@ -21,6 +25,11 @@ from shared.io import atomic_write
 
 __all__ = [
     "ImageError",
+    "open_volume",
+    "open_tiff_stack",
+    "open_slice_folder",
+    "open_raw",
+    "open_netcdf_volume",
     "read_volume",
     "read_tiff_stack",
     "read_slice_folder",
@@ -32,6 +41,8 @@ __all__ = [
 ]
 
 _SLICE_SUFFIXES = (".tif", ".tiff", ".png")
+DEFAULT_CHUNK_BYTES = 64 << 20
+"""Greyscale bytes per chunk when the caller gives none (``imaging.chunk_mb``)."""
 _SUPPORTED_DTYPES = (np.uint8, np.uint16)
 
 
@@ -49,6 +60,24 @@ def _check_volume(volume: np.ndarray, source: str | Path) -> np.ndarray:
     if volume.max() == volume.min():
         raise ImageError(f"{source}: the volume is uniform (every voxel is {volume.min()})")
     return volume
+
+
+def _check_dtype(dtype: np.dtype, source: str | Path) -> None:
+    if np.dtype(dtype).type not in _SUPPORTED_DTYPES:
+        raise ImageError(f"{source}: expected 8- or 16-bit greyscale, got dtype {dtype}")
+
+
+def _slices_per_chunk(shape: tuple[int, ...], dtype: np.dtype, chunk_bytes: int) -> int:
+    """Whole slices per chunk: about ``chunk_bytes`` of greyscale, at least one."""
+    return max(1, int(chunk_bytes // (int(np.prod(shape)) * np.dtype(dtype).itemsize)))
+
+
+def _from_pieces(pieces: list[tuple[Any, int]], shape: tuple[int, int], dtype: np.dtype) -> Any:
+    """A dask array from readers of consecutive slabs, ``(reader, slices)`` each."""
+    return da.concatenate([
+        da.from_delayed(dask.delayed(reader, pure=True)(), (count, *shape), dtype=dtype)
+        for reader, count in pieces
+    ])
 
 
 def _require_file(path: Path) -> None:
@@ -139,8 +168,25 @@ def _as_grey_page(page: np.ndarray, source: str | Path) -> np.ndarray:
     return page
 
 
-def read_tiff_stack(path: str | Path) -> npt.NDArray[np.unsignedinteger]:
-    """Read a multi-page greyscale TIFF into a ``(z, y, x)`` array.
+def _tiff_pages(path: Path, start: int, count: int, shape: tuple[int, int], dtype: np.dtype
+                ) -> np.ndarray:
+    """Pages ``[start, start + count)`` of a multi-page TIFF, checked against the first's
+    shape and dtype."""
+    ok, pages = cv2.imreadmulti(str(path), start, count, flags=cv2.IMREAD_UNCHANGED)
+    if not ok or len(pages) != count:
+        raise ImageError(f"{path}: pages {start} to {start + count - 1} are not readable "
+                         "(truncated or corrupt?)")
+    for page in pages:
+        _as_grey_page(page, path)
+        if page.shape != shape or page.dtype != dtype:
+            raise ImageError(f"{path}: pages have different shapes or types "
+                             f"({shape} {dtype} and {page.shape} {page.dtype})")
+    return np.stack(pages)
+
+
+def open_tiff_stack(path: str | Path, chunk_bytes: int = DEFAULT_CHUNK_BYTES) -> Any:
+    """A multi-page greyscale TIFF as a dask array ``(z, y, x)``, read page range by page
+    range; the page chain is checked against the file size first (truncation).
 
     ``cv2.IMREAD_UNCHANGED`` keeps the bit depth; without it OpenCV silently converts
     pages to 8-bit three-channel images.
@@ -150,15 +196,23 @@ def read_tiff_stack(path: str | Path) -> npt.NDArray[np.unsignedinteger]:
     truncation = _tiff_truncation(path)
     if truncation is not None:
         raise ImageError(f"{path}: truncated TIFF: {truncation}")
-    ok, pages = cv2.imreadmulti(str(path), flags=cv2.IMREAD_UNCHANGED)
-    if not ok or len(pages) == 0:
+    count = cv2.imcount(str(path))
+    ok, first = cv2.imreadmulti(str(path), 0, 1, flags=cv2.IMREAD_UNCHANGED)
+    if count < 1 or not ok or not first:
         raise ImageError(f"{path}: not a readable TIFF stack (truncated or corrupt?)")
-    shapes = {p.shape for p in pages}
-    if len(shapes) != 1:
-        raise ImageError(f"{path}: pages have different shapes {sorted(shapes)}")
-    if len(pages) == 1:
-        raise ImageError(f"{path}: a single page of shape {pages[0].shape}; expected a 3-D stack")
-    return _check_volume(np.stack([_as_grey_page(p, path) for p in pages]), path)
+    page = _as_grey_page(first[0], path)
+    if count == 1:
+        raise ImageError(f"{path}: a single page of shape {page.shape}; expected a 3-D stack")
+    _check_dtype(page.dtype, path)
+    step = _slices_per_chunk(page.shape, page.dtype, chunk_bytes)
+    return _from_pieces(
+        [(partial(_tiff_pages, path, z0, min(step, count - z0), page.shape, page.dtype),
+          min(step, count - z0)) for z0 in range(0, count, step)], page.shape, page.dtype)
+
+
+def read_tiff_stack(path: str | Path) -> npt.NDArray[np.unsignedinteger]:
+    """Read a multi-page greyscale TIFF into a ``(z, y, x)`` array (:func:`open_tiff_stack`)."""
+    return _check_volume(np.asarray(open_tiff_stack(path)), path)
 
 
 def _natural_key(name: str) -> list[int | str]:
@@ -188,25 +242,50 @@ def slice_files(folder: str | Path) -> list[Path]:
     return files
 
 
-def read_slice_folder(folder: str | Path) -> npt.NDArray[np.unsignedinteger]:
-    """Read a folder of 2-D greyscale slices (TIFF or PNG), ordered by natural name sort."""
-    files = slice_files(folder)
-    slices = []
+def _slice_pages(files: list[Path], shape: tuple[int, int], dtype: np.dtype) -> np.ndarray:
+    pages = []
     for file in files:
         page = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
         if page is None:
             raise ImageError(f"{file}: not a readable image")
-        slices.append(_as_grey_page(page, file))
-    shapes = {s.shape for s in slices}
-    if len(shapes) != 1:
-        raise ImageError(f"{folder}: slices have different shapes {sorted(shapes)}")
-    return _check_volume(np.stack(slices), folder)
+        _as_grey_page(page, file)
+        if page.shape != shape or page.dtype != dtype:
+            raise ImageError(f"{file.parent}: slices have different shapes or types "
+                             f"({shape} {dtype} and {page.shape} {page.dtype} in {file.name})")
+        pages.append(page)
+    return np.stack(pages)
 
 
-def read_raw(
-    path: str | Path, shape: tuple[int, int, int], dtype: str = "uint16", byte_order: str = "little"
-) -> npt.NDArray[np.unsignedinteger]:
-    """Read a headerless binary volume stored in C order ``(z, y, x)``.
+def open_slice_folder(folder: str | Path, chunk_bytes: int = DEFAULT_CHUNK_BYTES) -> Any:
+    """A folder of 2-D greyscale slices (TIFF or PNG, natural name order) as a dask array
+    ``(z, y, x)``, read a few files at a time."""
+    files = slice_files(folder)
+    first = cv2.imread(str(files[0]), cv2.IMREAD_UNCHANGED)
+    if first is None:
+        raise ImageError(f"{files[0]}: not a readable image")
+    _as_grey_page(first, files[0])
+    _check_dtype(first.dtype, Path(folder))
+    step = _slices_per_chunk(first.shape, first.dtype, chunk_bytes)
+    return _from_pieces(
+        [(partial(_slice_pages, files[z0:z0 + step], first.shape, first.dtype),
+          len(files[z0:z0 + step])) for z0 in range(0, len(files), step)],
+        first.shape, first.dtype)
+
+
+def read_slice_folder(folder: str | Path) -> npt.NDArray[np.unsignedinteger]:
+    """Read a folder of 2-D greyscale slices (:func:`open_slice_folder`)."""
+    return _check_volume(np.asarray(open_slice_folder(folder)), folder)
+
+
+def open_raw(
+    path: str | Path,
+    shape: tuple[int, int, int],
+    dtype: str = "uint16",
+    byte_order: str = "little",
+    chunk_bytes: int = DEFAULT_CHUNK_BYTES,
+) -> Any:
+    """A headerless binary volume stored in C order ``(z, y, x)``, as a dask array whose
+    chunks read their own slices of the file.
 
     Parameters
     ----------
@@ -218,6 +297,8 @@ def read_raw(
         ``"uint8"`` or ``"uint16"``.
     byte_order
         ``"little"`` or ``"big"``.
+    chunk_bytes
+        Bytes of greyscale per chunk.
     """
     path = Path(path)
     _require_file(path)
@@ -230,36 +311,66 @@ def read_raw(
         raise ImageError(
             f"{path}: {actual} bytes, but shape {list(shape)} of {dtype} needs {expected}"
         )
-    volume = np.fromfile(path, dtype=file_dtype).reshape(shape)
-    return _check_volume(volume.astype(np.dtype(dtype), copy=False), path)
+    step = _slices_per_chunk(shape[1:], np.dtype(dtype), chunk_bytes)
+    return _from_pieces(
+        [(partial(_raw_slices, path, file_dtype, z0, min(step, shape[0] - z0), shape[1:]),
+          min(step, shape[0] - z0)) for z0 in range(0, shape[0], step)],
+        tuple(shape[1:]), np.dtype(dtype))
 
 
-def read_netcdf_volume(path: str | Path, variable: str = "grey") -> npt.NDArray[np.unsignedinteger]:
-    """Read the greyscale variable of a netCDF file written by this project."""
+def _raw_slices(path: Path, file_dtype: np.dtype, z0: int, count: int,
+                shape: tuple[int, int]) -> np.ndarray:
+    """Slices ``[z0, z0 + count)`` of a raw volume, in the machine's byte order."""
+    per_slice = int(np.prod(shape))
+    values = np.fromfile(path, dtype=file_dtype, count=count * per_slice,
+                         offset=z0 * per_slice * file_dtype.itemsize)
+    return values.reshape(count, *shape).astype(file_dtype.newbyteorder("="), copy=False)
+
+
+def read_raw(
+    path: str | Path, shape: tuple[int, int, int], dtype: str = "uint16", byte_order: str = "little"
+) -> npt.NDArray[np.unsignedinteger]:
+    """Read a headerless binary volume (:func:`open_raw`)."""
+    return _check_volume(np.asarray(open_raw(path, shape, dtype, byte_order)), path)
+
+
+def open_netcdf_volume(path: str | Path, variable: str = "grey",
+                       chunk_bytes: int = DEFAULT_CHUNK_BYTES) -> Any:
+    """The greyscale variable of a netCDF file written by this project, as a dask array
+    read through xarray's chunks."""
     path = Path(path)
     _require_file(path)
     try:
-        with xr.open_dataset(path, engine="netcdf4") as ds:
-            if variable not in ds:
-                raise ImageError(f"{path}: no variable {variable!r}")
-            volume = ds[variable].values
+        ds = xr.open_dataset(path, engine="netcdf4", chunks={})
     except (OSError, ValueError) as err:
-        if isinstance(err, ImageError):
-            raise
         reason = str(err).splitlines()[0] if str(err) else type(err).__name__
         raise ImageError(f"{path}: not a readable netCDF file ({reason})") from err
-    return _check_volume(volume, path)
+    if variable not in ds:
+        raise ImageError(f"{path}: no variable {variable!r}")
+    grey = ds[variable]
+    if grey.ndim != 3:
+        raise ImageError(f"{path}: expected a 3-D volume, got shape {grey.shape}")
+    _check_dtype(grey.dtype, path)
+    step = _slices_per_chunk(grey.shape[1:], grey.dtype, chunk_bytes)
+    return grey.data.rechunk((step, *grey.shape[1:]))
 
 
-def read_volume(
+def read_netcdf_volume(path: str | Path, variable: str = "grey") -> npt.NDArray[np.unsignedinteger]:
+    """Read the greyscale variable of a netCDF file (:func:`open_netcdf_volume`)."""
+    return _check_volume(np.asarray(open_netcdf_volume(path, variable)), path)
+
+
+def open_volume(
     source: str,
     path: str | Path,
     *,
     raw_shape: tuple[int, int, int] | None = None,
     raw_dtype: str = "uint16",
     raw_byte_order: str = "little",
-) -> npt.NDArray[np.unsignedinteger]:
-    """Read a greyscale volume of the given source kind.
+    chunk_bytes: int = DEFAULT_CHUNK_BYTES,
+) -> Any:
+    """A greyscale volume of the given source kind as a dask array, chunked in slabs of
+    whole slices of about ``chunk_bytes``; nothing but headers is read yet.
 
     Parameters
     ----------
@@ -269,18 +380,31 @@ def read_volume(
         File or folder path.
     raw_shape, raw_dtype, raw_byte_order
         Layout of a raw file.
+    chunk_bytes
+        Bytes of greyscale per chunk.
+
+    Raises
+    ------
+    ImageError
+        If the file is missing, truncated or not an 8/16-bit greyscale stack; slices of
+        another shape or type are found when their chunk is read.
     """
     if source == "tiff":
-        return read_tiff_stack(path)
+        return open_tiff_stack(path, chunk_bytes)
     if source == "slices":
-        return read_slice_folder(path)
+        return open_slice_folder(path, chunk_bytes)
     if source == "raw":
         if raw_shape is None:
             raise ImageError(f"{path}: a raw volume needs its shape (z, y, x)")
-        return read_raw(path, raw_shape, raw_dtype, raw_byte_order)
+        return open_raw(path, raw_shape, raw_dtype, raw_byte_order, chunk_bytes)
     if source == "netcdf":
-        return read_netcdf_volume(path)
+        return open_netcdf_volume(path, chunk_bytes=chunk_bytes)
     raise ImageError(f"{path}: unknown image source {source!r}")
+
+
+def read_volume(source: str, path: str | Path, **layout: Any) -> npt.NDArray[np.unsignedinteger]:
+    """Read a whole greyscale volume into memory (:func:`open_volume`), checked."""
+    return _check_volume(np.asarray(open_volume(source, path, **layout)), path)
 
 
 def write_tiff_stack(volume: np.ndarray, path: str | Path) -> Path:

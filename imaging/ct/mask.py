@@ -12,19 +12,49 @@ needs another mode: the whole field (``full``) or a given vertical cylinder
 
 from __future__ import annotations
 
+from typing import Any
+
 import cv2
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["otsu_threshold", "specimen_mask", "cylinder_mask", "border_fraction", "inscribed_box"]
+__all__ = [
+    "SAMPLE_SIZE",
+    "sample_stride",
+    "grey_sample",
+    "otsu_threshold",
+    "specimen_mask",
+    "slice_masks",
+    "cylinder_mask",
+    "border_fraction",
+    "border_counts",
+    "inscribed_box",
+]
 
-_OTSU_SAMPLE = 1 << 22
+SAMPLE_SIZE = 1 << 22
+"""Voxels (at most) of the strided sample of a volume that the threshold and the grey
+histogram read."""
+
+
+def sample_stride(size: int) -> int:
+    """Stride along each axis of the sample ``volume[::s, ::s, ::s]`` of a volume of
+    ``size`` voxels: at most ``SAMPLE_SIZE`` voxels, spread over the whole volume."""
+    return max(1, int(np.ceil((size / SAMPLE_SIZE) ** (1.0 / 3.0) - 1e-9)))
+
+
+def grey_sample(volume: npt.NDArray) -> npt.NDArray:
+    """The strided sample of a volume (:func:`sample_stride`), flattened; a 1-D array is
+    taken as a sample already."""
+    if volume.ndim != 3:
+        return volume.reshape(-1)
+    step = sample_stride(volume.size)
+    return volume[::step, ::step, ::step].reshape(-1)
 
 
 def otsu_threshold(volume: npt.NDArray[np.unsignedinteger]) -> float:
-    """Otsu's threshold of a volume, computed by OpenCV on an 8-bit rescaled sample."""
-    stride = max(1, int(np.ceil(volume.size / _OTSU_SAMPLE)))
-    sample = volume.reshape(-1)[::stride].astype(np.float64)
+    """Otsu's threshold of a volume (or of its :func:`grey_sample`, which gives the same),
+    computed by OpenCV on an 8-bit rescaled sample."""
+    sample = grey_sample(volume).astype(np.float64)
     low, high = float(sample.min()), float(sample.max())
     if high <= low:
         raise ValueError("the volume is uniform: no threshold separates specimen and air")
@@ -68,14 +98,21 @@ def specimen_mask(
         If no specimen is found.
     """
     level = otsu_threshold(volume) if threshold is None else float(threshold)
-    mask = np.zeros(volume.shape, dtype=np.uint8)
-    for index, page in enumerate(volume):
-        mask[index] = _filled_largest_component((page > level).astype(np.uint8))
+    mask = slice_masks(volume, level)
     areas = mask.sum(axis=(1, 2), dtype=np.int64)
     if areas.max() == 0:
         raise ValueError(f"no voxel above the threshold {level:g}: no specimen found")
     mask[areas < min_slice_fraction * areas.max()] = 0
     return mask.view(bool)
+
+
+def slice_masks(slab: npt.NDArray[np.unsignedinteger], level: float) -> npt.NDArray[np.uint8]:
+    """Per slice of a slab, the largest connected component above ``level`` with its holes
+    filled (1 inside, 0 outside)."""
+    mask = np.zeros(slab.shape, dtype=np.uint8)
+    for index, page in enumerate(slab):
+        mask[index] = _filled_largest_component((page > level).astype(np.uint8))
+    return mask
 
 
 def cylinder_mask(
@@ -121,36 +158,57 @@ def cylinder_mask(
     return inside
 
 
+def border_counts(mask: npt.NDArray) -> tuple[npt.NDArray[np.int64], int]:
+    """Per slice, the number of lateral border voxels (outermost rows and columns) inside
+    the mask, and the number of border voxels of a slice."""
+    ny, nx = mask.shape[1:]
+    inside = (mask[:, 0, :].sum(axis=1, dtype=np.int64) + mask[:, -1, :].sum(axis=1, dtype=np.int64)
+              + mask[:, 1:-1, 0].sum(axis=1, dtype=np.int64)
+              + mask[:, 1:-1, -1].sum(axis=1, dtype=np.int64))
+    return inside, 2 * nx + 2 * max(ny - 2, 0)
+
+
 def border_fraction(mask: npt.NDArray[np.bool_]) -> float:
     """Fraction of the lateral border voxels of the field (the outermost rows and columns
     of the slices holding specimen) that lie inside the mask: near 0 for a specimen with
     air around it, near 1 for one that fills the field of view."""
-    kept = mask[mask.any(axis=(1, 2))]
-    if kept.size == 0:
+    kept = mask.any(axis=(1, 2))
+    if not kept.any():
         return 0.0
-    edges = [kept[:, 0, :], kept[:, -1, :], kept[:, 1:-1, 0], kept[:, 1:-1, -1]]
-    return float(sum(int(e.sum()) for e in edges) / sum(e.size for e in edges))
+    inside, per_slice = border_counts(mask[kept])
+    return float(inside.sum() / (per_slice * kept.sum()))
 
 
-def inscribed_box(mask: npt.NDArray[np.bool_]) -> tuple[slice, slice, slice]:
+def inscribed_box(mask: Any) -> tuple[slice, slice, slice]:
     """The largest cube centred on the mask's centroid that lies wholly inside the mask.
+
+    ``mask`` may be numpy or dask: only its sums and the candidate cubes are computed.
 
     Returns
     -------
     tuple of slice
         Index slices ``(z, y, x)`` of the cube.
     """
-    centre = np.rint(np.argwhere(mask).mean(axis=0)).astype(int)
+    def value(x: Any) -> Any:
+        return x.compute() if hasattr(x, "compute") else x
+
+    total = float(value(mask.sum()))
+    if total == 0:
+        raise ValueError("the specimen mask is empty: no inscribed cube")
+    centre = np.array([
+        int(np.rint((np.arange(n) * np.asarray(value(mask.sum(axis=tuple(a for a in range(3) if a != axis))))).sum() / total))
+        for axis, n in enumerate(mask.shape)
+    ])
     low, high = 0, int(min(min(centre), min(np.array(mask.shape) - centre - 1)))
 
     def cube(half: int) -> tuple[slice, slice, slice]:
         return tuple(slice(c - half, c + half + 1) for c in centre)  # type: ignore[return-value]
 
-    if not mask[tuple(centre)]:
+    if not bool(value(mask[tuple(centre)])):
         raise ValueError("the specimen's centroid lies outside it: no inscribed cube")
     while low < high:
         half = (low + high + 1) // 2
-        if mask[cube(half)].all():
+        if bool(value(mask[cube(half)].all())):
             low = half
         else:
             high = half - 1

@@ -9,7 +9,9 @@ rule passes exactly those as its params.
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping, Sequence
+import os
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -21,16 +23,26 @@ from imaging.ct.calibration import (
     Calibration,
     anchors_through,
     density_to_porosity,
-    grey_anchors,
+    anchors_from_histograms,
     grey_to_density,
     histogram_peaks,
 )
 from imaging.ct.datasets import image_dataset, porosity_dataset, rev_dataset
-from imaging.ct.grid import block_average, block_size_voxels
-from imaging.ct.io import read_volume, write_tiff_stack
-from imaging.ct.mask import border_fraction, cylinder_mask, inscribed_box, specimen_mask
+from imaging.ct.grid import block_grid, block_size_voxels
+from imaging.ct.io import ImageError, open_volume, write_tiff_stack
+from imaging.ct.mask import cylinder_mask, inscribed_box, otsu_threshold
+from imaging.ct.scan import (
+    MaskRule,
+    ScanSummary,
+    anchor_histograms,
+    estimated_peak_bytes,
+    grid_sums,
+    mask_array,
+    summarize,
+    threshold_areas,
+)
 from imaging.ct.phantom import PhantomSpec, pellet_phantom
-from imaging.morphology import chord_lengths, rev_analysis
+from imaging.morphology import chord_lengths, rev_analyses
 from shared.io import read_dataset, write_dataset
 
 __all__ = ["phantom", "porosity", "rev", "grid_spacing", "phantom_spec"]
@@ -136,24 +148,30 @@ BORDER_FRACTION_LIMIT = 0.5
 specimen that fills the field of view (the threshold then splits its own phases)."""
 
 
-def _specimen(sample: str, scan: str | Path, grey: np.ndarray, section: Mapping[str, Any],
-              voxel_size: float) -> np.ndarray:
-    """The specimen mask in the configured mode, or an error that names the setting."""
+def _mask_rule(sample: str, scan: str | Path, grey: Any, summary: ScanSummary,
+               section: Mapping[str, Any], voxel_size: float, workers: int) -> MaskRule:
+    """How the specimen mask is made in the configured mode, or an error naming the setting."""
+    nz = int(grey.shape[0])
     if section["mode"] == "full":
-        return np.ones(grey.shape, dtype=bool)
+        return MaskRule("full", np.ones(nz, dtype=bool))
     if section["mode"] == "cylinder":
         centre, z_range = section["cylinder_centre_m"], section["cylinder_z_m"]
         try:
-            return cylinder_mask(grey.shape, voxel_size, section["cylinder_radius_m"],
-                                 None if centre is None else tuple(centre),
-                                 None if z_range is None else tuple(z_range))
+            cylinder = cylinder_mask((nz, *grey.shape[1:]), voxel_size,
+                                     section["cylinder_radius_m"],
+                                     None if centre is None else tuple(centre),
+                                     None if z_range is None else tuple(z_range))
         except ValueError as err:
             raise ValueError(f"{scan}: {err}; check {_keys(sample, 'mask')}") from err
-    try:
-        specimen = specimen_mask(grey, section["threshold"], section["min_slice_fraction"])
-    except ValueError as err:
-        raise ValueError(f"{scan}: {err}; check {_keys(sample, 'mask')}") from err
-    touching = border_fraction(specimen)
+        return MaskRule("cylinder", cylinder.any(axis=(1, 2)), disc=cylinder.any(axis=0))
+    level = section["threshold"]
+    level = otsu_threshold(summary.sample) if level is None else float(level)
+    areas, border, border_size = threshold_areas(grey, level, workers)
+    if areas.max() == 0:
+        raise ValueError(f"{scan}: no voxel above the threshold {level:g}: no specimen found; "
+                         f"check {_keys(sample, 'mask')}")
+    kept = areas >= section["min_slice_fraction"] * areas.max()
+    touching = float(border[kept].sum() / (border_size * kept.sum()))
     if touching > BORDER_FRACTION_LIMIT:
         raise ValueError(
             f"{scan}: the specimen mask covers {touching:.0%} of the field's border, as if the "
@@ -161,18 +179,20 @@ def _specimen(sample: str, scan: str | Path, grey: np.ndarray, section: Mapping[
             f"{_keys(sample, 'mask.mode')} to full (or to cylinder with cylinder_radius_m), "
             "and the calibration anchors (calibration.anchors: histogram_peaks, or grey_air)"
         )
-    return specimen
+    return MaskRule("threshold", kept, level=level)
 
 
 def _calibration(sample: str, scan: str | Path, section: Mapping[str, Any],
-                 material: Mapping[str, Any], grey: np.ndarray, specimen: np.ndarray
+                 material: Mapping[str, Any], summary: ScanSummary,
+                 histograms: Callable[[], tuple[np.ndarray, np.ndarray]]
                  ) -> tuple[Calibration, dict[str, Any]]:
-    """The calibration, and the attributes that say where its anchors come from."""
+    """The calibration, and the attributes that say where its anchors come from;
+    ``histograms`` gives the greys outside and inside the specimen when they are needed."""
     grey_air, grey_muscovite = section["grey_air"], section["grey_muscovite"]
     record: dict[str, Any] = {"calibration_anchors": section["anchors"]}
     try:
         if section["anchors"] == "histogram_peaks":
-            peaks, prominence = histogram_peaks(grey)
+            peaks, prominence = histogram_peaks(summary.sample)
             log.info("%s: grey histogram peaks %s (prominence %s)", sample,
                      np.round(peaks, 1).tolist(), np.round(prominence, 3).tolist())
             densities = section["peak_densities_kg_m3"]
@@ -181,12 +201,14 @@ def _calibration(sample: str, scan: str | Path, section: Mapping[str, Any],
                 section["muscovite_density_kg_m3"])
             record.update(histogram_peak_greys=peaks, histogram_peak_densities=np.asarray(densities))
         elif grey_air is None or grey_muscovite is None:
-            if grey_air is None and specimen.all():
+            outside, inside = histograms()
+            if grey_air is None and outside.sum() == 0:
                 raise ValueError(
                     "no air around the specimen to estimate grey_air from: set "
                     f"{_keys(sample, 'calibration.grey_air')}, or calibration.anchors: "
                     "histogram_peaks with peak_densities_kg_m3")
-            auto_air, auto_muscovite = grey_anchors(grey, specimen, section["muscovite_percentile"])
+            auto_air, auto_muscovite = anchors_from_histograms(
+                outside if outside.sum() else inside, inside, section["muscovite_percentile"])
             grey_air = auto_air if grey_air is None else grey_air
             grey_muscovite = auto_muscovite if grey_muscovite is None else grey_muscovite
         calibration = Calibration(
@@ -204,6 +226,58 @@ def _calibration(sample: str, scan: str | Path, section: Mapping[str, Any],
             "materials.pellet"
         ) from err
     return calibration, record
+
+
+def open_scan(entry: Mapping[str, Any], scan: str | Path, chunk_mb: float) -> Any:
+    """A sample's scan as a lazy dask array in slabs of about ``chunk_mb`` MiB."""
+    raw = entry.get("raw", {})
+    return open_volume(
+        "tiff" if entry["source"] == "phantom" else entry["source"],
+        scan,
+        raw_shape=tuple(raw["shape"]) if "shape" in raw else None,
+        raw_dtype=raw.get("dtype", "uint16"),
+        raw_byte_order=raw.get("byte_order", "little"),
+        chunk_bytes=int(chunk_mb * 2**20),
+    )
+
+
+def _check_memory(sample: str, scan: str | Path, grey: Any, imaging: Mapping[str, Any],
+                  n_windows: int = 0) -> None:
+    """Refuse, before reading the scan, a job whose estimated peak (slabs in flight and
+    ``n_windows`` REV windows) exceeds ``imaging.memory_limit_gb`` or the machine."""
+    peak = estimated_peak_bytes(grey.shape, int(grey.chunks[0][0]), imaging["workers"],
+                                n_windows)
+    limit = imaging["memory_limit_gb"] * 2**30 if imaging["memory_limit_gb"] else _machine_memory()
+    log.info("%s: %s voxels of %s in slabs of %d slices, estimated peak %.2f GiB (limit %.1f GiB)",
+             sample, "x".join(map(str, grey.shape)), grey.dtype, grey.chunks[0][0],
+             peak / 2**30, limit / 2**30)
+    if peak > limit:
+        raise ValueError(
+            f"{scan}: the imaging of this {'x'.join(map(str, grey.shape))} scan would need about "
+            f"{peak / 2**30:.1f} GiB, more than the {limit / 2**30:.1f} GiB allowed: lower "
+            f"{_keys(sample, 'chunk_mb')} ({imaging['chunk_mb']:g}), {_keys(sample, 'workers')} "
+            f"({imaging['workers']})" + (" or rev.n_positions" if n_windows else "")
+            + ", or raise imaging.memory_limit_gb"
+        )
+
+
+@contextmanager
+def _scheduler(address: str | None) -> Iterator[None]:
+    """Slabs computed by a dask.distributed cluster at ``address`` (``imaging.dask_scheduler``)
+    while the block runs, else by the job's own threads."""
+    if address is None:
+        yield
+        return
+    from distributed import Client
+
+    with Client(address):
+        log.info("dask scheduler %s", address)
+        yield
+
+
+def _machine_memory() -> float:
+    """Bytes of physical memory of this machine, 80 % of it (the rest for the system)."""
+    return 0.8 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
 
 
 def _grid_warnings(
@@ -321,25 +395,35 @@ def porosity(
         If no specimen, no valid calibration or no block inside the porosity bounds is
         found; the message names the scan and the config keys. Nothing is written then.
     """
-    source = "tiff" if entry["source"] == "phantom" else entry["source"]
     voxel_size = float(entry["voxel_size_m"])
-    raw = entry.get("raw", {})
-    grey = read_volume(
-        source,
-        scan,
-        raw_shape=tuple(raw["shape"]) if "shape" in raw else None,
-        raw_dtype=raw.get("dtype", "uint16"),
-        raw_byte_order=raw.get("byte_order", "little"),
-    )
-    log.info("%s: read %s volume %s from %s", sample, grey.dtype, grey.shape, scan)
-    specimen = _specimen(sample, scan, grey, imaging["mask"], voxel_size)
-    calibration, anchors = _calibration(sample, scan, imaging["calibration"], material, grey,
-                                        specimen)
     spacing = grid_spacing(imaging["grid_spacing_m"], micro_spacing)
     block = block_size_voxels(spacing, voxel_size)
-    grid = block_average(
-        grey, specimen, calibration, block, voxel_size, imaging["min_specimen_fraction"]
-    )
+    grey = open_scan(entry, scan, imaging["chunk_mb"])
+    # slabs a whole number of grid blocks thick
+    grey = grey.rechunk((block * max(1, int(grey.chunks[0][0]) // block), *grey.shape[1:]))
+    log.info("%s: %s volume %s from %s", sample, grey.dtype, grey.shape, scan)
+    _check_memory(sample, scan, grey, imaging)
+    with _scheduler(imaging["dask_scheduler"]):
+        return _porosity_of(sample, entry, imaging, material, scan, grey, spacing, block,
+                            (image_output, porosity_output, figure_output), rule)
+
+
+def _porosity_of(sample: str, entry: Mapping[str, Any], imaging: Mapping[str, Any],
+                 material: Mapping[str, Any], scan: str | Path, grey: Any, spacing: float,
+                 block: int, outputs: tuple, rule: str | None) -> xr.Dataset:
+    """The passes of :func:`porosity` over the opened scan, and its outputs."""
+    image_output, porosity_output, figure_output = outputs
+    voxel_size = float(entry["voxel_size_m"])
+    workers = imaging["workers"]
+    summary = summarize(grey, workers)
+    if summary.minimum == summary.maximum:
+        raise ImageError(f"{scan}: the volume is uniform (every voxel is {summary.minimum})")
+    masking = _mask_rule(sample, scan, grey, summary, imaging["mask"], voxel_size, workers)
+    calibration, anchors = _calibration(sample, scan, imaging["calibration"], material, summary,
+                                        lambda: anchor_histograms(grey, masking, workers))
+    density_sum, counts = grid_sums(grey, masking, calibration, block, workers)
+    grid = block_grid(density_sum, counts, grey.shape, calibration, block, voxel_size,
+                      imaging["min_specimen_fraction"])
     if not np.isfinite(grid.porosity).any():
         raise ValueError(
             f"{scan}: no grid block lies inside the specimen; check imaging.mask and "
@@ -348,7 +432,8 @@ def porosity(
     bounds = tuple(imaging["calibration"]["porosity_bounds"])
     warnings = _grid_warnings(sample, scan, grid.porosity, bounds, spacing, voxel_size, grey.shape)
     section = {"sample": dict(entry), "imaging": dict(imaging)}
-    image_ds = image_dataset(grey, specimen, voxel_size)
+    image_ds = image_dataset(mask_array(grey, masking), voxel_size, summary.preview,
+                             summary.preview_step, grey if imaging["store_scan"] else None)
     write_dataset(image_ds, image_output, stage="imaging", title=f"CT scan of {sample}",
                   config=section, inputs=[scan], rule=rule)
     ds = porosity_dataset(grid, calibration, bounds, voxel_size)
@@ -364,8 +449,9 @@ def porosity(
 
 def rev(
     sample: str,
-    rev_settings: Mapping[str, Any],
-    chords_settings: Mapping[str, Any],
+    entry: Mapping[str, Any],
+    settings: Mapping[str, Any],
+    scan: str | Path,
     image_input: str | Path,
     porosity_input: str | Path,
     rev_output: str | Path,
@@ -379,50 +465,70 @@ def rev(
     REV (as Ferrage et al. 2015, Sec. V C define it) and the chords analyse; the REV of
     the calibrated (continuous) porosity is a second set of variables. The analysed region
     is the largest cube inside the specimen mask, so that outside air enters no window.
+    The scan is read in slabs (``imaging.chunk_mb``), never whole.
 
     Parameters
     ----------
-    sample
-        Sample name.
-    rev_settings, chords_settings
-        The ``imaging.rev`` and ``imaging.chords`` sections (validated).
+    sample, entry
+        Sample name and its ``samples`` entry (source and layout of the scan).
+    settings
+        The sample's imaging settings: ``rev``, ``chords``, ``chunk_mb``, ``workers``,
+        ``memory_limit_gb``, ``dask_scheduler``.
+    scan
+        The scan's file or folder.
     image_input, porosity_input
-        ``results/images/<sample>.nc`` and ``results/porosity/<sample>.nc``.
+        ``results/images/<sample>.nc`` (the specimen mask) and ``results/porosity/<sample>.nc``.
     rev_output, figure_output
         ``results/rev/<sample>.nc`` and its PNG.
     rule
         Snakemake rule name, for provenance.
     """
-    image = read_dataset(image_input, ["grey", "specimen"])
+    rev_settings, chords_settings = settings["rev"], settings["chords"]
+    workers = settings["workers"]
     attrs = read_dataset(porosity_input, ["porosity"]).attrs
     calibration = Calibration(
         grey_air=attrs["grey_air"], grey_muscovite=attrs["grey_muscovite"],
         air_density=attrs["air_density"], muscovite_density=attrs["muscovite_density"],
         dry_density=attrs["dry_density"], mean_porosity=attrs["mean_porosity_anchor"],
     )
-    voxel_size = float(image.attrs["voxel_size"])
-    box = inscribed_box(image["specimen"].values.astype(bool))
-    grey = image["grey"].values[box].astype(np.float32)
-    voxel_porosity = np.clip(density_to_porosity(grey_to_density(grey, calibration), calibration), 0, 1)
+    grey = open_scan(entry, scan, settings["chunk_mb"])
+    _check_memory(sample, scan, grey, settings,
+                  (rev_settings["n_sizes"] + 1) * rev_settings["n_positions"])
+    with xr.open_dataset(image_input, engine="netcdf4", chunks={}) as image:
+        if "specimen" not in image or tuple(image["specimen"].shape) != tuple(grey.shape):
+            raise ValueError(f"{image_input}: no specimen mask of the scan's shape "
+                             f"{tuple(grey.shape)}: rerun the imaging_porosity rule")
+        voxel_size = float(image.attrs["voxel_size"])
+        box = inscribed_box(image["specimen"].data.rechunk(grey.chunks).astype(bool))
+    cube = grey[box]
+
+    def calibrate(values: np.ndarray) -> np.ndarray:
+        density = grey_to_density(values.astype(np.float32), calibration)
+        return np.clip(density_to_porosity(density, calibration), 0, 1)
+
+    voxel_porosity = cube.map_blocks(calibrate, dtype=np.float32)
     threshold = chords_settings["pore_porosity_threshold"]
     pore = voxel_porosity > threshold
     windows = {key: rev_settings[key] for key in ("n_sizes", "n_positions", "tolerance",
                                                  "max_window_fraction")}
-    windows["n_centred_sizes"] = rev_settings["centred_n_sizes"]
+    windows.update(n_centred_sizes=rev_settings["centred_n_sizes"], workers=workers)
+    log.info("%s: analysing the %s-voxel cube inside the specimen", sample,
+             "x".join(map(str, cube.shape)))
     # the paper's REV is that of the binary image (Sec. V C), the pore space of the chords;
-    # the calibrated porosity's REV follows with the same window positions (same seed)
-    result = rev_analysis(pore, voxel_size, np.random.default_rng(rev_settings["seed"]),
-                          binary=pore, **windows)
-    calibrated = rev_analysis(voxel_porosity, voxel_size,
-                              np.random.default_rng(rev_settings["seed"]), **windows)
-    chords = chord_lengths(pore, voxel_size, chords_settings["include_edges"])
+    # the calibrated porosity's comes from the same windows, in the same pass
+    with _scheduler(settings["dask_scheduler"]):
+        calibrated, result = rev_analyses(voxel_porosity, voxel_size,
+                                          np.random.default_rng(rev_settings["seed"]),
+                                          binary=pore, **windows)
+        chords = chord_lengths(pore, voxel_size, chords_settings["include_edges"],
+                               workers=workers)
     ds = rev_dataset(result, calibrated, chords, voxel_size)
     ds.attrs.update(analysed_cube_edge=voxel_porosity.shape[0] * voxel_size,
                     pore_porosity_threshold=threshold,
                     rev_tolerance=rev_settings["tolerance"])
     write_dataset(ds, rev_output, stage="imaging", title=f"REV and chord lengths of {sample}",
                   config={"rev": dict(rev_settings), "chords": dict(chords_settings)},
-                  seed=rev_settings["seed"], inputs=[image_input, porosity_input],
+                  seed=rev_settings["seed"], inputs=[scan, image_input, porosity_input],
                   rule=rule, references="Ferrage et al. (2015), Phys. Rev. E 91, 062210, Sec. V.C")
     figures.rev_figure(ds, figure_output)
     log.info("%s: REV edges (centred / random windows) of the binary porosity %.4f: "

@@ -10,16 +10,15 @@ length is its first moment (Eqs. 13-14), and ``R = l_z / l_xy`` (Eqs. 15-16), wi
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from imaging.morphology import _kernels
+from imaging.morphology.slabs import slab, slab_size, slabs_in_order
 
 __all__ = ["ChordResult", "chord_lengths"]
-
-_AXES = {"z": 0, "y": 1, "x": 2}
-
 
 @dataclass(frozen=True)
 class ChordResult:
@@ -53,11 +52,16 @@ class ChordResult:
     R_s: float
 
 
-def _axis_histograms(
-    binary: npt.NDArray[np.uint8], axis: int, include_edges: bool
+def _line_histograms(
+    binary: npt.NDArray[np.uint8], axis: int, include_edges: bool, size: int
 ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """Run-length histograms (phase 1, phase 0) along ``axis`` (1: y, 2: x) of a slab,
+    padded to ``size``."""
     lines = np.ascontiguousarray(np.moveaxis(binary, axis, -1)).reshape(-1, binary.shape[axis])
-    return _kernels.line_run_histograms(lines, include_edges, 64)
+    ones, zeros = _kernels.line_run_histograms(lines, include_edges, 64)
+    out = np.zeros((2, size), dtype=np.int64)
+    out[0, : ones.size], out[1, : zeros.size] = ones, zeros
+    return out[0], out[1]
 
 
 def _density(counts: npt.NDArray[np.int64], voxel_size: float) -> npt.NDArray[np.float64]:
@@ -73,36 +77,67 @@ def _means(counts: npt.NDArray[np.int64], length: npt.NDArray[np.float64]) -> np
 
 
 def chord_lengths(
-    binary: npt.NDArray[np.bool_], voxel_size: float, include_edges: bool = False
+    binary: Any,
+    voxel_size: float,
+    include_edges: bool = False,
+    chunk_slices: int | None = None,
+    workers: int = 1,
 ) -> ChordResult:
     """Chord-length distributions of a binary image along x, y and z.
+
+    The image is read in slabs along z: x and y chords lie within a slab's slices; z
+    chords are followed from slab to slab (the run open at a slab's end is carried into
+    the next), so a chord crossing several slabs is counted once with its whole length.
 
     Parameters
     ----------
     binary
-        Image ``(z, y, x)``, True (or 1) for pore, False (0) for solid.
+        Image ``(z, y, x)``, True (or 1) for pore, False (0) for solid; numpy or dask.
     voxel_size
         Voxel edge [m].
     include_edges
         Count chords cut by the image border (their length is then a lower bound).
+    chunk_slices, workers
+        Slices per slab (the dask array's chunk, or all, when None) and slabs read at a
+        time; the result does not depend on them.
 
     Returns
     -------
     ChordResult
     """
-    if binary.ndim != 3:
-        raise ValueError(f"chord analysis needs a 3-D image, got shape {binary.shape}")
+    shape = tuple(int(n) for n in binary.shape)
+    if len(shape) != 3:
+        raise ValueError(f"chord analysis needs a 3-D image, got shape {shape}")
     if voxel_size <= 0:
         raise ValueError(f"voxel size must be > 0, got {voxel_size}")
-    image = np.ascontiguousarray(binary, dtype=np.uint8)
-    n_length = max(binary.shape)
+    nz, ny, nx = shape
+    n_length = max(shape)
+    size = n_length + 1
+    counts = np.zeros((2, 3, size), dtype=np.int64)  # (pore, solid) x (x, y, z)
+    carry_phase = np.full((ny, nx), -1, dtype=np.int8)
+    carry_length = np.zeros((ny, nx), dtype=np.int64)
+    carry_bounded = np.zeros((ny, nx), dtype=np.bool_)
+    step = slab_size(binary, chunk_slices)
+
+    def in_plane(z0: int) -> tuple[np.ndarray, np.ndarray]:
+        part = np.ascontiguousarray(slab(binary, z0, min(z0 + step, nz)), dtype=np.uint8)
+        found = np.zeros((2, 2, size), dtype=np.int64)
+        for row, axis in ((0, 2), (1, 1)):
+            found[0, row], found[1, row] = _line_histograms(part, axis, include_edges, size)
+        return part, found
+
+    for part, found in slabs_in_order(in_plane, range(0, nz, step), workers):
+        counts[:, :2] += found
+        ones, zeros = _kernels.column_runs(part, include_edges, carry_phase, carry_length,
+                                           carry_bounded, 64)
+        counts[0, 2, : ones.size] += ones
+        counts[1, 2, : zeros.size] += zeros
+    if include_edges:
+        ones, zeros = _kernels.close_runs(carry_phase, carry_length, size)
+        counts[0, 2] += ones
+        counts[1, 2] += zeros
     length = np.arange(1, n_length + 1, dtype=np.float64) * voxel_size
-    pore = np.zeros((3, n_length), dtype=np.int64)
-    solid = np.zeros((3, n_length), dtype=np.int64)
-    for row, name in enumerate(("x", "y", "z")):
-        ones, zeros = _axis_histograms(image, _AXES[name], include_edges)
-        pore[row, : ones.size - 1] = ones[1:]
-        solid[row, : zeros.size - 1] = zeros[1:]
+    pore, solid = counts[0, :, 1:], counts[1, :, 1:]
     mean_pore, mean_solid = _means(pore, length), _means(solid, length)
     return ChordResult(
         direction=("x", "y", "z"),

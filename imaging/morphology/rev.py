@@ -11,7 +11,9 @@ whole image's for every larger window.
 Window sums come from summed-volume tables (one per field, one per face direction), so
 a window costs eight look-ups whatever its size: a million windows per edge take about a
 second, enough that the random-window curves do not depend on the seed (and every
-position is taken when there are fewer).
+position is taken when there are fewer). The tables are built slab by slab along z
+(:mod:`.slabs`) and each window adds up its parts in the slabs it crosses, so memory is
+set by the slab whatever the image.
 
 Interface area is counted from voxel faces between unlike phases. For an isotropic
 surface, face counting overestimates the area by 3/2 (the mean of |n_x| + |n_y| + |n_z|
@@ -21,9 +23,13 @@ over the sphere), so counted area is multiplied by 2/3.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+
+from imaging.morphology import _kernels
+from imaging.morphology.slabs import slab, slab_size, slabs_in_order
 
 __all__ = [
     "FACE_COUNT_CORRECTION",
@@ -31,11 +37,13 @@ __all__ = [
     "window_sizes",
     "interface_area",
     "rev_analysis",
+    "rev_analyses",
     "rev_size",
     "centred_rev_size",
 ]
 
 FACE_COUNT_CORRECTION = 2.0 / 3.0
+_BATCH = 1 << 21  # windows looked up at a time: bounds the temporaries of a slab
 
 
 @dataclass(frozen=True)
@@ -87,41 +95,133 @@ def window_sizes(max_edge: int, n_sizes: int, min_edge: int = 2) -> npt.NDArray[
     return sizes
 
 
-class _BoxSums:
-    """Sums of an array over axis-aligned boxes, from its summed-volume table."""
-
-    def __init__(self, values: npt.NDArray) -> None:
-        dtype = np.int64 if values.dtype.kind in "biu" else np.float64
-        table = np.zeros(tuple(n + 1 for n in values.shape), dtype=dtype)
-        np.cumsum(values, axis=0, dtype=dtype, out=table[1:, 1:, 1:])
-        np.cumsum(table[1:, 1:, 1:], axis=1, out=table[1:, 1:, 1:])
-        np.cumsum(table[1:, 1:, 1:], axis=2, out=table[1:, 1:, 1:])
-        self.table = table
-
-    def __call__(self, starts: npt.NDArray[np.int64], edges: npt.NDArray[np.int64]) -> npt.NDArray:
-        """Sums over the boxes ``[starts, starts + edges)``, one per row of ``starts``."""
-        low, high = starts, starts + edges
-        total = np.zeros(starts.shape[0], dtype=self.table.dtype)
-        for corner in np.ndindex(2, 2, 2):
-            index = tuple(np.where(corner[a], high[:, a], low[:, a]) for a in range(3))
-            sign = -1 if (3 - sum(corner)) % 2 else 1
-            total += sign * self.table[index]
-        return total
+def _table(values: npt.NDArray) -> npt.NDArray:
+    """Summed-volume table of a slab, with a zero first plane, row and column."""
+    exact = values.dtype.kind in "biu"
+    dtype = (np.int32 if values.size < 2**31 else np.int64) if exact else np.float64
+    table = np.zeros(tuple(n + 1 for n in values.shape), dtype=dtype)
+    np.cumsum(values, axis=0, dtype=dtype, out=table[1:, 1:, 1:])
+    np.cumsum(table[1:, 1:, 1:], axis=1, out=table[1:, 1:, 1:])
+    np.cumsum(table[1:, 1:, 1:], axis=2, out=table[1:, 1:, 1:])
+    return table
 
 
-class _FaceSums:
-    """Number of voxel faces between unlike phases inside boxes of a binary image."""
+class WindowSums:
+    """Sums of a field, pore-voxel counts and unlike-neighbour faces over box windows,
+    accumulated slab by slab along z.
 
-    def __init__(self, pore: npt.NDArray[np.bool_]) -> None:
-        self.per_axis = [_BoxSums(np.diff(pore.view(np.uint8), axis=a) != 0) for a in range(3)]
+    A slab ``[z0, z1)`` contributes, for every window that overlaps it, the sums over the
+    window's part inside the slab, from the slab's own summed-volume tables; a window's
+    face between slices ``k`` and ``k + 1`` belongs to the slab holding ``k`` (the slab is
+    given the next slice for those faces). Integer sums are exact whatever the slabs;
+    field sums agree with a single slab to rounding.
+    """
 
-    def __call__(self, starts: npt.NDArray[np.int64], edges: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
-        total = np.zeros(starts.shape[0], dtype=np.int64)
-        for axis, sums in enumerate(self.per_axis):
-            inner = edges.copy()
-            inner[axis] -= 1  # faces between the window's own voxels along this axis
-            total += sums(starts, inner)
-        return total
+    def __init__(self, starts: npt.NDArray[np.int64], edges: npt.NDArray[np.int64]) -> None:
+        self.starts, self.edges = starts.astype(np.int32), edges.astype(np.int32)
+        self.order = np.argsort(starts[:, 0], kind="stable")
+        self.sorted_z0 = starts[self.order, 0]
+        n = starts.shape[0]
+        self.field = np.zeros(n)
+        self.pore = np.zeros(n, dtype=np.int64)
+        self.faces = np.zeros(n, dtype=np.int64)
+
+    def partial(self, z0: int, field: npt.NDArray, pore: npt.NDArray[np.bool_] | None
+                ) -> tuple[npt.NDArray[np.int64], npt.NDArray, npt.NDArray | None, npt.NDArray | None]:
+        """The contribution of the slab starting at slice ``z0``: ``field`` of its ``c``
+        slices and the binary ``pore`` of the same slices plus the next one if any.
+
+        Returns the indices of the windows it overlaps and their field sums, pore counts
+        and face counts there (None without ``pore``).
+        """
+        c = field.shape[0]
+        candidates = self.order[: np.searchsorted(self.sorted_z0, z0 + c)]
+        chosen = candidates[self.starts[candidates, 0] + self.edges[candidates, 0] > z0]
+        tables = {"field": _table(field)}
+        if pore is not None:
+            inside = pore[:c]
+            across = np.diff(pore.view(np.uint8), axis=0) != 0  # plane j: slices j | j + 1
+            if across.shape[0] < c:
+                across = np.concatenate([across, np.zeros((1,) + across.shape[1:], bool)])
+            tables.update(pore=_table(inside), z=_table(across),
+                          y=_table(np.diff(inside.view(np.uint8), axis=1) != 0),
+                          x=_table(np.diff(inside.view(np.uint8), axis=2) != 0))
+        sums = {"field": np.zeros(chosen.size),
+                **{name: np.zeros(chosen.size, np.int64) for name in ("pore", "faces")}}
+        for first in range(0, chosen.size, _BATCH):
+            part = chosen[first:first + _BATCH]
+            out = slice(first, first + part.size)
+            low = self.starts[part].astype(np.int64)
+            high = low + self.edges[part]
+            end = high[:, 0].copy()
+            low[:, 0] = np.clip(low[:, 0] - z0, 0, c)
+            high[:, 0] = np.clip(high[:, 0] - z0, 0, c)
+            _kernels.add_box_sums(tables["field"], low, high, sums["field"][out])
+            if pore is None:
+                continue
+            _kernels.add_box_sums(tables["pore"], low, high, sums["pore"][out])
+            for axis, name in ((1, "y"), (2, "x")):  # faces within a slice's rectangle
+                inner = high.copy()
+                inner[:, axis] -= 1
+                _kernels.add_box_sums(tables[name], low, inner, sums["faces"][out])
+            inner = high.copy()  # faces k | k + 1 with both slices in the window
+            inner[:, 0] = np.maximum(np.clip(end - 1 - z0, 0, c), low[:, 0])
+            _kernels.add_box_sums(tables["z"], low, inner, sums["faces"][out])
+        if pore is None:
+            return chosen, sums["field"], None, None
+        return chosen, sums["field"], sums["pore"], sums["faces"]
+
+    def add(self, part: tuple) -> None:
+        """Add a slab's :meth:`partial` contribution."""
+        chosen, field_sums, counts, faces = part
+        self.field[chosen] += field_sums
+        if counts is not None:
+            self.pore[chosen] += counts
+            self.faces[chosen] += faces
+
+
+def window_sums(
+    field: Any,
+    pore: Any | None,
+    starts: npt.NDArray[np.int64],
+    edges: npt.NDArray[np.int64],
+    chunk_slices: int | None = None,
+    workers: int = 1,
+) -> WindowSums:
+    """Window sums of ``field`` (and of the binary ``pore`` image: pore voxels, faces)
+    over the boxes ``[starts, starts + edges)``, slab by slab.
+
+    Parameters
+    ----------
+    field, pore
+        ``(z, y, x)`` numpy or dask arrays; a dask array is computed one slab at a time
+        (the pair together, so a common source is read once).
+    starts, edges
+        ``(n, 3)`` window corners and edges [voxel].
+    chunk_slices
+        Slices per slab; the dask array's first chunk, or the whole image, when None.
+    workers
+        Slabs computed at a time (threads); results are added in slab order, so the sums
+        do not depend on it.
+    """
+    nz = field.shape[0]
+    step = slab_size(field, chunk_slices)
+    sums = WindowSums(starts, edges)
+
+    def contribution(z0: int) -> tuple:
+        z1 = min(z0 + step, nz)
+        if pore is None:
+            return sums.partial(z0, slab(field, z0, z1), None)
+        if hasattr(field, "compute") or hasattr(pore, "compute"):
+            import dask
+
+            values, binary = dask.compute(field[z0:z1], pore[z0:min(z1 + 1, nz)])
+            return sums.partial(z0, np.asarray(values), np.asarray(binary))
+        return sums.partial(z0, slab(field, z0, z1), slab(pore, z0, min(z1 + 1, nz)))
+
+    for part in slabs_in_order(contribution, range(0, nz, step), workers):
+        sums.add(part)
+    return sums
 
 
 def interface_area(binary: npt.NDArray[np.bool_], voxel_size: float) -> float:
@@ -175,25 +275,36 @@ def _window_starts(
     return rng.integers(0, positions, size=(n_positions, 3), dtype=np.int64)
 
 
-def rev_analysis(
-    porosity: npt.NDArray[np.floating],
+def rev_analysis(porosity: Any, voxel_size: float, rng: np.random.Generator, **settings: Any
+                 ) -> RevResult:
+    """REV analysis of a porosity field and, optionally, of a binary pore image (its
+    interface density): :func:`rev_analyses`' first result."""
+    return rev_analyses(porosity, voxel_size, rng, **settings)[0]
+
+
+def rev_analyses(
+    porosity: Any,
     voxel_size: float,
     rng: np.random.Generator,
     *,
-    binary: npt.NDArray[np.bool_] | None = None,
+    binary: Any | None = None,
     n_sizes: int = 12,
     n_positions: int = 2**20,
     tolerance: float = 0.01,
     min_edge: int = 2,
     max_window_fraction: float = 0.5,
     n_centred_sizes: int = 32,
-) -> RevResult:
-    """REV analysis of a porosity field and, optionally, of a binary pore image.
+    chunk_slices: int | None = None,
+    workers: int = 1,
+) -> tuple[RevResult, RevResult | None]:
+    """REV analyses of a porosity field and, optionally, of a binary pore image, in one
+    pass over the image with the same windows.
 
     Parameters
     ----------
     porosity
-        Voxel porosity ``(z, y, x)`` [-]; a binary pore image (pore = 1) works as well.
+        Voxel porosity ``(z, y, x)`` [-], numpy or dask; a binary pore image (pore = 1)
+        works as well.
     voxel_size
         Voxel edge [m].
     rng
@@ -214,53 +325,61 @@ def rev_analysis(
         close to the whole image overlap so much that their spread says nothing of the REV.
     n_centred_sizes
         Number of centred-window edges, geometrically spaced up to the smallest side.
+    chunk_slices, workers
+        Slabs along z and how many are computed at a time (:func:`window_sums`); the
+        window positions, and so the result, do not depend on them.
 
     Returns
     -------
-    RevResult
+    field, binary : RevResult
+        The field's porosity statistics, and the binary image's (its pore fraction as the
+        porosity; None without ``binary``), both with the binary image's interface.
     """
-    values = np.asarray(porosity)
-    if values.ndim != 3:
-        raise ValueError(f"REV analysis needs a 3-D image, got shape {values.shape}")
-    if not np.isfinite(values).all():
+    shape = tuple(int(n) for n in porosity.shape)
+    if len(shape) != 3:
+        raise ValueError(f"REV analysis needs a 3-D image, got shape {shape}")
+    if binary is not None and tuple(binary.shape) != shape:
+        raise ValueError(f"binary image {tuple(binary.shape)} and porosity {shape} differ")
+    whole = np.array(shape, dtype=np.int64)
+    sizes = window_sizes(int(max_window_fraction * min(shape)), n_sizes, min_edge)
+    sizes_c = window_sizes(int(min(shape)), n_centred_sizes, min_edge)
+    random_starts = [_window_starts(whole - width + 1, n_positions, rng).astype(np.int32)
+                     for width in sizes]
+    counts = [len(b) for b in random_starts]
+    starts = np.concatenate(random_starts + [((whole - w) // 2).reshape(1, 3) for w in sizes_c]
+                            + [np.zeros((1, 3), np.int64)]).astype(np.int32)
+    del random_starts
+    edges = np.concatenate([np.full((n, 3), w, np.int32) for n, w in zip(counts, sizes)]
+                           + [np.full((1, 3), w, np.int32) for w in sizes_c]
+                           + [whole[None].astype(np.int32)])
+    sums = window_sums(porosity, binary, starts, edges, chunk_slices, workers)
+    if not np.isfinite(sums.field).all():
         raise ValueError("REV analysis needs a finite porosity field (crop away NaN first)")
-    if binary is not None and binary.shape != values.shape:
-        raise ValueError(f"binary image {binary.shape} and porosity {values.shape} differ")
-    whole = np.array(values.shape, dtype=np.int64)
-    field = _BoxSums(values if values.dtype.kind in "biu" else values.astype(np.float64))
-    faces = None if binary is None else _FaceSums(np.asarray(binary, dtype=bool))
+    volume = np.prod(edges.astype(np.float64), axis=1)
+    if binary is None:
+        interface = np.full(starts.shape[0], np.nan)
+    else:
+        interface = FACE_COUNT_CORRECTION * sums.faces / (volume * voxel_size)
+    parts = np.cumsum([0] + counts)
+    layout = (parts, sizes, sizes_c, voxel_size, tolerance, bool(np.all(whole == sizes_c[-1])))
+    field_result = _result(sums.field / volume, interface, *layout)
+    if binary is None:
+        return field_result, None
+    return field_result, _result(sums.pore / volume, interface, *layout)
 
-    def porosity_of(starts: np.ndarray, edges: np.ndarray) -> np.ndarray:
-        return field(starts, edges) / float(np.prod(edges))
 
-    def interface_of(starts: np.ndarray, edges: np.ndarray) -> np.ndarray:
-        if faces is None:
-            return np.full(starts.shape[0], np.nan)
-        return FACE_COUNT_CORRECTION * faces(starts, edges) / (float(np.prod(edges)) * voxel_size)
-
-    origin = np.zeros((1, 3), dtype=np.int64)
-    porosity_total = float(porosity_of(origin, whole)[0])
-    interface_total = float(interface_of(origin, whole)[0])
-
-    sizes = window_sizes(int(max_window_fraction * min(values.shape)), n_sizes, min_edge)
+def _result(porosity: npt.NDArray, interface: npt.NDArray, parts: npt.NDArray,
+            sizes: npt.NDArray[np.int64], sizes_c: npt.NDArray[np.int64], voxel_size: float,
+            tolerance: float, is_whole: bool) -> RevResult:
+    """The statistics and REV edges of per-window values laid out as :func:`rev_analyses`
+    queries them: the random windows edge by edge, the centred ones, the whole image."""
     stats = np.full((4, sizes.size), np.nan)
-    for index, width in enumerate(sizes):
-        edges = np.full(3, width, dtype=np.int64)
-        starts = _window_starts(whole - width + 1, n_positions, rng)
-        local = porosity_of(starts, edges)
-        stats[0, index], stats[1, index] = local.mean(), local.std()
-        local = interface_of(starts, edges)
-        stats[2, index], stats[3, index] = local.mean(), local.std()
-
-    sizes_c = window_sizes(int(min(values.shape)), n_centred_sizes, min_edge)
-    centred = np.full((2, sizes_c.size), np.nan)
-    for index, width in enumerate(sizes_c):
-        edges = np.full(3, width, dtype=np.int64)
-        start = ((whole - width) // 2).reshape(1, 3)
-        centred[0, index] = porosity_of(start, edges)[0]
-        centred[1, index] = interface_of(start, edges)[0]
-    is_whole = bool(np.all(whole == sizes_c[-1]))
-
+    for index in range(sizes.size):
+        part = slice(parts[index], parts[index + 1])
+        stats[:, index] = (porosity[part].mean(), porosity[part].std(),
+                           interface[part].mean(), interface[part].std())
+    centred = np.stack([porosity[parts[-1]:-1], interface[parts[-1]:-1]])
+    porosity_total, interface_total = float(porosity[-1]), float(interface[-1])
     edges_m, edges_c = sizes * voxel_size, sizes_c * voxel_size
     with np.errstate(invalid="ignore", divide="ignore"):
         spread = stats[[1, 3]] / np.abs(stats[[0, 2]])

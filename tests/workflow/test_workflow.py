@@ -297,7 +297,7 @@ def test_the_section_default_reaches_samples_without_their_own_value(two_samples
 
 def test_editing_one_slice_reruns_its_sample_and_is_in_the_provenance(two_samples, tmp_path):
     workdir, folder = two_samples
-    record = json.loads(read_dataset(workdir / "results/images/sliced.nc", ["grey"])
+    record = json.loads(read_dataset(workdir / "results/images/sliced.nc", ["specimen", "grey_preview"])
                         .attrs["inputs"])
     assert record[0]["path"] == str(folder) and record[0]["files"] == 32
     assert len(record[0]["sha256"]) == 64

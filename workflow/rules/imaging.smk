@@ -36,7 +36,15 @@ rule imaging_porosity:
         code=IMAGING_CODE,
         sample=get_sample_config,
         imaging=sample_settings(
-            "calibration", "mask", "grid_spacing_m", "min_specimen_fraction"
+            "calibration",
+            "mask",
+            "grid_spacing_m",
+            "min_specimen_fraction",
+            "chunk_mb",
+            "workers",
+            "memory_limit_gb",
+            "dask_scheduler",
+            "store_scan",
         ),
         # one phi_0: the calibration anchors the mean dry density at the pellet's
         # reference porosity, that of the retention and permeability laws
@@ -57,6 +65,8 @@ rule imaging_porosity:
 
 rule imaging_rev:
     input:
+        scan=get_scan,
+        slices=get_slice_files,
         image="results/images/{sample}.nc",
         porosity="results/porosity/{sample}.nc",
     output:
@@ -64,7 +74,10 @@ rule imaging_rev:
         figure="results/rev/{sample}.png",
     params:
         code=IMAGING_CODE,
-        settings=sample_settings("rev", "chords"),
+        sample=get_sample_config,
+        settings=sample_settings(
+            "rev", "chords", "chunk_mb", "workers", "memory_limit_gb", "dask_scheduler"
+        ),
     conda:
         "../envs/claychain.yaml"
     log:

@@ -11,6 +11,6 @@ from imaging.ct import run  # noqa: E402
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
 run.rev(
-    sm.wildcards.sample, sm.params.settings["rev"], sm.params.settings["chords"], sm.input.image, sm.input.porosity,
-    sm.output.rev, sm.output.figure, rule=sm.rule,
+    sm.wildcards.sample, sm.params.sample, sm.params.settings, sm.input.scan, sm.input.image,
+    sm.input.porosity, sm.output.rev, sm.output.figure, rule=sm.rule,
 )

@@ -81,3 +81,12 @@ def test_phantom_calibration_recovers_true_block_porosity():
     error = np.abs(grid.porosity[interior] - true[interior])
     assert np.median(error) < 0.01
     assert grey_anchors(grey, specimen)[0] == pytest.approx(spec.grey_air, abs=3 * 200.0)
+
+
+@pytest.mark.parametrize("percentile", [0.0, 12.5, 50.0, 99.99, 100.0])
+def test_histogram_quantile_is_numpys_percentile(rng, percentile):
+    values = rng.integers(0, 400, size=rng.integers(1, 2000))
+    from imaging.ct.calibration import histogram_quantile
+
+    assert histogram_quantile(np.bincount(values, minlength=400), percentile) == pytest.approx(
+        np.percentile(values, percentile), rel=1e-12, abs=1e-12)

@@ -28,7 +28,8 @@ def test_every_format_gives_the_same_array(volume, tmp_path):
     folder = write_slice_folder(volume, tmp_path / "slices")
     raw = tmp_path / "scan.raw"
     volume.astype(volume.dtype.newbyteorder(">")).tofile(raw)
-    ncfile = write_dataset(image_dataset(volume, volume > 0, 1e-5), tmp_path / "scan.nc",
+    ncfile = write_dataset(image_dataset(volume > 0, 1e-5, volume, 1, grey=volume),
+                           tmp_path / "scan.nc",
                            stage="imaging", title="t")
     arrays = [
         read_tiff_stack(tiff),
@@ -119,6 +120,7 @@ def test_colour_slices_are_refused(tmp_path, rng):
 
 def test_image_dataset_coordinates_are_voxel_centres():
     volume = np.arange(2 * 3 * 4, dtype=np.uint8).reshape(2, 3, 4)
-    ds = image_dataset(volume, volume > 3, 2e-5)
+    ds = image_dataset(volume > 3, 2e-5, volume[::2, ::2, ::2], 2)
     np.testing.assert_allclose(ds["x"].values, [1e-5, 3e-5, 5e-5, 7e-5])
-    assert isinstance(ds, xr.Dataset) and ds["specimen"].sum() == 20
+    np.testing.assert_allclose(ds["x_preview"].values, [1e-5, 5e-5])
+    assert isinstance(ds, xr.Dataset) and ds["specimen"].sum() == 20 and "grey" not in ds

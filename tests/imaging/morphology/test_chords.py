@@ -54,3 +54,25 @@ def test_random_medium_mean_chord_is_geometric(rng):
     np.testing.assert_allclose(result.mean_pore, _expected_complete_chord_mean(p, n), rtol=0.01)
     np.testing.assert_allclose(result.mean_solid, _expected_complete_chord_mean(1 - p, n), rtol=0.01)
     assert result.R_p == pytest.approx(1.0, abs=0.02)
+
+
+@pytest.mark.parametrize("include_edges", [False, True])
+def test_slabs_do_not_change_the_chords(rng, include_edges):
+    """A dask image in thin slabs (chords along z cross several of them) and numpy slabs
+    of other sizes give the counts of the whole image read at once."""
+    import dask.array as da
+
+    image = rng.random((37, 11, 13)) < 0.2  # long solid runs along z
+    image[:, 3, 4] = False  # one solid chord through every slab: cut at both ends
+    image[5:30, 6, 6] = False
+    image[[4, 30], 6, 6] = True  # a solid chord of 25 voxels bounded by pores
+    whole = chord_lengths(image, 1e-6, include_edges)
+    assert whole.count_solid[2, 24] >= 1
+    for chunked in (chord_lengths(da.from_array(image, chunks=(4, 11, 13)), 1e-6, include_edges,
+                                  workers=2),
+                    chord_lengths(image, 1e-6, include_edges, chunk_slices=1),
+                    chord_lengths(image, 1e-6, include_edges, chunk_slices=10)):
+        np.testing.assert_array_equal(chunked.count_pore, whole.count_pore)
+        np.testing.assert_array_equal(chunked.count_solid, whole.count_solid)
+    through = chord_lengths(np.zeros((9, 2, 2), bool), 1e-6, True, chunk_slices=2)
+    assert through.count_solid[2, 8] == 4  # four lines, each one chord of 9 voxels

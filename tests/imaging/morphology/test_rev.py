@@ -4,13 +4,13 @@ import numpy as np
 import pytest
 
 from imaging.morphology.rev import (
-    _BoxSums,
-    _FaceSums,
     centred_rev_size,
     interface_area,
+    rev_analyses,
     rev_analysis,
     rev_size,
     window_sizes,
+    window_sums,
 )
 
 
@@ -78,23 +78,45 @@ def testcentred_rev_size_ignores_the_whole_image() -> None:
     assert centred_rev_size(edges, np.array([0.5, 0.005, 0.03, 0.0]), True, 0.05) == 2.0
 
 
-def test_box_sums_match_direct_sums(rng):
-    """Summed-volume look-ups against numpy sums over the same boxes (float and binary),
-    and face counts against counting the unlike neighbours inside each box."""
+@pytest.mark.parametrize("chunk_slices", [None, 1, 3, 7])
+def test_window_sums_match_direct_sums_whatever_the_slabs(rng, chunk_slices):
+    """Slab-by-slab window sums against numpy over the same boxes: the field, the pore
+    voxels and the unlike neighbours inside each box, with slabs that cut the windows."""
     field = rng.random((17, 23, 19))
     binary = rng.random((17, 23, 19)) < 0.4
-    sums, faces = _BoxSums(field), _FaceSums(binary)
-    counts = _BoxSums(binary)
-    for _ in range(40):
-        edges = rng.integers(1, 17, size=3)
-        start = rng.integers(0, np.array(field.shape) - edges + 1)
-        box = tuple(slice(s, s + e) for s, e in zip(start, edges))
-        starts = start.reshape(1, 3).astype(np.int64)
-        assert sums(starts, edges)[0] == pytest.approx(field[box].sum(), rel=1e-12)
-        assert counts(starts, edges)[0] == np.count_nonzero(binary[box])
+    edges = rng.integers(1, 17, size=(60, 3))
+    starts = rng.integers(0, np.array(field.shape) - edges + 1)
+    sums = window_sums(field, binary, starts, edges, chunk_slices=chunk_slices, workers=2)
+    for k, (start, edge) in enumerate(zip(starts, edges)):
+        box = tuple(slice(s, s + e) for s, e in zip(start, edge))
+        assert sums.field[k] == pytest.approx(field[box].sum(), rel=1e-12)
+        assert sums.pore[k] == np.count_nonzero(binary[box])
         inside = binary[box].view(np.uint8)
-        direct = sum(np.count_nonzero(np.diff(inside, axis=a)) for a in range(3))
-        assert faces(starts, edges)[0] == direct
+        assert sums.faces[k] == sum(np.count_nonzero(np.diff(inside, axis=a)) for a in range(3))
+
+
+def test_a_dask_image_gives_the_numpy_result(rng):
+    """The same analysis on a dask array chunked along z (slabs cut through pores and
+    windows) and on numpy: identical windows, integer statistics equal, field to rounding."""
+    import dask.array as da
+    from scipy.ndimage import gaussian_filter
+
+    smooth = gaussian_filter(rng.standard_normal((40, 36, 32)), 1.5)
+    binary = smooth > 0.3 * smooth.std()
+    field = np.clip(0.5 + smooth, 0, 1).astype(np.float32)
+    kwargs = dict(binary=None, n_sizes=5, n_positions=500)
+    direct = rev_analysis(binary, 1e-6, np.random.default_rng(3), **{**kwargs, "binary": binary})
+    chunked = rev_analysis(da.from_array(binary, chunks=(7, 36, 32)), 1e-6,
+                           np.random.default_rng(3),
+                           **{**kwargs, "binary": da.from_array(binary, chunks=(7, 36, 32))})
+    for name in ("porosity_mean", "porosity_std", "interface_mean", "interface_std",
+                 "porosity_centred", "interface_centred"):
+        np.testing.assert_array_equal(getattr(direct, name), getattr(chunked, name))
+    direct = rev_analysis(field, 1e-6, np.random.default_rng(3), **kwargs)
+    chunked = rev_analysis(da.from_array(field, chunks=(9, 36, 32)), 1e-6,
+                           np.random.default_rng(3), **kwargs)
+    np.testing.assert_allclose(direct.porosity_std, chunked.porosity_std, rtol=1e-9)
+    np.testing.assert_allclose(direct.porosity_centred, chunked.porosity_centred, rtol=1e-12)
 
 
 def test_every_position_when_there_are_few_windows(rng):
@@ -128,3 +150,20 @@ def test_default_window_count_keeps_the_curve_within_one_percent_between_seeds(r
     few = [rev_analysis(binary, 1e-6, np.random.default_rng(seed), n_positions=64, n_sizes=3,
                         max_window_fraction=0.1) for seed in (0, 1)]
     assert np.abs(few[0].porosity_mean - few[1].porosity_mean).max() > 0.01 * level
+
+
+def test_one_pass_gives_the_field_and_the_binary_images_rev(rng):
+    """rev_analyses of a field with a binary image: the first result is the field's
+    (rev_analysis of it), the second the binary image's pore fraction, as if the binary
+    image were analysed alone; same windows for both."""
+    field = rng.random((20, 22, 24))
+    binary = field > 0.7
+    both = rev_analyses(field, 1e-6, np.random.default_rng(5), binary=binary, n_sizes=4,
+                        n_positions=300)
+    alone = [rev_analysis(image, 1e-6, np.random.default_rng(5), binary=binary, n_sizes=4,
+                          n_positions=300) for image in (field, binary)]
+    for result, reference in zip(both, alone):
+        for name in ("porosity_mean", "porosity_std", "porosity_centred", "interface_std"):
+            np.testing.assert_allclose(getattr(result, name), getattr(reference, name),
+                                       rtol=1e-12)
+    assert both[1].porosity_total == pytest.approx(binary.mean())
