@@ -78,9 +78,9 @@ def main(argv: list[str] | None = None) -> int:
     for case in args.cases:
         command = [sys.executable, "-m", "benchmarks", "_case", case]
         command += [] if args.size is None else [str(args.size)]
-        done = subprocess.run(command, capture_output=True, text=True)
+        # the case's log (progress lines) goes to the terminal as it runs
+        done = subprocess.run(command, stdout=subprocess.PIPE, text=True)
         if done.returncode != 0:
-            print(done.stderr, file=sys.stderr)
             return done.returncode
         result = json.loads(done.stdout.strip().splitlines()[-1])
         result.update(case=case, machine=platform.node(), cpus=__import__("os").cpu_count())

@@ -93,6 +93,10 @@ def write_dataset(
 ) -> Path:
     """Write a dataset to netCDF atomically, with CF and provenance attributes.
 
+    Numeric variables are compressed (zlib 4, shuffle), in the HDF5 chunks of their
+    ``encoding["chunksizes"]`` when set (e.g. one per slice for a volume written slab by
+    slab from dask: whole chunks, no read-modify-write).
+
     Parameters
     ----------
     ds
@@ -154,7 +158,8 @@ def write_dataset(
     for name in out.variables:
         out[name].attrs = netcdf_safe_attrs(out[name].attrs)
     encoding = {
-        name: {"zlib": True, "complevel": 4, "shuffle": True}
+        name: {"zlib": True, "complevel": 4, "shuffle": True,
+               **{k: v for k, v in var.encoding.items() if k == "chunksizes"}}
         for name, var in out.data_vars.items()
         if var.dtype.kind in "iuf" and var.ndim > 0
     }

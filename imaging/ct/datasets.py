@@ -50,9 +50,14 @@ def image_dataset(
     }
     if grey is not None:
         data["grey"] = (("z", "y", "x"), grey, {"units": "1", "long_name": "CT grey value"})
-    return xr.Dataset(data, coords={**coords, **preview_coords},
-                      attrs={"voxel_size": voxel_size, "voxel_size_units": "m",
-                             "preview_step": preview_step, "scan_stored": int(grey is not None)})
+    ds = xr.Dataset(data, coords={**coords, **preview_coords},
+                    attrs={"voxel_size": voxel_size, "voxel_size_units": "m",
+                           "preview_step": preview_step, "scan_stored": int(grey is not None)})
+    # one compressed chunk per slice: a slab writes whole chunks (no read-modify-write)
+    for name in ("specimen", "grey"):
+        if name in ds:
+            ds[name].encoding["chunksizes"] = (1, *ds[name].shape[1:])
+    return ds
 
 
 def porosity_dataset(

@@ -2,8 +2,8 @@
 
 The micro model assigns each tetrahedron the porosity of the grid at its centroid, with
 a grid spacing equal to the mean DEM point spacing (thesis Sec. 3.3.4). A volume is
-summed slab by slab (:func:`block_sums`, slabs a whole number of blocks thick), so that
-memory is set by the slab, and the sums make the grid (:func:`block_grid`).
+summed slab by slab (:func:`block_sums`; a block row may span slabs), so that memory is
+set by the slab, and the sums make the grid (:func:`block_grid`).
 """
 
 from __future__ import annotations
@@ -68,28 +68,34 @@ def block_sums(
     specimen: npt.NDArray[np.bool_],
     calibration: Calibration,
     block: int,
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """Sums of calibrated density [kg/m3] and counts of specimen voxels per block, for a
-    slab whose thickness is a whole number of blocks (or the volume's last rows).
+    z0: int = 0,
+) -> tuple[int, npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Sums of calibrated density [kg/m3] and counts of specimen voxels per block, over
+    the slices ``[z0, z0 + len(slab))`` of a volume (a slab need not hold whole blocks:
+    the sums of a block row shared by two slabs add up).
 
     Returns
     -------
-    density_sum, counts : ndarray, shape (block rows in z, blocks in y, blocks in x)
+    first_row : int
+        Block row (along z) of the first row of the sums.
+    density_sum, counts : ndarray, shape (block rows touched, blocks in y, blocks in x)
     """
     nz, ny, nx = slab.shape
     y_starts, x_starts = _block_starts(ny, block), _block_starts(nx, block)
-    z_starts = _block_starts(nz, block)
+    first_row = z0 // block
+    # slab-local starts of the block rows it touches (the first may begin before it)
+    z_starts = np.unique(np.r_[0, np.arange(-(z0 % block) + block, nz, block)]).astype(np.intp)
     density_sum = np.zeros((z_starts.size, y_starts.size, x_starts.size), dtype=np.float64)
     counts = np.zeros_like(density_sum)
-    for row, z0 in enumerate(z_starts):
-        slab_mask = specimen[z0 : z0 + block]
-        density = grey_to_density(slab[z0 : z0 + block].astype(np.float32), calibration)
+    for row, (start, stop) in enumerate(zip(z_starts, np.r_[z_starts[1:], nz])):
+        slab_mask = specimen[start:stop]
+        density = grey_to_density(slab[start:stop].astype(np.float32), calibration)
         density *= slab_mask
         column = density.sum(axis=0, dtype=np.float64)
         column_count = slab_mask.sum(axis=0, dtype=np.int64).astype(np.float64)
         density_sum[row] = np.add.reduceat(np.add.reduceat(column, y_starts, 0), x_starts, 1)
         counts[row] = np.add.reduceat(np.add.reduceat(column_count, y_starts, 0), x_starts, 1)
-    return density_sum, counts
+    return first_row, density_sum, counts
 
 
 def block_grid(
@@ -101,7 +107,7 @@ def block_grid(
     voxel_size: float,
     min_specimen_fraction: float = 0.5,
 ) -> BlockGrid:
-    """The grid of a volume of ``shape`` from its :func:`block_sums` (all rows)."""
+    """The grid of a volume of ``shape`` from its :func:`block_sums` (all rows added up)."""
     nz, ny, nx = shape
     starts = [_block_starts(n, block) for n in shape]
     sizes = np.multiply.outer(
@@ -153,6 +159,6 @@ def block_average(
     """
     if volume.shape != specimen.shape:
         raise ValueError(f"volume {volume.shape} and mask {specimen.shape} differ in shape")
-    density_sum, counts = block_sums(volume, specimen, calibration, block)
+    _, density_sum, counts = block_sums(volume, specimen, calibration, block)
     return block_grid(density_sum, counts, volume.shape, calibration, block, voxel_size,
                       min_specimen_fraction)

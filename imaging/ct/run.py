@@ -399,8 +399,6 @@ def porosity(
     spacing = grid_spacing(imaging["grid_spacing_m"], micro_spacing)
     block = block_size_voxels(spacing, voxel_size)
     grey = open_scan(entry, scan, imaging["chunk_mb"])
-    # slabs a whole number of grid blocks thick
-    grey = grey.rechunk((block * max(1, int(grey.chunks[0][0]) // block), *grey.shape[1:]))
     log.info("%s: %s volume %s from %s", sample, grey.dtype, grey.shape, scan)
     _check_memory(sample, scan, grey, imaging)
     with _scheduler(imaging["dask_scheduler"]):

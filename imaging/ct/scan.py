@@ -174,14 +174,19 @@ def anchor_histograms(grey: Any, rule: MaskRule, workers: int = 1
 
 def grid_sums(grey: Any, rule: MaskRule, calibration: Calibration, block: int,
               workers: int = 1) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """Block sums of calibrated density and specimen counts over the whole scan, whose
-    chunks along z are whole numbers of blocks (:func:`imaging.ct.grid.block_sums`)."""
+    """Block sums of calibrated density and specimen counts over the whole scan
+    (:func:`imaging.ct.grid.block_sums`, added up row by row across slabs)."""
+    nz, ny, nx = grey.shape
+    shape = (-(-nz // block), -(-ny // block), -(-nx // block))
+    density_sum, counts = np.zeros(shape), np.zeros(shape)
 
     def visit(z0: int, slab: np.ndarray) -> tuple:
-        return block_sums(slab, rule.slab(z0, slab), calibration, block)
+        return block_sums(slab, rule.slab(z0, slab), calibration, block, z0)
 
-    parts = list(each_slab(grey, visit, "porosity grid", workers))
-    return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
+    for first, density, count in each_slab(grey, visit, "porosity grid", workers):
+        density_sum[first:first + density.shape[0]] += density
+        counts[first:first + count.shape[0]] += count
+    return density_sum, counts
 
 
 def mask_array(grey: Any, rule: MaskRule) -> Any:

@@ -41,13 +41,14 @@ def _stage(scan: Path, out: Path, **imaging_changes) -> tuple[xr.Dataset, xr.Dat
 
 
 def test_thin_slabs_give_the_results_of_one_slab(scan, tmp_path):
-    """Slabs of 3 slices (a block row of the grid; chords and REV windows cross them) and
+    """Slabs of 2 slices (grid blocks of 3 slices, chords and REV windows cross them) and
     the whole scan in one slab: identical mask, grid and chords, REV to rounding."""
     whole = _stage(scan, tmp_path / "whole")
-    thin = _stage(scan, tmp_path / "thin", chunk_mb=3 * 48 * 48 * 2 / 2**20, workers=2)
+    thin = _stage(scan, tmp_path / "thin", chunk_mb=2 * 48 * 48 * 2 / 2**20, workers=2)
     np.testing.assert_array_equal(xr.load_dataset(tmp_path / "whole/image.nc")["specimen"],
                                   xr.load_dataset(tmp_path / "thin/image.nc")["specimen"])
     np.testing.assert_allclose(thin[0]["porosity"], whole[0]["porosity"], rtol=1e-12)
+    np.testing.assert_array_equal(thin[0]["specimen_fraction"], whole[0]["specimen_fraction"])
     for name in ("chord_count_pore", "chord_count_solid", "porosity_std", "interface_std",
                  "porosity_centred"):
         np.testing.assert_array_equal(thin[1][name], whole[1][name])
