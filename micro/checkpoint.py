@@ -1,10 +1,11 @@
-"""Checkpoint files of a micro run: the whole coupled state after a suction checkpoint.
+"""Checkpoint files of a micro run: the whole coupled state after a suction checkpoint,
+or between two flow steps of the balance at the next one (``micro.snapshot_interval_s``).
 
-A run killed between checkpoints resumes from the last file with the same configuration
-hash and continues bit for bit as if it had not stopped, whatever the checkpoint
+A killed run resumes from the last file with the same configuration hash and continues
+bit for bit as if it had not stopped, whatever the kill point
 (``tests/micro/test_resume.py``). Saved besides the state's own arrays (points,
-velocities, spins, radii, bonds, the contact list and its shear history, cells,
-mesh connectivity, walls, the last hydro-mechanical loads, times and counters):
+velocities, spins, radii, bonds, the contact list and its shear history, cells, the
+mesh with its geometry, walls, the last hydro-mechanical loads, times and counters):
 
 * the flow system's numbering of the unknowns (:class:`shared.fv.FlowPattern`). It is
   a fill-reducing order of the cell centroids at the last (re)mesh, so rebuilding it
@@ -13,7 +14,9 @@ mesh connectivity, walls, the last hydro-mechanical loads, times and counters):
 * the solver's reuse state (:meth:`shared.solver.CholeskySolver.reuse_state`): its
   rent-or-buy counters (e.g. the back-off) outlive the reset of the factor at each
   checkpoint; the factored matrix is saved and refactored on loading;
-* the wall time spent so far, so that a resumed run reports the whole run's.
+* the wall time spent so far, so that a resumed run reports the whole run's;
+* between flow steps, the balance's own progress (:class:`micro.hydration.BalanceProgress`:
+  flow and DEM steps done, the next time step).
 
 Without the first two, a 1000-point run killed after checkpoint 3, 6 or 9 of 14 ended
 with a final gas permeability 5.4, 1.4 and 1.1 % lower and 7 more, 7 and 3 fewer
@@ -30,18 +33,19 @@ import json
 import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from micro.hydration import FlowSystem, PelletState, update_cracks
+from micro.hydration import BalanceProgress, FlowSystem, PelletState, update_cracks
 from shared.dem.state import ContactList, DEMState
 from shared.dem.walls import Walls
 from shared.fv import FlowPattern
 from shared.materials import ClayParameters
 from shared.io import atomic_write
-from shared.mesh import mesh_from_tetrahedra
+from shared.mesh import Mesh
 from shared.solver import CholeskySolver
 
 __all__ = ["CheckpointError", "save_checkpoint", "load_checkpoint", "checkpoint_wall_time"]
@@ -81,16 +85,18 @@ def _jsonable(record: dict[str, Any]) -> dict[str, Any]:
 def save_checkpoint(
     path: Path, digest: str, state: PelletState, system: FlowSystem,
     records: list[dict[str, Any]], reference_volume: float, wall_time: float = 0.0,
+    balance: BalanceProgress | None = None,
 ) -> None:
     """Write the state, its flow system and the records so far, atomically.
 
-    ``wall_time`` is the wall time the run has taken so far [s].
+    ``wall_time`` is the wall time the run has taken so far [s]; ``balance`` where the
+    balance at the next checkpoint stands, for a file written between two flow steps.
     """
     arrays: dict[str, Any] = {f"dem_{k}": getattr(state.dem, k) for k in _DEM_ARRAYS}
     arrays.update({f"contacts_{k}": getattr(state.dem.contacts, k) for k in _CONTACT_ARRAYS})
     arrays.update({f"cell_{k}": getattr(state, k) for k in _CELL_ARRAYS})
-    arrays.update(mesh_tetrahedra=state.mesh.tetrahedra, mesh_neighbours=state.mesh.neighbours,
-                  dirichlet=system.dirichlet)
+    arrays.update({f"mesh_{f.name}": getattr(state.mesh, f.name) for f in fields(Mesh)})
+    arrays["dirichlet"] = system.dirichlet
     arrays.update({f"pattern_{k}": getattr(system.pattern, k) for k in _PATTERN_ARRAYS})
     solver_scalars, solver_arrays = system.solver.reuse_state()
     arrays.update({f"solver_{k}": v for k, v in solver_arrays.items()})
@@ -104,14 +110,16 @@ def save_checkpoint(
                "reference_volume": reference_volume,
                "walls_servo": None if state.walls is None else bool(state.walls.servo),
                "solver": solver_scalars, "wall_time": float(wall_time),
-               "records": [_jsonable(r) for r in records]}
+               "records": [_jsonable(r) for r in records],
+               "balance": None if balance is None else asdict(balance)}
     atomic_write(path, lambda tmp: np.savez(tmp, meta=np.array(json.dumps(scalars)), **arrays))
 
 
 def load_checkpoint(
     path: Path, digest: str, material: ClayParameters
-) -> tuple[PelletState, FlowSystem, list[dict[str, Any]], float] | None:
-    """The saved state, flow system, records and reference volume, or None if absent or stale.
+) -> tuple[PelletState, FlowSystem, list[dict[str, Any]], float, BalanceProgress | None] | None:
+    """The saved state, flow system, records, reference volume and, for a file written
+    between two flow steps, the balance in progress; None if absent or stale.
 
     A file written under another configuration (different hash) or by a version of the
     code that saved fewer arrays is ignored. The crack network, a function of the saved
@@ -127,15 +135,16 @@ def load_checkpoint(
     with _opened(path) as data:
         meta = json.loads(str(data["meta"]))
         needed = ([f"dem_{k}" for k in _DEM_ARRAYS] + [f"contacts_{k}" for k in _CONTACT_ARRAYS]
-                  + [f"pattern_{k}" for k in _PATTERN_ARRAYS])
+                  + [f"pattern_{k}" for k in _PATTERN_ARRAYS]
+                  + [f"mesh_{f.name}" for f in fields(Mesh)])
         if (meta["digest"] != digest or not set(needed) <= set(data.files)
                 or "solver" not in meta):
             return None
         contacts = ContactList(skin=meta["skin"], **{k: data[f"contacts_{k}"] for k in _CONTACT_ARRAYS})
         dem = DEMState(contacts=contacts, time=meta["dem_time"],
                        **{k: data[f"dem_{k}"] for k in _DEM_ARRAYS})
-        mesh = mesh_from_tetrahedra(dem.positions, data["mesh_tetrahedra"],
-                                    data["mesh_neighbours"], reorient=False)
+        # the mesh as it was (its geometry recomputed from the points rounds differently)
+        mesh = Mesh(**{f.name: data[f"mesh_{f.name}"] for f in fields(Mesh)})
         walls = None
         if meta["walls_servo"] is not None:
             walls = Walls(lower=data["walls_lower"], upper=data["walls_upper"],
@@ -156,7 +165,8 @@ def load_checkpoint(
     update_cracks(state, material)
     records = [{k: (np.asarray(v) if isinstance(v, list) else v) for k, v in r.items()}
                for r in meta["records"]]
-    return state, system, records, float(meta["reference_volume"])
+    balance = None if meta.get("balance") is None else BalanceProgress(**meta["balance"])
+    return state, system, records, float(meta["reference_volume"]), balance
 
 
 def checkpoint_wall_time(path: Path) -> float:

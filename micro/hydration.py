@@ -25,6 +25,7 @@ specimen reach each checkpoint's state.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -66,7 +67,14 @@ from shared.retention import saturation as retention_saturation
 from shared.solver import CholeskySolver, SolverError
 from shared.swelling import swollen_radius, volumetric_strain
 
-__all__ = ["HydrationSettings", "PelletState", "DivergenceError", "relax", "advance_to_balance"]
+__all__ = [
+    "HydrationSettings",
+    "PelletState",
+    "DivergenceError",
+    "BalanceProgress",
+    "relax",
+    "advance_to_balance",
+]
 
 FloatArray = npt.NDArray[np.float64]
 log = logging.getLogger("micro.hydration")
@@ -557,6 +565,30 @@ def _flow_step(
     )
 
 
+@dataclass(frozen=True)
+class BalanceProgress:
+    """Where :func:`advance_to_balance` stands between two flow steps: enough, with the
+    state and its flow system, to continue bit for bit after a restart.
+
+    Attributes
+    ----------
+    flow_steps
+        Flow steps done at this boundary suction [1].
+    time_step
+        Time step of the next flow step [s].
+    dem_steps
+        DEM steps done at this boundary suction [1].
+    unbalanced, misfit
+        Last unbalanced-force ratio and suction misfit [1].
+    """
+
+    flow_steps: int
+    time_step: float
+    dem_steps: int
+    unbalanced: float
+    misfit: float
+
+
 def advance_to_balance(
     state: PelletState,
     system: FlowSystem,
@@ -564,12 +596,19 @@ def advance_to_balance(
     settings: HydrationSettings,
     material: ClayParameters,
     parameters: DEMParameters,
+    start: BalanceProgress | None = None,
+    snapshot: Callable[[FlowSystem, BalanceProgress], None] | None = None,
 ) -> tuple[FlowSystem, dict[str, float]]:
     """Impose a boundary suction and advance the coupled model to hydraulic balance.
 
     At hydraulic balance, a last relaxation that ran out of steps is continued (at most
     ``settings.final_relaxations`` more) until the unbalanced force is below tolerance,
     so that the checkpoint is measured at mechanical balance too.
+
+    ``start`` continues a balance interrupted after a flow step (its state and flow
+    system as saved then); ``snapshot(system, progress)`` is called after every flow
+    step that does not reach balance (the caller decides whether to save), and changes
+    nothing.
 
     Returns
     -------
@@ -586,13 +625,15 @@ def advance_to_balance(
         If the pressure or the points become non-finite, or the specimen flies apart
         (its extent more than doubles).
     """
-    # a fresh factor at each checkpoint makes a run resumed from its checkpoint file
-    # follow the same arithmetic as an uninterrupted one
-    system.solver.reset()
-    time_step = settings.initial_time_step
-    dem_steps, unbalanced, misfit = 0, float("nan"), float("inf")
-    flow_steps = 0
-    for flow_steps in range(1, settings.max_flow_steps + 1):
+    if start is None:
+        # a fresh factor at each checkpoint makes a run resumed from its checkpoint file
+        # follow the same arithmetic as an uninterrupted one
+        system.solver.reset()
+        start = BalanceProgress(0, settings.initial_time_step, 0, float("nan"), float("inf"))
+    time_step, dem_steps = start.time_step, start.dem_steps
+    unbalanced, misfit = start.unbalanced, start.misfit
+    flow_steps = start.flow_steps
+    for flow_steps in range(start.flow_steps + 1, settings.max_flow_steps + 1):
         time_step = _flow_step(state, system, boundary_suction, time_step, settings, material)
         radii, forces = swell(state, material, settings.cracks)
         taken, unbalanced = relax(state.dem, state.walls, forces, settings, parameters,
@@ -604,6 +645,9 @@ def advance_to_balance(
         if misfit < settings.hydraulic_tolerance:
             break
         time_step *= settings.time_step_growth
+        if snapshot is not None:
+            snapshot(system, BalanceProgress(flow_steps, time_step, dem_steps, unbalanced,
+                                             misfit))
     hydraulic = misfit < settings.hydraulic_tolerance
     # optionally relax on under the last loads if the last relaxation ran out of steps
     for _ in range(settings.final_relaxations if hydraulic else 0):

@@ -23,7 +23,13 @@ import xarray as xr
 
 from micro import figures, vtk
 from micro.checkpoint import checkpoint_wall_time, load_checkpoint, save_checkpoint
-from micro.hydration import DivergenceError, FlowSystem, HydrationSettings, advance_to_balance
+from micro.hydration import (
+    BalanceProgress,
+    DivergenceError,
+    FlowSystem,
+    HydrationSettings,
+    advance_to_balance,
+)
 from micro.pellet import POROSITY_BINS, SpecimenSpec, initial_state, measure_checkpoint, settle
 from micro.permeability import principal_permeability
 from shared.config import ConfigError
@@ -258,24 +264,40 @@ def run(
         records: list[dict[str, Any]] = []
         reference_volume = float(state.mesh.volumes.sum())
         earlier = 0.0
+        balance = None
     else:
-        state, system, records, reference_volume = resumed
+        state, system, records, reference_volume, balance = resumed
         # the wall time of the runs before, up to their last checkpoint file
         earlier = checkpoint_wall_time(state_file)
-        log.info("%s: resuming after checkpoint %d of %d", case, len(records), checkpoints.size)
+        log.info("%s: resuming after checkpoint %d of %d%s", case, len(records), checkpoints.size,
+                 "" if balance is None else f", {balance.flow_steps} flow steps into the next")
     progress = Progress(checkpoints.size, f"micro {case}", log, interval=0.0)
+    interval = float(config["micro"]["snapshot_interval_s"])
+    last_save = time.monotonic()
+
+    def snapshot(system: FlowSystem, balance: BalanceProgress) -> None:
+        """Save the state between two flow steps when ``interval`` has passed."""
+        nonlocal last_save
+        if time.monotonic() - last_save < interval:
+            return
+        save_checkpoint(state_file, digest, state, system, records, reference_volume,
+                        wall_time=earlier + time.monotonic() - started, balance=balance)
+        last_save = time.monotonic()
+
     for index in range(len(records), checkpoints.size):
         suction = float(checkpoints[index])
         try:
             system, diagnostics = advance_to_balance(state, system, suction, settings,
-                                                     material, parameters)
+                                                     material, parameters, start=balance,
+                                                     snapshot=snapshot)
+            balance = None
         except DivergenceError as err:
             raise DivergenceError(
                 f"case {case}, checkpoint {index} ({suction:.4g} Pa): {err}; "
                 f"the last good checkpoint is kept in {state_file}"
             ) from err
-        # the geometry as a resumed run rebuilds it from the file, so that an
-        # interrupted run continues bit for bit (update_mesh rounds differently)
+        # each checkpoint is measured on a mesh rebuilt from the moved points (not the
+        # per-step update_mesh, which rounds differently); the checkpoint file keeps it
         state.mesh = mesh_from_tetrahedra(state.dem.positions, state.mesh.tetrahedra,
                                           state.mesh.neighbours, reorient=False)
         record = measure_checkpoint(state, suction, reference_volume, material, settings.cracks)
@@ -283,6 +305,7 @@ def run(
         records.append(record)
         save_checkpoint(state_file, digest, state, system, records, reference_volume,
                         wall_time=earlier + time.monotonic() - started)
+        last_save = time.monotonic()
         if vtk_dir is not None:
             vtk.write_checkpoint_snapshot(vtk_dir, output.stem, index, state)
         log.info("%s: s = %.3g Pa, S = %.3f, eps_v = %.4f, cracks %d, k_w,x = %.3g m2, "

@@ -319,7 +319,7 @@ def test_checkpoint_round_trip_and_files_of_older_versions_are_ignored(tmp_path)
     state.dem.bond_broken[:3] = True
     path = tmp_path / "case.checkpoint.npz"
     save_checkpoint(path, "abc", state, system, [], 1.0)
-    loaded, _, _, _ = load_checkpoint(path, "abc", CLAY)
+    loaded, _, _, _, _ = load_checkpoint(path, "abc", CLAY)
     np.testing.assert_array_equal(loaded.dem.bond_broken, state.dem.bond_broken)
     np.testing.assert_array_equal(loaded.dem.bond_overlaps, state.dem.bond_overlaps)
     assert load_checkpoint(path, "another config", CLAY) is None

@@ -10,6 +10,7 @@ after the sixth of 14 (issue 14).
 
 from __future__ import annotations
 
+import copy
 import json
 from pathlib import Path
 
@@ -43,7 +44,9 @@ def case(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("resume")
     config = validate_config({
         "samples": {"p": {"source": "phantom", "voxel_size_m": 3e-4}},
+        # a snapshot after every flow step: the kills between flow steps below
         "micro": {"sample": "p", "specimen_size_m": 4e-3, "n_points": 216,
+                  "snapshot_interval_s": 0.0,
                   "checkpoints_suction_pa": CHECKPOINTS, "cases": {"c": {"porosity": "ct"}}},
         "upscaling": {"conditions": {"free": "c", "confined": "c"}},
     })
@@ -113,6 +116,47 @@ def test_resume_after_a_kill_at_every_checkpoint_is_bit_identical(case, uninterr
     _assert_same_file(output, uninterrupted)
 
 
+@pytest.mark.parametrize("kill", [1, 7, 19])
+def test_resume_after_a_kill_between_flow_steps_is_bit_identical(case, uninterrupted, kill,
+                                                                  monkeypatch):
+    """Killed just after the ``kill``-th save between two flow steps (mid-balance), the
+    run resumes from that file and writes the uninterrupted run's netCDF."""
+    config, grid, tmp = case
+    output = tmp / f"killed_in_balance_{kill}.nc"
+    original = micro_run.save_checkpoint
+    saves = {"n": 0}
+
+    def killed(*args, **kwargs):
+        original(*args, **kwargs)
+        if kwargs.get("balance") is not None:
+            saves["n"] += 1
+            if saves["n"] == kill:
+                raise DivergenceError("simulated kill")
+
+    monkeypatch.setattr(micro_run, "save_checkpoint", killed)
+    with pytest.raises(DivergenceError, match="simulated kill"):
+        micro_run.run(config, "c", grid, output, output.with_suffix(".png"))
+    state_file = output.with_suffix(".checkpoint.npz")
+    with np.load(state_file) as data:
+        balance = json.loads(str(data["meta"]))["balance"]
+    assert balance is not None and balance["flow_steps"] >= 1
+    monkeypatch.setattr(micro_run, "save_checkpoint", original)
+    micro_run.run(config, "c", grid, output, output.with_suffix(".png"))
+    _assert_same_file(output, uninterrupted)
+
+
+def test_the_saves_between_flow_steps_change_nothing(case, uninterrupted):
+    """The same case without saves between flow steps gives the same variables bit for bit."""
+    config, grid, tmp = case
+    quiet = copy.deepcopy(config)
+    quiet["micro"]["snapshot_interval_s"] = 1e9
+    output = tmp / "no_snapshots.nc"
+    micro_run.run(quiet, "c", grid, output, output.with_suffix(".png"))
+    with xr.open_dataset(uninterrupted) as a, xr.open_dataset(output) as b:
+        for name in a.data_vars:
+            np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+
+
 def test_the_flow_numbering_of_the_last_remesh_is_kept(tmp_path):
     """The unknowns are numbered by the centroids at the last remesh: a checkpoint after
     the points moved (here a 2 % stretch, which inverts no cell) restores that
@@ -126,7 +170,8 @@ def test_the_flow_numbering_of_the_last_remesh_is_kept(tmp_path):
     assert not np.array_equal(rebuilt.pattern.free_cells, system.pattern.free_cells)
     path = tmp_path / "case.checkpoint.npz"
     save_checkpoint(path, "abc", state, system, [], 1.0)
-    _, loaded, _, _ = load_checkpoint(path, "abc", CLAY)
+    _, loaded, _, _, balance = load_checkpoint(path, "abc", CLAY)
+    assert balance is None
     for name in ("dirichlet", "free_cells", "free_index", "indptr", "indices",
                  "diagonal_position", "facet_position"):
         np.testing.assert_array_equal(getattr(loaded.pattern, name),
