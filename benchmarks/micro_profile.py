@@ -42,8 +42,11 @@ PHASES = {
 
 def bench_micro_profile(points: int = 8000, grid: str = "results/porosity/pellet.nc") -> dict:
     """Cumulative wall time per phase of one heterogeneous micro run at ``points`` points."""
+    import logging
+
     from micro.run import run
 
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     config = copy.deepcopy(CONFIG)
     config["micro"]["n_points"] = points
     config["micro"]["vtk_snapshots"] = False
@@ -67,3 +70,44 @@ def bench_micro_profile(points: int = 8000, grid: str = "results/porosity/pellet
         "cumulative_s": phases,
         "fraction_of_wall": {k: v / wall for k, v in phases.items()},
     }
+
+
+def bench_micro_relaxation(points: int = 1000, grid: str = "results/porosity/pellet.nc") -> dict:
+    """DEM relaxations of one heterogeneous micro run at ``points`` points: how many, how
+    many steps each (percentiles) and how many end at the load ramp's floor
+    (``micro.numerics.ramp_steps``: balance is only checked once the ramp is done)."""
+    import logging
+
+    import numpy as np
+
+    import micro.hydration as hydration
+    from micro.run import run
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+    config = copy.deepcopy(CONFIG)
+    config["micro"]["n_points"] = points
+    config["micro"]["vtk_snapshots"] = False
+    ramp = config["micro"]["numerics"]["ramp_steps"]
+    calls: list[tuple[int, float]] = []
+    relax = hydration.relax
+
+    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
+        start = time.perf_counter()
+        steps, unbalanced = relax(*args, **kwargs)
+        calls.append((steps, time.perf_counter() - start))
+        return steps, unbalanced
+
+    hydration.relax = counted
+    try:
+        with tempfile.TemporaryDirectory() as folder:
+            start = time.perf_counter()
+            ds = run(config, "heterogeneous", grid, Path(folder) / "c.nc", Path(folder) / "c.png")
+            wall = time.perf_counter() - start
+    finally:
+        hydration.relax = relax
+    steps = np.array([c[0] for c in calls])
+    return {"n_points": points, "wall_s": wall, "relaxations": len(calls),
+            "relaxation_s": float(sum(c[1] for c in calls)), "dem_steps": int(steps.sum()),
+            "steps_percentiles_10_50_90_99": np.percentile(steps, [10, 50, 90, 99]).tolist(),
+            "ended_at_ramp": int((steps <= ramp).sum()), "ramp_steps": ramp,
+            "final_eps_v": float(ds["eps_v"].values[-1])}
