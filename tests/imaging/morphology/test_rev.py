@@ -3,15 +3,8 @@
 import numpy as np
 import pytest
 
-from imaging.morphology.rev import (
-    centred_rev_size,
-    interface_area,
-    rev_analyses,
-    rev_analysis,
-    rev_size,
-    window_sizes,
-    window_sums,
-)
+from imaging.morphology import centred_rev_size, interface_area, rev_analyses, rev_analysis
+from imaging.morphology.rev import rev_size, window_sizes, window_sums
 
 
 def test_random_structure_converges_to_its_porosity(rng):
