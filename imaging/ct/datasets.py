@@ -46,7 +46,7 @@ def image_dataset(
         "specimen": (("z", "y", "x"), specimen,
                      {"units": "1", "long_name": "specimen mask (1 inside, 0 outside)"}),
         "grey_preview": (("z_preview", "y_preview", "x_preview"), preview,
-                         {"units": "1", "long_name": f"CT grey value, every {preview_step}th voxel"}),
+                         {"units": "1", "long_name": f"CT grey value, one voxel in {preview_step} along each axis"}),
     }
     if grey is not None:
         data["grey"] = (("z", "y", "x"), grey, {"units": "1", "long_name": "CT grey value"})
