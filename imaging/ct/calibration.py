@@ -24,7 +24,6 @@ __all__ = [
     "Calibration",
     "grey_anchors",
     "histogram_quantile",
-    "anchors_from_histograms",
     "histogram_peaks",
     "anchors_through",
     "grey_to_density",
@@ -78,12 +77,22 @@ def grey_anchors(
     specimen: npt.NDArray[np.bool_],
     muscovite_percentile: float = 99.99,
 ) -> tuple[float, float]:
-    """Estimate the air and muscovite grey values of a scan (:func:`anchors_from_histograms`
-    of its greys outside and inside the specimen)."""
+    """Estimate the air and muscovite grey values of a scan.
+
+    Air is the median grey outside the specimen; muscovite is a high percentile inside
+    it (a percentile rather than the maximum, so a single noisy voxel does not set it).
+
+    Returns
+    -------
+    grey_air, grey_muscovite : float
+    """
+    outside = volume[~specimen]
+    if outside.size == 0:
+        raise ValueError("no air around the specimen: set the grey anchors in the config")
     size = 1 << (8 * volume.dtype.itemsize)
-    return anchors_from_histograms(np.bincount(volume[~specimen].ravel(), minlength=size),
-                                   np.bincount(volume[specimen].ravel(), minlength=size),
-                                   muscovite_percentile)
+    return (histogram_quantile(np.bincount(outside, minlength=size), 50.0),
+            histogram_quantile(np.bincount(volume[specimen], minlength=size),
+                               muscovite_percentile))
 
 
 def histogram_quantile(counts: npt.NDArray[np.integer], percentile: float) -> float:
@@ -99,25 +108,6 @@ def histogram_quantile(counts: npt.NDArray[np.integer], percentile: float) -> fl
     low = float(np.searchsorted(cumulative, below, side="right"))
     high = float(np.searchsorted(cumulative, above, side="right"))
     return low + (rank - below) * (high - low)
-
-
-def anchors_from_histograms(
-    outside: npt.NDArray[np.integer],
-    inside: npt.NDArray[np.integer],
-    muscovite_percentile: float = 99.99,
-) -> tuple[float, float]:
-    """Air and muscovite greys from the grey histograms outside and inside the specimen.
-
-    Air is the median grey outside the specimen; muscovite is a high percentile inside
-    it (a percentile rather than the maximum, so a single noisy voxel does not set it).
-
-    Returns
-    -------
-    grey_air, grey_muscovite : float
-    """
-    if outside.sum() == 0:
-        raise ValueError("no air around the specimen: set the grey anchors in the config")
-    return histogram_quantile(outside, 50.0), histogram_quantile(inside, muscovite_percentile)
 
 
 def histogram_peaks(

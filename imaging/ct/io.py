@@ -53,8 +53,7 @@ class ImageError(ValueError):
 def _check_volume(volume: np.ndarray, source: str | Path) -> np.ndarray:
     if volume.ndim != 3:
         raise ImageError(f"{source}: expected a 3-D volume, got shape {volume.shape}")
-    if volume.dtype.type not in _SUPPORTED_DTYPES:
-        raise ImageError(f"{source}: expected 8- or 16-bit greyscale, got dtype {volume.dtype}")
+    _check_dtype(volume.dtype, source)
     if min(volume.shape) < 2:
         raise ImageError(f"{source}: volume of shape {volume.shape} is not 3-D (a side < 2)")
     if volume.max() == volume.min():
@@ -72,12 +71,26 @@ def _slices_per_chunk(shape: tuple[int, ...], dtype: np.dtype, chunk_bytes: int)
     return max(1, int(chunk_bytes // (int(np.prod(shape)) * np.dtype(dtype).itemsize)))
 
 
-def _from_pieces(pieces: list[tuple[Any, int]], shape: tuple[int, int], dtype: np.dtype) -> Any:
-    """A dask array from readers of consecutive slabs, ``(reader, slices)`` each."""
+def _slabs(read: Any, n_slices: int, shape: tuple[int, int], dtype: np.dtype,
+           chunk_bytes: int) -> Any:
+    """A dask array of ``n_slices`` slices of ``shape`` whose chunks are slabs of about
+    ``chunk_bytes``, each made by ``read(z0, count)`` when it is computed."""
+    step = _slices_per_chunk(shape, dtype, chunk_bytes)
     return da.concatenate([
-        da.from_delayed(dask.delayed(reader, pure=True)(), (count, *shape), dtype=dtype)
-        for reader, count in pieces
+        da.from_delayed(dask.delayed(read, pure=True)(z0, min(step, n_slices - z0)),
+                        (min(step, n_slices - z0), *shape), dtype=dtype)
+        for z0 in range(0, n_slices, step)
     ])
+
+
+def _same_page(page: np.ndarray, shape: tuple[int, int], dtype: np.dtype, source: Path,
+               what: str) -> np.ndarray:
+    """A greyscale page of the stack's shape and type, else an error naming the source."""
+    _as_grey_page(page, source)
+    if page.shape != shape or page.dtype != dtype:
+        raise ImageError(f"{source}: {what} have different shapes or types "
+                         f"({shape} {dtype} and {page.shape} {page.dtype})")
+    return page
 
 
 def _require_file(path: Path) -> None:
@@ -168,20 +181,15 @@ def _as_grey_page(page: np.ndarray, source: str | Path) -> np.ndarray:
     return page
 
 
-def _tiff_pages(path: Path, start: int, count: int, shape: tuple[int, int], dtype: np.dtype
-                ) -> np.ndarray:
+def _tiff_pages(path: Path, shape: tuple[int, int], dtype: np.dtype, start: int,
+                count: int) -> np.ndarray:
     """Pages ``[start, start + count)`` of a multi-page TIFF, checked against the first's
     shape and dtype."""
     ok, pages = cv2.imreadmulti(str(path), start, count, flags=cv2.IMREAD_UNCHANGED)
     if not ok or len(pages) != count:
         raise ImageError(f"{path}: pages {start} to {start + count - 1} are not readable "
                          "(truncated or corrupt?)")
-    for page in pages:
-        _as_grey_page(page, path)
-        if page.shape != shape or page.dtype != dtype:
-            raise ImageError(f"{path}: pages have different shapes or types "
-                             f"({shape} {dtype} and {page.shape} {page.dtype})")
-    return np.stack(pages)
+    return np.stack([_same_page(page, shape, dtype, path, "pages") for page in pages])
 
 
 def open_tiff_stack(path: str | Path, chunk_bytes: int = DEFAULT_CHUNK_BYTES) -> Any:
@@ -204,10 +212,8 @@ def open_tiff_stack(path: str | Path, chunk_bytes: int = DEFAULT_CHUNK_BYTES) ->
     if count == 1:
         raise ImageError(f"{path}: a single page of shape {page.shape}; expected a 3-D stack")
     _check_dtype(page.dtype, path)
-    step = _slices_per_chunk(page.shape, page.dtype, chunk_bytes)
-    return _from_pieces(
-        [(partial(_tiff_pages, path, z0, min(step, count - z0), page.shape, page.dtype),
-          min(step, count - z0)) for z0 in range(0, count, step)], page.shape, page.dtype)
+    return _slabs(partial(_tiff_pages, path, page.shape, page.dtype), count, page.shape,
+                  page.dtype, chunk_bytes)
 
 
 def read_tiff_stack(path: str | Path) -> npt.NDArray[np.unsignedinteger]:
@@ -242,17 +248,16 @@ def slice_files(folder: str | Path) -> list[Path]:
     return files
 
 
-def _slice_pages(files: list[Path], shape: tuple[int, int], dtype: np.dtype) -> np.ndarray:
+def _slice_pages(files: list[Path], shape: tuple[int, int], dtype: np.dtype, start: int,
+                 count: int) -> np.ndarray:
+    """Slices ``[start, start + count)`` of a folder's files, checked against the first's
+    shape and dtype."""
     pages = []
-    for file in files:
+    for file in files[start:start + count]:
         page = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
         if page is None:
             raise ImageError(f"{file}: not a readable image")
-        _as_grey_page(page, file)
-        if page.shape != shape or page.dtype != dtype:
-            raise ImageError(f"{file.parent}: slices have different shapes or types "
-                             f"({shape} {dtype} and {page.shape} {page.dtype} in {file.name})")
-        pages.append(page)
+        pages.append(_same_page(page, shape, dtype, file, "slices"))
     return np.stack(pages)
 
 
@@ -265,11 +270,8 @@ def open_slice_folder(folder: str | Path, chunk_bytes: int = DEFAULT_CHUNK_BYTES
         raise ImageError(f"{files[0]}: not a readable image")
     _as_grey_page(first, files[0])
     _check_dtype(first.dtype, Path(folder))
-    step = _slices_per_chunk(first.shape, first.dtype, chunk_bytes)
-    return _from_pieces(
-        [(partial(_slice_pages, files[z0:z0 + step], first.shape, first.dtype),
-          len(files[z0:z0 + step])) for z0 in range(0, len(files), step)],
-        first.shape, first.dtype)
+    return _slabs(partial(_slice_pages, files, first.shape, first.dtype), len(files),
+                  first.shape, first.dtype, chunk_bytes)
 
 
 def read_slice_folder(folder: str | Path) -> npt.NDArray[np.unsignedinteger]:
@@ -311,15 +313,12 @@ def open_raw(
         raise ImageError(
             f"{path}: {actual} bytes, but shape {list(shape)} of {dtype} needs {expected}"
         )
-    step = _slices_per_chunk(shape[1:], np.dtype(dtype), chunk_bytes)
-    return _from_pieces(
-        [(partial(_raw_slices, path, file_dtype, z0, min(step, shape[0] - z0), shape[1:]),
-          min(step, shape[0] - z0)) for z0 in range(0, shape[0], step)],
-        tuple(shape[1:]), np.dtype(dtype))
+    return _slabs(partial(_raw_slices, path, file_dtype, tuple(shape[1:])), shape[0],
+                  tuple(shape[1:]), np.dtype(dtype), chunk_bytes)
 
 
-def _raw_slices(path: Path, file_dtype: np.dtype, z0: int, count: int,
-                shape: tuple[int, int]) -> np.ndarray:
+def _raw_slices(path: Path, file_dtype: np.dtype, shape: tuple[int, int], z0: int,
+                count: int) -> np.ndarray:
     """Slices ``[z0, z0 + count)`` of a raw volume, in the machine's byte order."""
     per_slice = int(np.prod(shape))
     values = np.fromfile(path, dtype=file_dtype, count=count * per_slice,

@@ -25,8 +25,7 @@ __all__ = [
     "otsu_threshold",
     "specimen_mask",
     "slice_masks",
-    "cylinder_mask",
-    "border_fraction",
+    "cylinder_section",
     "border_counts",
     "inscribed_box",
 ]
@@ -115,14 +114,15 @@ def slice_masks(slab: npt.NDArray[np.unsignedinteger], level: float) -> npt.NDAr
     return mask
 
 
-def cylinder_mask(
+def cylinder_section(
     shape: tuple[int, int, int],
     voxel_size: float,
     radius: float,
     centre: tuple[float, float] | None = None,
     z_range: tuple[float, float] | None = None,
-) -> npt.NDArray[np.bool_]:
-    """Voxels whose centre lies inside a vertical cylinder (axis along z).
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """A vertical cylinder (axis along z) as the slices it spans and its disc: the mask of
+    the voxels whose centre lies inside it is ``slices[:, None, None] & disc``.
 
     Parameters
     ----------
@@ -138,24 +138,29 @@ def cylinder_mask(
         ``(bottom, top)`` of the cylinder from the first slice's lower face [m]; every
         slice when None.
 
+    Returns
+    -------
+    slices : ndarray of bool, shape (z,)
+    disc : ndarray of bool, shape (y, x)
+
     Raises
     ------
     ValueError
         If the cylinder holds no voxel centre.
     """
-    _, ny, nx = shape
+    nz, ny, nx = shape
     if centre is None:
         centre = (0.5 * ny * voxel_size, 0.5 * nx * voxel_size)
     y = (np.arange(ny) + 0.5) * voxel_size - centre[0]
     x = (np.arange(nx) + 0.5) * voxel_size - centre[1]
-    z = (np.arange(shape[0]) + 0.5) * voxel_size
+    z = (np.arange(nz) + 0.5) * voxel_size
     low, high = (-np.inf, np.inf) if z_range is None else z_range
-    inside = (y[:, None] ** 2 + x[None, :] ** 2 <= radius**2)[None] & (
-        (z >= low) & (z <= high))[:, None, None]
-    if not inside.any():
+    disc = y[:, None] ** 2 + x[None, :] ** 2 <= radius**2
+    slices = (z >= low) & (z <= high)
+    if not (disc.any() and slices.any()):
         raise ValueError(f"the cylinder of radius {radius:g} m at {tuple(centre)} m, z in "
                          f"{[low, high]} m, holds no voxel")
-    return inside
+    return slices, disc
 
 
 def border_counts(mask: npt.NDArray) -> tuple[npt.NDArray[np.int64], int]:
@@ -166,17 +171,6 @@ def border_counts(mask: npt.NDArray) -> tuple[npt.NDArray[np.int64], int]:
               + mask[:, 1:-1, 0].sum(axis=1, dtype=np.int64)
               + mask[:, 1:-1, -1].sum(axis=1, dtype=np.int64))
     return inside, 2 * nx + 2 * max(ny - 2, 0)
-
-
-def border_fraction(mask: npt.NDArray[np.bool_]) -> float:
-    """Fraction of the lateral border voxels of the field (the outermost rows and columns
-    of the slices holding specimen) that lie inside the mask: near 0 for a specimen with
-    air around it, near 1 for one that fills the field of view."""
-    kept = mask.any(axis=(1, 2))
-    if not kept.any():
-        return 0.0
-    inside, per_slice = border_counts(mask[kept])
-    return float(inside.sum() / (per_slice * kept.sum()))
 
 
 def inscribed_box(mask: Any) -> tuple[slice, slice, slice]:

@@ -23,14 +23,14 @@ from imaging.ct.calibration import (
     Calibration,
     anchors_through,
     density_to_porosity,
-    anchors_from_histograms,
     grey_to_density,
     histogram_peaks,
+    histogram_quantile,
 )
 from imaging.ct.datasets import image_dataset, porosity_dataset, rev_dataset
 from imaging.ct.grid import block_grid, block_size_voxels
 from imaging.ct.io import ImageError, open_volume, write_tiff_stack
-from imaging.ct.mask import cylinder_mask, inscribed_box, otsu_threshold
+from imaging.ct.mask import cylinder_section, inscribed_box, otsu_threshold
 from imaging.ct.scan import (
     MaskRule,
     ScanSummary,
@@ -157,13 +157,13 @@ def _mask_rule(sample: str, scan: str | Path, grey: Any, summary: ScanSummary,
     if section["mode"] == "cylinder":
         centre, z_range = section["cylinder_centre_m"], section["cylinder_z_m"]
         try:
-            cylinder = cylinder_mask((nz, *grey.shape[1:]), voxel_size,
-                                     section["cylinder_radius_m"],
-                                     None if centre is None else tuple(centre),
-                                     None if z_range is None else tuple(z_range))
+            slices, disc = cylinder_section((nz, *grey.shape[1:]), voxel_size,
+                                            section["cylinder_radius_m"],
+                                            None if centre is None else tuple(centre),
+                                            None if z_range is None else tuple(z_range))
         except ValueError as err:
             raise ValueError(f"{scan}: {err}; check {_keys(sample, 'mask')}") from err
-        return MaskRule("cylinder", cylinder.any(axis=(1, 2)), disc=cylinder.any(axis=0))
+        return MaskRule("cylinder", slices, disc=disc)
     level = section["threshold"]
     level = otsu_threshold(summary.sample) if level is None else float(level)
     areas, border, border_size = threshold_areas(grey, level, workers)
@@ -201,16 +201,17 @@ def _calibration(sample: str, scan: str | Path, section: Mapping[str, Any],
                 section["muscovite_density_kg_m3"])
             record.update(histogram_peak_greys=peaks, histogram_peak_densities=np.asarray(densities))
         elif grey_air is None or grey_muscovite is None:
+            # the median grey outside the specimen, a high percentile inside it
             outside, inside = histograms()
-            if grey_air is None and outside.sum() == 0:
-                raise ValueError(
-                    "no air around the specimen to estimate grey_air from: set "
-                    f"{_keys(sample, 'calibration.grey_air')}, or calibration.anchors: "
-                    "histogram_peaks with peak_densities_kg_m3")
-            auto_air, auto_muscovite = anchors_from_histograms(
-                outside if outside.sum() else inside, inside, section["muscovite_percentile"])
-            grey_air = auto_air if grey_air is None else grey_air
-            grey_muscovite = auto_muscovite if grey_muscovite is None else grey_muscovite
+            if grey_air is None:
+                if outside.sum() == 0:
+                    raise ValueError(
+                        "no air around the specimen to estimate grey_air from: set "
+                        f"{_keys(sample, 'calibration.grey_air')}, or calibration.anchors: "
+                        "histogram_peaks with peak_densities_kg_m3")
+                grey_air = histogram_quantile(outside, 50.0)
+            if grey_muscovite is None:
+                grey_muscovite = histogram_quantile(inside, section["muscovite_percentile"])
         calibration = Calibration(
             grey_air=float(grey_air),
             grey_muscovite=float(grey_muscovite),

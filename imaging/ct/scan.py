@@ -24,7 +24,7 @@ import numpy.typing as npt
 from imaging.ct.calibration import Calibration
 from imaging.ct.grid import block_sums
 from imaging.ct.mask import border_counts, sample_stride, slice_masks
-from imaging.morphology.slabs import slabs_in_order
+from imaging.morphology.slabs import slab as read_slab, slabs_in_order
 from shared.progress import Progress
 
 __all__ = [
@@ -54,7 +54,7 @@ def each_slab(grey: Any, function: Callable[[int, np.ndarray], Any], label: str,
     progress = Progress(int(grey.shape[0]), label, log)
 
     def read(z0: int) -> Any:
-        return function(z0, np.asarray(grey[z0:ends[z0]].compute()))
+        return function(z0, read_slab(grey, z0, ends[z0]))
 
     for z0, result in zip(ends, slabs_in_order(read, ends, workers)):
         progress.update(ends[z0])

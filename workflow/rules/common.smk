@@ -15,12 +15,9 @@ from micro.studies import (
 from shared.config import ConfigError, load_schema, sample_imaging, validate_config
 from shared.provenance import code_sha256
 
+SCHEMA = load_schema(workflow.source_path("../schemas/config.schema.yaml"))
 try:
-    validate_config(
-        config,
-        load_schema(workflow.source_path("../schemas/config.schema.yaml")),
-        checks=[check_packings, check_studies],
-    )
+    validate_config(config, SCHEMA, checks=[check_packings, check_studies])
 except ConfigError as err:
     sys.exit(f"claychain: invalid configuration: {err}")
 
@@ -59,7 +56,7 @@ def sample_settings(*keys):
     sample's own keys merged over it), so that one sample's settings rerun it alone."""
 
     def settings(wildcards):
-        imaging = sample_imaging(config, wildcards.sample)
+        imaging = sample_imaging(config, wildcards.sample, SCHEMA)
         return {key: imaging[key] for key in keys}
 
     return settings
