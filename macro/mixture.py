@@ -1,6 +1,11 @@
-"""Geometry of the pellet-powder systems on the Delaunay mesh of the pellet centres.
+"""Geometry of the pellet-powder systems on the Delaunay mesh of the pellet centres and
+of fixed points on the container.
 
-Systems are the pellets (mesh vertices, indices 0..n_p-1) and the cells (tetrahedra,
+Mesh vertices 0..n_p-1 are the pellet centres, the others points on the container's
+wall and plates (:func:`container_points`, radius 0), so that the cells fill the
+container: the powder between the outer pellets and the wall, which a mesh of the
+pellet centres alone leaves out, has its cells, and the cells on the plates are the
+hydrated ends. Systems are the pellets (indices 0..n_p-1) and the cells (tetrahedra,
 indices n_p..n_p+n_c-1) whose void, outside the pellets, holds the powder. Exchanges
 (Fig. 4.2, Eqs. 4.13-4.15), each with an area A and a length L:
 
@@ -26,7 +31,7 @@ import numpy.typing as npt
 from shared.mesh import Mesh
 
 __all__ = [
-    "Exchanges", "cell_voids", "end_cells", "exchanges", "facet_angles", "mesh_edges", "moved_mesh",
+    "Exchanges", "cell_voids", "container_points", "end_cells", "exchanges", "facet_angles", "mesh_edges", "moved_mesh",
     "solid_angles",
 ]
 
@@ -85,20 +90,22 @@ def mesh_edges(mesh: Mesh) -> IntArray:
     return np.unique(np.sort(edges, axis=1), axis=0)
 
 
-def exchanges(mesh: Mesh, radii: FloatArray, omega: FloatArray, min_area_fraction: float,
+def exchanges(mesh: Mesh, radii: FloatArray, n_pellets: int, omega: FloatArray, min_area_fraction: float,
               edges: IntArray | None = None) -> Exchanges:
-    """All exchanges of the mesh for the current pellet radii (see the module docstring).
+    """All exchanges of the mesh for the current radii of its vertices (0 on the container;
+    see the module docstring); the first ``n_pellets`` vertices are the pellets.
 
     Cell-cell areas are floored at ``min_area_fraction`` of the triangle so that a facet
     covered by swollen pellets keeps a small powder path. ``edges``: the mesh's
     :func:`mesh_edges`, when the caller keeps them between steps (same connectivity).
     """
     points = mesh.points
-    n_p = points.shape[0]
+    n_p = n_pellets
     # pellet-pellet: Delaunay edges whose pellets overlap
     tet = mesh.tetrahedra
     if edges is None:
         edges = mesh_edges(mesh)
+    edges = edges[edges.max(axis=1) < n_p]
     d = np.linalg.norm(points[edges[:, 1]] - points[edges[:, 0]], axis=1)
     ri, rj = radii[edges[:, 0]], radii[edges[:, 1]]
     touching = ri + rj > d
@@ -110,7 +117,9 @@ def exchanges(mesh: Mesh, radii: FloatArray, omega: FloatArray, min_area_fractio
     # pellet-cell
     cells = np.repeat(np.arange(mesh.n_cells), 4)
     verts = tet.ravel()
-    pc_area = (omega * radii[tet] ** 2).ravel()
+    pellet = verts < n_p
+    cells, verts = cells[pellet], verts[pellet]
+    pc_area = (omega * radii[tet] ** 2).ravel()[pellet]
     pc_length = np.linalg.norm(mesh.centroids[cells] - points[verts], axis=1)
     pc = np.column_stack([verts, n_p + cells])
     # cell-cell
@@ -129,17 +138,59 @@ def exchanges(mesh: Mesh, radii: FloatArray, omega: FloatArray, min_area_fractio
     )
 
 
-def end_cells(mesh: Mesh) -> npt.NDArray[np.bool_]:
-    """(n_c,) cells owning a hull triangle that faces an end (|n_z| > cos 45 deg).
+def container_points(height: float, radius: float, spacing: float,
+                     rng: np.random.Generator) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    """Fixed mesh vertices on the container (origin at its centre), and which are on a plate.
 
-    The hydrated boundary of Appendix .1 (cellBndCondIsDirichlet on z- and z+); by the
-    normal rather than the nearest bounding-box face, which in a slender cylinder would
-    also take curved-side triangles near the ends.
+    Rings on the curved wall every ``spacing`` along the axis (staggered by half a
+    step), the two rims included, and a triangular lattice of the same spacing on each
+    plate, all on the container's surface (they are the mesh's hull). Each point is moved
+    along the surface by up to 10 % of the spacing (seeded), the rims only around, so that
+    no four points are co-circular (a Delaunay mesh of them could have flat cells).
+
+    Parameters
+    ----------
+    height, radius
+        Container height and radius [m].
+    spacing
+        Distance between neighbouring points [m].
+    rng
+        Jitter generator.
+
+    Returns
+    -------
+    points : ndarray, shape (n, 3) [m]
+    on_plate : ndarray of bool, shape (n,)
+        The points of the plates and of the two rims.
     """
-    mask = np.zeros(mesh.n_cells, dtype=np.bool_)
-    ends = np.abs(mesh.boundary_normals[:, 2]) > np.sqrt(0.5)
-    mask[mesh.boundary_cells[ends]] = True
-    return mask
+    n_around = max(6, int(np.ceil(2.0 * np.pi * radius / spacing)))
+    n_rings = max(2, int(np.ceil(height / spacing)) + 1)
+    z = np.linspace(-0.5 * height, 0.5 * height, n_rings)
+    angle = (np.arange(n_around)[None, :] + 0.5 * (np.arange(n_rings)[:, None] % 2)) * 2.0 * np.pi / n_around
+    angle = angle + rng.uniform(-0.1, 0.1, angle.shape) * spacing / radius
+    along = np.broadcast_to(z[:, None], angle.shape).copy()
+    along[1:-1] += rng.uniform(-0.1, 0.1, (n_rings - 2, n_around)) * spacing
+    side = np.column_stack([(radius * np.cos(angle)).ravel(), (radius * np.sin(angle)).ravel(), along.ravel()])
+    rim = np.zeros(angle.shape, dtype=np.bool_)
+    rim[[0, -1]] = True
+    # a triangular lattice inside the rim, at least half a spacing from it
+    n_row = int(np.ceil(radius / spacing))
+    i, j = np.meshgrid(np.arange(-2 * n_row, 2 * n_row + 1), np.arange(-2 * n_row, 2 * n_row + 1))
+    lattice = np.column_stack([(i + 0.5 * j).ravel(), (0.5 * np.sqrt(3.0) * j).ravel()]) * spacing
+    lattice = lattice[np.hypot(lattice[:, 0], lattice[:, 1]) < radius - 0.5 * spacing]
+    plates = []
+    for end in (-1.0, 1.0):
+        xy = lattice + rng.uniform(-0.1, 0.1, lattice.shape) * spacing
+        plates.append(np.column_stack([xy, np.full(lattice.shape[0], end * 0.5 * height)]))
+    points = np.concatenate([side, *plates])
+    on_plate = np.concatenate([rim.ravel(), np.ones(2 * lattice.shape[0], dtype=np.bool_)])
+    return points, on_plate
+
+
+def end_cells(mesh: Mesh, on_plate: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
+    """(n_c,) cells with a vertex on a plate: the hydrated ends of Appendix .1
+    (cellBndCondIsDirichlet on z- and z+)."""
+    return on_plate[mesh.tetrahedra].any(axis=1)
 
 
 def moved_mesh(mesh: Mesh, points: FloatArray) -> tuple[Mesh, npt.NDArray[np.bool_]]:

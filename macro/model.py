@@ -1,6 +1,7 @@
 """The coupled pellet-powder model: state, one time step, and the wall readings.
 
-One step (Fig. 4.8): geometry of the cells for the current pellets (fixed Delaunay
+One step (Fig. 4.8): geometry of the cells for the current pellets (Delaunay mesh of the
+pellet centres and of fixed points on the container, :func:`macro.mixture.container_points`; fixed
 connectivity, :func:`macro.mixture.moved_mesh`; a new mesh when an active cell inverts), conductances, the stable time step
 (Eq. 4.58), the explicit mass update (Eq. 4.23), the local pressure-volume problems
 (Sec. 4.3), pellet radii r = (3 V / 4 pi)^(1/3) and moduli E(s) (Eqs. 4.3, 4.27-4.30),
@@ -38,6 +39,7 @@ from macro.laws import (
 from macro.mixture import (
     Exchanges,
     cell_voids,
+    container_points,
     end_cells,
     exchanges,
     facet_angles,
@@ -110,6 +112,7 @@ class MacroSettings:
     newton: NewtonSettings
     packing_sweeps: int
     min_cell_void_fraction: float
+    container_spacing: float
     dem_substeps: int
     dem_damping: float
     dem_balance_tolerance: float
@@ -172,6 +175,7 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         ),
         packing_sweeps=int(num["packing_iterations"]),
         min_cell_void_fraction=float(num["min_cell_void_fraction"]),
+        container_spacing=float(num["container_point_spacing"]),
         dem_substeps=int(num["dem_substeps"]),
         dem_damping=float(num["dem_damping"]),
         dem_balance_tolerance=float(num["dem_balance_tolerance"]),
@@ -195,7 +199,9 @@ class MacroModel:
 
     Systems 0..n_p-1 are pellets, n_p..n_p+n_c-1 cells. Arrays over systems: water mass
     [kg], volume V [m3], pressure p [Pa], solid volume V_s [m3], reference volume V_0
-    [m3], largest volume V_max [m3], held (Dirichlet end cells).
+    [m3], largest volume V_max [m3], held (Dirichlet end cells). The mesh's vertices are
+    the pellet centres, then the fixed ``container`` points (``on_plate`` over all
+    vertices: the container points on the plates).
     """
 
     settings: MacroSettings
@@ -214,6 +220,8 @@ class MacroModel:
     held: npt.NDArray[np.bool_]
     inert: npt.NDArray[np.bool_]
     initial_void: FloatArray
+    container: FloatArray
+    on_plate: npt.NDArray[np.bool_]
     time: float = 0.0
     steps: int = 0
     boundary_inflow: float = 0.0
@@ -245,6 +253,14 @@ class MacroModel:
     def n_cells(self) -> int:
         return self.mesh.n_cells
 
+    def vertex_positions(self) -> FloatArray:
+        """(n_p + n_w, 3) the mesh's vertices now: pellet centres, container points [m]."""
+        return np.concatenate([self.positions, self.container])
+
+    def vertex_radii(self) -> FloatArray:
+        """(n_p + n_w,) pellet radii, 0 on the container [m]."""
+        return np.concatenate([self.radii, np.zeros(self.container.shape[0])])
+
     # ------------------------------------------------------------------ set-up
     @classmethod
     def create(cls, settings: MacroSettings, material: MixtureParameters,
@@ -252,10 +268,15 @@ class MacroModel:
         """Initial state on a packing: everything at the initial suction except the end
         cells, held at the boundary suction."""
         rng = np.random.default_rng(settings.seed + 1)
-        mesh = build_mesh(packing.positions)
+        spacing = 2.0 * settings.container_spacing * float(packing.radii.mean())
+        container, on_plate = container_points(settings.height, settings.radius, spacing,
+                                               np.random.default_rng(settings.seed + 3))
+        mesh = build_mesh(np.concatenate([packing.positions, container]))
         n_p, n_c = packing.radii.size, mesh.n_cells
+        on_plate = np.concatenate([np.zeros(n_p, dtype=np.bool_), on_plate])
+        vertex_radii = np.concatenate([packing.radii, np.zeros(container.shape[0])])
         omega = solid_angles(mesh.points, mesh.tetrahedra)
-        voids = cell_voids(mesh, packing.radii, omega, VOID_FLOOR)
+        voids = cell_voids(mesh, vertex_radii, omega, VOID_FLOOR)
         n_cell = cell_porosity(mesh.centroids, settings.powder, rng, settings.seed)
         phi_powder = float(settings.powder["initial_porosity"])
         v0 = np.concatenate([4.0 / 3.0 * np.pi * packing.radii**3, (1.0 - n_cell) * voids])
@@ -266,13 +287,14 @@ class MacroModel:
         water = settings.density * sat0 * (v0 - solid)
         # a pellet swells at most to its free swelling at zero suction
         v_max = np.concatenate([v0[:n_p] * (1.0 + swelling_strain(0.0, material)) * (1.0 + 1e-6), voids])
-        inert, held = _cell_roles(mesh, voids, packing.positions, packing.radii, settings)
+        inert, held = _cell_roles(mesh, voids, on_plate, n_p, settings)
         model = cls(
             settings=settings, material=material, table=table, mesh=mesh,
             positions=packing.positions.copy(), velocities=np.zeros_like(packing.positions),
             radii=packing.radii.copy(), water_mass=water, volume=v0.copy(),
             pressure=np.full(n_p + n_c, -s0), solid_volume=solid, reference_volume=v0,
             max_volume=v_max, held=held, inert=inert, initial_void=voids,
+            container=container, on_plate=on_plate,
         )
         model._omega = omega
         model.spins = np.zeros_like(packing.positions)
@@ -298,19 +320,20 @@ class MacroModel:
     def _update_geometry(self) -> None:
         n_p = self.n_pellets
         if self.steps > 0:
-            mesh, inverted = moved_mesh(self.mesh, self.positions)
+            mesh, inverted = moved_mesh(self.mesh, self.vertex_positions())
             if np.any(inverted & ~self.inert[self.n_pellets:]):
                 self._remesh()
             else:
                 self.mesh = mesh
             self._omega = solid_angles(self.mesh.points, self.mesh.tetrahedra)
         assert self._omega is not None
-        voids = cell_voids(self.mesh, self.radii, self._omega, VOID_FLOOR)
+        radii = self.vertex_radii()
+        voids = cell_voids(self.mesh, radii, self._omega, VOID_FLOOR)
         cells = slice(n_p, None)
         self.max_volume[cells] = voids
         if self._edges is None or self._edges_of is not self.mesh.tetrahedra:
             self._edges, self._edges_of = mesh_edges(self.mesh), self.mesh.tetrahedra
-        ex = exchanges(self.mesh, self.radii, self._omega, MIN_AREA_FRACTION, self._edges)
+        ex = exchanges(self.mesh, radii, n_p, self._omega, MIN_AREA_FRACTION, self._edges)
         keep = ~self.inert[ex.pairs].any(axis=1)
         self._exchanges = Exchanges(ex.pairs[keep], ex.area[keep], ex.length[keep], ex.kind[keep])
 
@@ -332,13 +355,14 @@ class MacroModel:
         n_p = self.n_pellets
         old = slice(n_p, None)
         interior_before = self.interior_water()
-        triangulation = Delaunay(self.positions)
+        vertices = self.vertex_positions()
+        triangulation = Delaunay(vertices)
         mesh = mesh_from_tetrahedra(triangulation.points, triangulation.simplices, triangulation.neighbors)
         omega = solid_angles(mesh.points, mesh.tetrahedra)
-        voids = cell_voids(mesh, self.radii, omega, VOID_FLOOR)
-        inert, held = _cell_roles(mesh, voids, self.positions, self.radii, self.settings)
+        voids = cell_voids(mesh, self.vertex_radii(), omega, VOID_FLOOR)
+        inert, held = _cell_roles(mesh, voids, self.on_plate, n_p, self.settings)
         # sample points of every old cell and the new cell holding each
-        corners = self.positions[self.mesh.tetrahedra]  # (n_old, 4, 3)
+        corners = vertices[self.mesh.tetrahedra]  # (n_old, 4, 3)
         samples = np.einsum("ks,csx->ckx", _REMESH_WEIGHTS, corners).reshape(-1, 3)
         owner = np.repeat(np.arange(self.mesh.n_cells), _REMESH_WEIGHTS.shape[0])
         # Qhull's point location calls LAPACK once per cell: threaded BLAS on a loaded
@@ -628,24 +652,26 @@ class MacroModel:
 
         A pellet's sector A_k = theta r^2 / 2 of each triangle is pushed by the pressure
         difference across it, A_k (P_i - P_j) n_ij (n_ij from cell i to j); on the hull,
-        A_k P_i n_out.
+        A_k P_i n_out (none on the container: its points have no sectors).
         """
         mesh = self.mesh
-        forces = np.zeros((self.n_pellets, 3))
+        radii = self.vertex_radii()
+        n_v = radii.size
+        forces = np.zeros((n_v, 3))
         for verts, cells, normals, outside in (
             (mesh.facet_vertices, mesh.facet_cells, mesh.facet_normals, False),
             (mesh.boundary_vertices, mesh.boundary_cells, mesh.boundary_normals, True),
         ):
             theta = facet_angles(mesh.points, verts)
-            sector = 0.5 * theta * self.radii[verts] ** 2
+            sector = 0.5 * theta * radii[verts] ** 2
             if outside:
                 jump = cell_pressure[cells]
             else:
                 jump = cell_pressure[cells[:, 0]] - cell_pressure[cells[:, 1]]
             vec = (sector * jump[:, None])[:, :, None] * normals[:, None, :]
             for c in range(3):
-                forces[:, c] += np.bincount(verts.ravel(), vec[:, :, c].ravel(), minlength=self.n_pellets)
-        return forces
+                forces[:, c] += np.bincount(verts.ravel(), vec[:, :, c].ravel(), minlength=n_v)
+        return forces[:self.n_pellets]
 
     def relax(self, substeps: int) -> Readings:
         """Quasi-static DEM under the current radii, moduli and powder: damped substeps
@@ -670,8 +696,9 @@ class MacroModel:
         assert self._omega is not None
         self._cell_pressure, slope = self.powder_pressure()
         external = self.hydro_forces(self._cell_pressure)
-        area = self._omega * self.radii[tet] ** 2
-        powder_stiffness = np.bincount(tet.ravel(), (slope[:, None] * area**2).ravel(), minlength=n_p)
+        area = self._omega * self.vertex_radii()[tet] ** 2
+        powder_stiffness = np.bincount(tet.ravel(), (slope[:, None] * area**2).ravel(),
+                                       minlength=self.on_plate.size)[:n_p]
         # displacement and rotation of the last substep (none before the first)
         moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))
         for k in range(substeps + 1):
@@ -744,14 +771,11 @@ class MacroModel:
         return force / (2.0 * np.pi * self.settings.radius * np.diff(edges))
 
     def _powder_wall_loads(self) -> tuple[FloatArray, float, float]:
-        """Sec. 4.10: confined powder of the hull cells pushes on the container through the
-        powder part of their hull triangles (area minus pellet sectors)."""
+        """Sec. 4.10: confined powder of the cells on the container pushes on it through their
+        triangles on the wall and plates (the mesh's hull)."""
         assert self._cell_pressure is not None
         mesh = self.mesh
-        theta = facet_angles(mesh.points, mesh.boundary_vertices)
-        sectors = (0.5 * theta * self.radii[mesh.boundary_vertices] ** 2).sum(axis=1)
-        fluid = np.maximum(mesh.boundary_areas - sectors, 0.0)
-        force = self._cell_pressure[mesh.boundary_cells] * fluid
+        force = self._cell_pressure[mesh.boundary_cells] * mesh.boundary_areas
         normals, centroids = mesh.boundary_normals, mesh.boundary_centroids
         rho = np.maximum(np.hypot(centroids[:, 0], centroids[:, 1]), 1e-300)
         radial = (normals[:, 0] * centroids[:, 0] + normals[:, 1] * centroids[:, 1]) / rho
@@ -842,23 +866,18 @@ class MacroModel:
             return swell / weight, suction / weight
 
 
-def _cell_roles(mesh: Mesh, voids: FloatArray, positions: FloatArray, radii: FloatArray,
+def _cell_roles(mesh: Mesh, voids: FloatArray, on_plate: npt.NDArray[np.bool_], n_pellets: int,
                 settings: MacroSettings) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     """Inert (sliver) and held (hydrated end) flags over all systems (pellets never).
 
-    Inert: cells whose void is below ``min_cell_void_fraction`` of the mean void (hull
-    slivers at first; after remeshes also cells squeezed by swollen pellets, whose powder
-    the remesh hands to their neighbours). Held: active cells facing an end of the hull,
-    or whose centroid lies within half a pellet radius of the outermost pellet centres
-    along the axis.
+    Inert: cells whose void is below ``min_cell_void_fraction`` of the mean void (slivers
+    between container points; after remeshes also cells squeezed by swollen pellets,
+    whose powder the remesh hands to their neighbours). Held: active cells with a vertex
+    on a plate (:func:`macro.mixture.end_cells`).
     """
-    n_p = positions.shape[0]
-    none = np.zeros(n_p, dtype=np.bool_)
+    none = np.zeros(n_pellets, dtype=np.bool_)
     inert = voids < settings.min_cell_void_fraction * voids.mean()
-    z = mesh.centroids[:, 2]
-    margin = 0.5 * float(radii.mean())
-    layer = (z > positions[:, 2].max() - margin) | (z < positions[:, 2].min() + margin)
-    held = (end_cells(mesh) | layer) & ~inert
+    held = end_cells(mesh, on_plate) & ~inert
     return np.concatenate([none, inert]), np.concatenate([none, held])
 
 

@@ -1,10 +1,12 @@
 """ParaView snapshots of the mixture (``macro.vtk_snapshots`` > 0).
 
 One snapshot is an unstructured grid (``.vtu``, meshio) whose points are the pellet
-centres and whose cells are the Delaunay tetrahedra holding the powder:
+centres and the container's points, and whose cells are the Delaunay tetrahedra holding
+the powder:
 
 - point data per pellet: ``radius_m`` (current), ``suction_Pa``, ``saturation`` [1],
-  ``swelling_strain`` V/V_0 - 1 [1] (use *Glyph* with ``radius_m`` to see the pellets);
+  ``swelling_strain`` V/V_0 - 1 [1] (use *Glyph* with ``radius_m`` to see the pellets),
+  all 0 on the container's points; ``is_pellet`` (1 for pellets, 0 for the container);
 - cell data per tetrahedron: ``suction_Pa``, ``saturation``, ``swelling_strain`` of the
   powder, ``powder_pressure_Pa`` (its push on the contour, Eqs. 4.31-4.35) and
   ``has_powder`` (0 for the slivers without powder).
@@ -35,13 +37,20 @@ def snapshot_mesh(model: MacroModel) -> meshio.Mesh:
     sat = model.saturations()
     strain = np.where(model.inert, 0.0, model.volume / model.reference_volume - 1.0)
     pressure = model.powder_pressure()[0]
-    point_data = {"radius_m": model.radii, "suction_Pa": -model.pressure[:n_p],
-                  "saturation": sat[:n_p], "swelling_strain": strain[:n_p]}
+    # the container points carry the pellet fields as 0 (is_pellet tells them apart)
+    n_w = model.container.shape[0]
+
+    def pellet_field(values: np.ndarray) -> np.ndarray:
+        return np.concatenate([values, np.zeros(n_w)])
+
+    point_data = {"radius_m": pellet_field(model.radii), "suction_Pa": pellet_field(-model.pressure[:n_p]),
+                  "saturation": pellet_field(sat[:n_p]), "swelling_strain": pellet_field(strain[:n_p]),
+                  "is_pellet": np.concatenate([np.ones(n_p, np.int8), np.zeros(n_w, np.int8)])}
     cells = slice(n_p, None)
     cell_data = {"suction_Pa": [-model.pressure[cells]], "saturation": [sat[cells]],
                  "swelling_strain": [strain[cells]], "powder_pressure_Pa": [pressure],
                  "has_powder": [(~model.inert[cells]).astype(np.int8)]}
-    return meshio.Mesh(model.positions, [("tetra", model.mesh.tetrahedra)],
+    return meshio.Mesh(model.vertex_positions(), [("tetra", model.mesh.tetrahedra)],
                        point_data=point_data, cell_data=cell_data)
 
 

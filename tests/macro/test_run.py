@@ -39,7 +39,7 @@ def test_run_writes_the_contract(tmp_path, table_path):
 def _mirrored_model(table_path):
     """A column whose lower half is a packing and whose upper half its mirror image
     (jittered by 1e-3 r so that Delaunay has no cospherical sets), homogeneous powder."""
-    config = small_config(cases={"small": {"heterogeneity": "homogeneous"}})
+    config = small_config(cases={"small": {"heterogeneity": "homogeneous", "powder_pressure_on_walls": True}})
     settings = macro_settings(config["macro"], "small")
     material = mixture_parameters(config["materials"], settings.powder)
     half = pack_cylinder(settings.height / 2, settings.radius, settings.pellet_radius,
@@ -57,7 +57,9 @@ def test_column_loaded_from_both_ends_is_mirror_symmetric(table_path):
     mesh of the jittered mirror packing is not symmetric: its held and inert cells
     differ between the ends; about 7 % measured at the steepest bin). Mechanics: the two
     plates carry the same pressure within a factor 2 and the mirrored sensor bands
-    within the spread that force chains give between bands of one side."""
+    within the spread that force chains give between bands of one side. The powder
+    pushes on the container too: early on, the wetted powder of the end cells pushes the
+    pellets off the plates, which then carry only that push."""
     model = _mirrored_model(table_path)
     edges = np.linspace(-0.5 * model.settings.height, 0.5 * model.settings.height, 11)
     upper, lower, sensors = [], [], []
@@ -169,7 +171,8 @@ def test_powder_pressure_starts_at_confinement_and_stays_below_the_consolidation
 
 def test_paraview_series_lists_its_snapshots(table_path, tmp_path):
     """The .pvd names every snapshot written, in time order, and each .vtu holds the
-    pellets as points and the cells as tetrahedra with their fields."""
+    pellets (then the container's points) as points and the cells as tetrahedra with
+    their fields; every point of the container lies on its wall or plates."""
     import meshio
 
     config = small_config()
@@ -180,9 +183,16 @@ def test_paraview_series_lists_its_snapshots(table_path, tmp_path):
     files = sorted((tmp_path / "small_vtk").glob("step_*.vtu"))
     assert 2 <= len(files) <= 5 and all(f.name in pvd for f in files)
     grid = meshio.read(files[-1])
-    assert grid.points.shape == (ds.sizes["pellet"], 3)
+    n_p = ds.sizes["pellet"]
+    pellet = grid.point_data["is_pellet"] == 1
+    assert pellet[:n_p].all() and not pellet[n_p:].any()
     assert grid.cells_dict["tetra"].shape[0] == ds.attrs["n_cells"]
-    np.testing.assert_allclose(grid.point_data["radius_m"], ds["pellet_radius_final"].values)
+    np.testing.assert_allclose(grid.point_data["radius_m"][:n_p], ds["pellet_radius_final"].values)
+    macro = config["macro"]
+    wall = grid.points[n_p:]
+    on_side = np.isclose(np.hypot(wall[:, 0], wall[:, 1]), macro["cylinder_radius_m"], rtol=1e-9)
+    on_plate = np.isclose(np.abs(wall[:, 2]), 0.5 * macro["cylinder_height_m"], rtol=1e-9)
+    assert (on_side | on_plate).all()
 
 
 @pytest.mark.parametrize(("spoil", "message"), [
