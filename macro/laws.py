@@ -65,6 +65,8 @@ class MixtureParameters:
         tan of the pellet-pellet friction angle [1].
     young_bounds
         (min, max) of E(s) [Pa].
+    yield_area
+        B of Eq. 4.4 read as an area [m2] (:func:`yield_force`); inf: no yield.
     grain_density
         Density of the powder grains [kg/m3].
     beta_v, alpha_v
@@ -87,6 +89,7 @@ class MixtureParameters:
     poisson_ratio: float
     friction: float
     young_bounds: tuple[float, float]
+    yield_area: float
     grain_density: float
     beta_v: float
     alpha_v: float
@@ -116,6 +119,7 @@ def mixture_parameters(materials: Mapping[str, Any], powder: Mapping[str, Any]) 
         poisson_ratio=float(pellet["poisson_ratio"]),
         friction=float(np.tan(np.radians(pellet["friction_angle_deg"]))),
         young_bounds=(low, high),
+        yield_area=float(pellet["yield_area_m2"]) if pellet["yield"] else float("inf"),
         grain_density=float(powder["grain_density_kg_m3"]),
         beta_v=float(powder["swelling_beta_v_pa"]),
         alpha_v=float(powder["swelling_alpha_v_m3_per_kg"]),
@@ -169,6 +173,36 @@ def young_modulus(suction: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
     with np.errstate(over="ignore"):
         e = 3.0 * (1.0 - 2.0 * m.poisson_ratio) * np.exp(m.alpha * s) / m.beta
     return np.clip(e, *m.young_bounds)
+
+
+def yield_force(suction: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
+    """Normal force at which a pellet's contact yields, 3 (1 - 2 nu) B exp(alpha s) / beta [N]
+    (Eq. 4.4; E(s) of Eq. 4.3 uncapped times B).
+
+    Our reading: Table 4.1's B = 1.206e-7 "m^-2" is an area [m2]. Read as printed (or as
+    dimensionless, as the text says) Eq. 4.4 gives a yield stress of tens of pascals; as
+    an area it gives 50 N at 132 MPa and 6 N at 1 MPa, the order of the crushing forces of
+    bentonite pellets, and a Hertz contact between two 6 mm pellets reaches it at a mean
+    contact pressure of about 26 MPa dry and 5 MPa wet: the yield stress "normal force
+    divided by the contact area" of the text (see :func:`macro._kernels.hertz_yield`).
+    inf when the yield is off (``materials.mixture_pellet.yield``).
+    """
+    s = np.asarray(suction, dtype=np.float64)
+    if not np.isfinite(m.yield_area):
+        return np.full(s.shape, np.inf)
+    with np.errstate(over="ignore"):
+        return 3.0 * (1.0 - 2.0 * m.poisson_ratio) * m.yield_area * np.exp(m.alpha * s) / m.beta
+
+
+def yield_pressure(suction: npt.ArrayLike, radius: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
+    """Mean pressure under which a pellet's surface yields against a rigid flat [Pa]:
+    p_y = F_y / (pi a_y^2), a_y^3 = 3 F_y r / (4 E*), E* = E(s) / (1 - nu^2) (Eq. 4.3
+    capped, as the contacts use it), F_y of :func:`yield_force`; inf without yield."""
+    force = yield_force(suction, m)
+    e_star = young_modulus(suction, m) / (1.0 - m.poisson_ratio**2)
+    with np.errstate(invalid="ignore"):
+        contact = np.cbrt(3.0 * force * np.asarray(radius, dtype=np.float64) / (4.0 * e_star))
+        return np.where(np.isfinite(force), force / (np.pi * contact**2), np.inf)
 
 
 def consolidation_pressure(dry_density: npt.ArrayLike, m: MixtureParameters) -> FloatArray:

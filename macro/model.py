@@ -34,6 +34,8 @@ from macro.laws import (
     saturation,
     suction_derivative,
     swelling_strain,
+    yield_force,
+    yield_pressure,
     young_modulus,
 )
 from macro.mixture import (
@@ -241,6 +243,9 @@ class MacroModel:
     spins: FloatArray | None = None
     _contact_pairs: npt.NDArray[np.int64] | None = None
     _shear: FloatArray | None = None
+    _plastic: FloatArray | None = None
+    _wall_plastic: FloatArray | None = None
+    _void: FloatArray | None = None
     _edges: npt.NDArray[np.int64] | None = None
     _edges_of: npt.NDArray[np.int64] | None = None
     pellet_frames: FloatArray | None = None
@@ -331,6 +336,7 @@ class MacroModel:
         voids = cell_voids(self.mesh, radii, self._omega, VOID_FLOOR)
         cells = slice(n_p, None)
         self.max_volume[cells] = voids
+        self._void = voids
         if self._edges is None or self._edges_of is not self.mesh.tetrahedra:
             self._edges, self._edges_of = mesh_edges(self.mesh), self.mesh.tetrahedra
         ex = exchanges(self.mesh, radii, n_p, self._omega, MIN_AREA_FRACTION, self._edges)
@@ -621,9 +627,10 @@ class MacroModel:
         stress between the dry density it is held at and the one it would reach free,
         S_w [p'_vc(m_s / V_c) - p'_vc(m_s / V_f)] (Eqs. 4.31-4.32), which is zero at the
         moment of confinement and tends to S_w p'_vc(m_s / V_c) (the thesis's cap) as
-        V_f grows; scaled by the powder's share of the tetrahedron V / V_t (Eq. 4.35).
-        Continuous in the state, so that a cell's push does not switch on and off as
-        the pellets move. Zero everywhere when ``macro.powder_swelling_pressure`` is off.
+        V_f grows; scaled by the powder's share of the tetrahedron V / V_t (Eq. 4.35); at
+        most the yield pressure of the cell's weakest pellet (:func:`macro.laws.yield_pressure`:
+        the pellets' surface gives way first). Continuous in the state, so that a cell's
+        push does not switch on and off as the pellets move. Zero everywhere when ``macro.powder_swelling_pressure`` is off.
         """
         cells = slice(self.n_pellets, None)
         void = np.maximum(self.max_volume[cells], self.solid_volume[cells])
@@ -638,14 +645,42 @@ class MacroModel:
         pore = np.maximum(volume - self.solid_volume[cells], 1e-300)
         sat = np.clip(self.water_mass[cells] / (self.settings.density * pore), 0.0, 1.0)
         share = volume / self.mesh.volumes
-        # a cell squeezed to the smallest porosity is a geometric failure of the void
-        # estimate (pellets protruding through it), not a state of the powder: no push
-        densest = grain * (1.0 - float(self.settings.powder["porosity_clamp"][0]))
-        active = ~self.inert[cells] & (free > void) & (solid_mass / void < densest * (1.0 - 1e-3))
+        # a cell whose powder no longer fits its void (squeezed past the smallest porosity
+        # by pellets protruding through it, or handed more than it holds by a remesh) is a
+        # failure of the geometry, not a state of the powder: no push
+        assert self._void is not None
+        phi_min = float(self.settings.powder["porosity_clamp"][0])
+        needed = np.maximum(self.solid_volume[cells] / (1.0 - phi_min),
+                            self.solid_volume[cells] + self.water_mass[cells] / self.settings.density)
+        fits = needed <= self._void
+        active = ~self.inert[cells] & (free > void) & fits
         pressure = np.where(active, sat * (held - relaxed) * share, 0.0)
+        bound = self._pressure_bound()
+        capped = pressure > bound
+        pressure = np.where(capped, bound, pressure)
         # d/dV_c of S_w p'_vc(m_s / V_c) V_c / V_t at fixed water (S_w = m_w / rho (V_c - V_s))
         slope = held * self.material.alpha_v * solid_mass / void**2 * sat * share
-        return pressure, np.where(active, slope, 0.0)
+        return pressure, np.where(active & ~capped, slope, 0.0)
+
+    def _pressure_bound(self) -> FloatArray:
+        """(n_c,) the largest push of each cell's powder [Pa]: the yield pressure of its
+        weakest pellet (:func:`macro.laws.yield_pressure`: the pellets' surface gives way
+        first); a cell with only container points is bounded by its neighbours' bounds
+        (the powder around it gives way), inf without yield."""
+        tet, n_p = self.mesh.tetrahedra, self.n_pellets
+        strength = np.append(yield_pressure(-self.pressure[:n_p], self.radii, self.material), np.inf)
+        bound = strength[np.where(tet < n_p, tet, n_p)].min(axis=1)
+        if not np.isfinite(strength[:n_p]).any():
+            return bound
+        neighbours = self.mesh.neighbours
+        for _ in range(4):
+            unbounded = np.isinf(bound)
+            if not unbounded.any():
+                break
+            around = np.where(neighbours >= 0, np.append(bound, -np.inf)[neighbours], -np.inf)
+            bound = np.where(unbounded, np.where(np.isfinite(around), around, -np.inf).max(axis=1), bound)
+            bound[np.isneginf(bound)] = np.inf
+        return bound
 
     def hydro_forces(self, cell_pressure: FloatArray) -> FloatArray:
         """(n_p, 3) forces of the cell pressures on the pellets [N] (Eqs. 4.34-4.38).
@@ -684,10 +719,13 @@ class MacroModel:
         s = self.settings
         n_p = self.n_pellets
         young = young_modulus(-self.pressure[:n_p], self.material)
+        strength = yield_force(-self.pressure[:n_p], self.material)
+        if self._wall_plastic is None:
+            self._wall_plastic = np.zeros((n_p, 3))
         nu = self.material.poisson_ratio
         z_lo, z_hi = -0.5 * s.height, 0.5 * s.height
         skin = 0.2 * float(self.radii.mean())
-        pairs, shear = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin))
+        pairs, shear, plastic = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin))
         reference = self.positions.copy()
         # fictitious mass floor: the stiffness of a contact overlapping by 1e-3 r
         floor = 2.0 * young / (1.0 - nu * nu) * self.radii * np.sqrt(1e-3)
@@ -703,16 +741,18 @@ class MacroModel:
         moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))
         for k in range(substeps + 1):
             if 2.0 * np.sqrt(((self.positions - reference) ** 2).sum(axis=1)).max() > skin:
-                pairs, shear = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin), pairs, shear)
+                pairs, shear, plastic = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin),
+                                                       pairs, shear, plastic)
                 reference = self.positions.copy()
             forces = external.copy()
             torques = np.zeros((n_p, 3))
             stiffness = powder_stiffness.copy()
             normal = _kernels.hertz_mindlin_pairs(self.positions, moved, turned, self.radii, young, nu,
                                                   self.material.friction, pairs, shear, forces, torques,
-                                                  stiffness)
+                                                  stiffness, strength, plastic)
             radial, lower, upper = _kernels.container_contacts(
-                self.positions, self.radii, young, nu, s.radius, z_lo, z_hi, forces, stiffness)
+                self.positions, self.radii, young, nu, s.radius, z_lo, z_hi, forces, stiffness, strength,
+                self._wall_plastic)
             carried = np.concatenate([normal[normal > 0.0], radial[radial > 0.0],
                                       lower[lower > 0.0], upper[upper > 0.0]])
             resultant = np.sqrt((forces**2).sum(axis=1)).mean()
@@ -725,7 +765,7 @@ class MacroModel:
                                         cap / self.radii)
             moved, turned = self.velocities, self.spins
             self.positions += self.velocities
-        self._contact_pairs, self._shear = pairs, shear
+        self._contact_pairs, self._shear, self._plastic = pairs, shear, plastic
         self.dem_substeps_used += k
         sensors = self._band_pressures(radial)
         area = np.pi * s.radius**2
@@ -738,13 +778,17 @@ class MacroModel:
         return Readings(sensors, upper_force / area, lower_force / area, unbalanced)
 
     def _contacts(self, pairs: npt.NDArray[np.int64], old_pairs: npt.NDArray[np.int64] | None = None,
-                  old_shear: FloatArray | None = None) -> tuple[npt.NDArray[np.int64], FloatArray]:
-        """Detected pairs and their shear forces carried over from the same pairs before
-        (by default the contacts at the end of the last relaxation); new pairs start at 0."""
+                  old_shear: FloatArray | None = None, old_plastic: FloatArray | None = None,
+                  ) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
+        """Detected pairs, their shear forces and plastic overlaps carried over from the
+        same pairs before (by default the contacts at the end of the last relaxation); new
+        pairs start at 0."""
         if old_pairs is None:
-            old_pairs, old_shear = self._contact_pairs, self._shear
+            old_pairs, old_shear, old_plastic = self._contact_pairs, self._shear, self._plastic
         shear = np.zeros((pairs.shape[0], 3))
-        if old_pairs is not None and old_shear is not None and old_pairs.size and pairs.size:
+        plastic = np.zeros(pairs.shape[0])
+        if old_pairs is not None and old_shear is not None and old_plastic is not None \
+                and old_pairs.size and pairs.size:
             n = self.n_pellets
             old_code = old_pairs.min(axis=1) * n + old_pairs.max(axis=1)
             code = pairs.min(axis=1) * n + pairs.max(axis=1)
@@ -755,7 +799,8 @@ class MacroModel:
             # the stored force acts on the pair's first pellet: flip where the order flipped
             sign = np.where(old_pairs[source, 0] == pairs[found, 0], 1.0, -1.0)
             shear[found] = old_shear[source] * sign[:, None]
-        return pairs, shear
+            plastic[found] = old_plastic[source]
+        return pairs, shear, plastic
 
     def _band_edges(self) -> FloatArray:
         s = self.settings

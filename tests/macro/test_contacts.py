@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from macro._kernels import hertz_mindlin_pairs
+from macro._kernels import container_contacts, hertz_mindlin_pairs
 
 
 def _pair(overlap, young=(8e8, 4e8)):
@@ -19,7 +19,8 @@ def test_normal_force_is_hertz_with_the_harmonic_modulus():
     nu = 0.3
     forces, torques, stiffness = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(2)
     normal = hertz_mindlin_pairs(positions, np.zeros((2, 3)), np.zeros((2, 3)), r, young, nu, 0.5,
-                                 np.array([[0, 1]]), np.zeros((1, 3)), forces, torques, stiffness)
+                                 np.array([[0, 1]]), np.zeros((1, 3)), forces, torques, stiffness,
+                                 np.full(2, np.inf), np.zeros(1))
     e_star = 1.0 / ((1 - nu**2) / young[0] + (1 - nu**2) / young[1])  # Eq. 4.2
     r_star = r[0] * r[1] / r.sum()
     expected = 4.0 / 3.0 * e_star * np.sqrt(r_star) * 1e-5**1.5  # Eq. 4.1
@@ -41,7 +42,8 @@ def test_shear_grows_with_mindlin_stiffness_until_coulomb():
     for _ in range(600):
         forces, torques, stiffness = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(2)
         normal = hertz_mindlin_pairs(positions, moved, np.zeros((2, 3)), r, young, nu, friction,
-                                     np.array([[0, 1]]), shear, forces, torques, stiffness)
+                                     np.array([[0, 1]]), shear, forces, torques, stiffness,
+                                     np.full(2, np.inf), np.zeros(1))
         history.append(-shear[0, 1])
     history = np.array(history)
     assert history[0] == pytest.approx(k_t * 1e-8, rel=1e-9)
@@ -49,3 +51,55 @@ def test_shear_grows_with_mindlin_stiffness_until_coulomb():
     assert history.max() == pytest.approx(friction * normal[0], rel=1e-12)
     arm = r[0] - 0.5e-5
     assert torques[0, 2] == pytest.approx(arm * shear[0, 1], rel=1e-12)
+
+
+def _loaded(overlaps, yield_force, plastic):
+    """Normal force of the pair at each overlap in turn (the plastic overlap carried)."""
+    out = []
+    for overlap in overlaps:
+        positions, r, young = _pair(overlap)
+        forces, torques, stiffness = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(2)
+        out.append(hertz_mindlin_pairs(positions, np.zeros((2, 3)), np.zeros((2, 3)), r, young, 0.3, 0.5,
+                                       np.array([[0, 1]]), np.zeros((1, 3)), forces, torques, stiffness,
+                                       yield_force, plastic)[0])
+    return np.array(out)
+
+
+def test_contact_yields_at_eq_4_4_and_unloads_elastically():
+    """Hertz up to the yield force F_y (the weaker pellet's), where the mean contact
+    pressure reaches p_y = F_y / (pi R* delta_y); past it F = pi p_y R* delta, so twice the
+    yield overlap carries exactly 2 F_y; unloading is Hertz from the plastic overlap
+    delta_p = delta - (F / (4/3 E* sqrt(R*)))^(2/3), and the force vanishes there."""
+    _, r, young = _pair(0.0)
+    nu = 0.3
+    e_star = 1.0 / ((1 - nu**2) / young[0] + (1 - nu**2) / young[1])
+    r_star = r[0] * r[1] / r.sum()
+    hertz = 4.0 / 3.0 * e_star * np.sqrt(r_star)
+    f_y = 20.0
+    d_y = (f_y / hertz) ** (2.0 / 3.0)
+    plastic = np.zeros(1)
+    strength = np.array([50.0, f_y])
+    force = _loaded([0.5 * d_y, d_y, 2.0 * d_y], strength, plastic)
+    assert force[0] == pytest.approx(hertz * (0.5 * d_y) ** 1.5, rel=1e-12)
+    assert force[1] == pytest.approx(f_y, rel=1e-9)
+    assert force[2] == pytest.approx(2.0 * f_y, rel=1e-9)
+    d_p = 2.0 * d_y - (2.0 * f_y / hertz) ** (2.0 / 3.0)
+    assert plastic[0] == pytest.approx(d_p, rel=1e-9)
+    back = _loaded([1.5 * d_y, d_p + 1e-9 * d_y, 2.0 * d_y], strength, plastic)
+    assert back[0] == pytest.approx(hertz * (1.5 * d_y - d_p) ** 1.5, rel=1e-9)
+    assert back[1] < 1e-12 * f_y
+    assert back[2] == pytest.approx(2.0 * f_y, rel=1e-9)  # reloading to the last point
+
+
+def test_plate_contact_yields_like_a_pair_with_a_rigid_flat():
+    """A pellet pressed into the lower plate by twice its yield overlap carries 2 F_y
+    (R* = r, E* = E / (1 - nu^2)); the curved wall and the upper plate carry nothing."""
+    r, young, nu, f_y = 6e-3, 4e8, 0.3, 30.0
+    hertz = 4.0 / 3.0 * young / (1 - nu**2) * np.sqrt(r)
+    d_y = (f_y / hertz) ** (2.0 / 3.0)
+    positions = np.array([[0.0, 0.0, -0.05 + r - 2.0 * d_y]])
+    forces, stiffness, plastic = np.zeros((1, 3)), np.zeros(1), np.zeros((1, 3))
+    radial, lower, upper = container_contacts(positions, np.array([r]), np.array([young]), nu, 0.03,
+                                              -0.05, 0.05, forces, stiffness, np.array([f_y]), plastic)
+    assert lower[0] == pytest.approx(2.0 * f_y, rel=1e-9) and forces[0, 2] == pytest.approx(2.0 * f_y, rel=1e-9)
+    assert radial[0] == 0.0 and upper[0] == 0.0 and plastic[0, 1] > 0.0

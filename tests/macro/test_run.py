@@ -169,6 +169,33 @@ def test_powder_pressure_starts_at_confinement_and_stays_below_the_consolidation
     assert np.median(pushes[rows, np.flatnonzero(pushes[-1] > 0.0)] / cap[pushes[-1] > 0.0]) < 0.3
 
 
+def test_powder_push_is_bounded_by_the_pellets_yield_pressure(table_path):
+    """Pellets and powder wetted to 1 MPa: every cell with a pellet pushes at most the mean
+    contact pressure at which its weakest pellet yields against a flat, written out here
+    from Eqs. 4.3-4.4 (F_y = 3 (1 - 2 nu) B exp(alpha s) / beta, a_y^3 = 3 F_y r / (4 E*),
+    p_y = F_y / (pi a_y^2)); without the yield the same state pushes harder somewhere."""
+    config = small_config()
+    pellet = config["materials"]["mixture_pellet"]
+    model = build_model(config, "small", PermeabilityTable.from_file(table_path, "free"))
+    n_p = model.n_pellets
+    model.pressure[:] = -1e6
+    pushes = model.powder_pressure()[0]
+    nu, alpha, beta = pellet["poisson_ratio"], pellet["swelling_alpha_per_pa"], pellet["swelling_beta_per_pa"]
+    force = 3 * (1 - 2 * nu) * pellet["yield_area_m2"] * np.exp(alpha * 1e6) / beta
+    young = np.clip(3 * (1 - 2 * nu) * np.exp(alpha * 1e6) / beta, *pellet["young_modulus_bounds_pa"])
+    contact = (3 * force * model.radii * (1 - nu**2) / (4 * young)) ** (1 / 3)
+    weakest = np.where(model.mesh.tetrahedra < n_p, (force / (np.pi * contact**2))[
+        np.minimum(model.mesh.tetrahedra, n_p - 1)], np.inf).min(axis=1)
+    with_pellet = np.isfinite(weakest)
+    assert pushes[with_pellet].max() > 0.0
+    assert np.all(pushes[with_pellet] <= weakest[with_pellet] * (1 + 1e-9))
+    unbounded = build_model(config | {"materials": {**config["materials"],
+                                                    "mixture_pellet": {**pellet, "yield": False}}},
+                            "small", PermeabilityTable.from_file(table_path, "free"))
+    unbounded.pressure[:] = -1e6
+    assert unbounded.powder_pressure()[0].max() > weakest[with_pellet].max()
+
+
 def test_paraview_series_lists_its_snapshots(table_path, tmp_path):
     """The .pvd names every snapshot written, in time order, and each .vtu holds the
     pellets (then the container's points) as points and the cells as tetrahedra with
