@@ -28,7 +28,9 @@ def case_figure(ds: xr.Dataset, path: str | Path) -> Path:
     ax.legend(fontsize=6)
     ax.set_title("wall pressures")
     z = ds["z"].values * 100
-    picks = np.unique(np.linspace(0, ds.sizes["time"] - 1, 5).round().astype(int))
+    # the start, then times a hundredth, a tenth, a third of the run and its end
+    wanted = np.array([0.0, 0.01, 0.1, 1.0 / 3.0, 1.0]) * days[-1]
+    picks = np.unique(np.abs(days[None, :] - wanted[:, None]).argmin(axis=1))
     for i in picks:
         label = f"{days[i]:.2g} d"
         axes[1].plot(z, ds["suction_profile"].values[i] / 1e6, label=label)

@@ -646,16 +646,17 @@ class MacroModel:
         sat = np.clip(self.water_mass[cells] / (self.settings.density * pore), 0.0, 1.0)
         share = volume / self.mesh.volumes
         # a cell whose powder no longer fits its void (squeezed past the smallest porosity
-        # by pellets protruding through it, or handed more than it holds by a remesh) is a
-        # failure of the geometry, not a state of the powder: no push
+        # by pellets protruding through it, or handed more than it holds by a remesh)
+        # presses with the yield pressure of its pellets; without the yield nothing bounds
+        # Eq. 4.31 there, and such a cell does not push
         assert self._void is not None
         phi_min = float(self.settings.powder["porosity_clamp"][0])
         needed = np.maximum(self.solid_volume[cells] / (1.0 - phi_min),
                             self.solid_volume[cells] + self.water_mass[cells] / self.settings.density)
-        fits = needed <= self._void
+        bound = self._pressure_bound()
+        fits = (needed <= self._void) | np.isfinite(bound)
         active = ~self.inert[cells] & (free > void) & fits
         pressure = np.where(active, sat * (held - relaxed) * share, 0.0)
-        bound = self._pressure_bound()
         capped = pressure > bound
         pressure = np.where(capped, bound, pressure)
         # d/dV_c of S_w p'_vc(m_s / V_c) V_c / V_t at fixed water (S_w = m_w / rho (V_c - V_s))

@@ -39,7 +39,6 @@ __all__ = ["run", "simulate", "near_equilibrium"]
 
 LOG = logging.getLogger("claychain.macro")
 FloatArray = npt.NDArray[np.float64]
-PROFILE_BINS = 24
 PACKING_TOLERANCE = 0.05
 """Largest overlap left by the packing, as a fraction of the pellet radius."""
 THIN_ABOVE = 4000
@@ -96,7 +95,9 @@ def simulate(
     ``series`` writes the ParaView snapshots when due and at the end.
     """
     s: MacroSettings = model.settings
-    edges = np.linspace(-0.5 * s.height, 0.5 * s.height, PROFILE_BINS + 1)
+    # bins of about one pellet diameter: finer bins alternate between pellets and powder
+    bins = max(2, int(round(s.height / (2.0 * float(model.radii.mean())))))
+    edges = np.linspace(-0.5 * s.height, 0.5 * s.height, bins + 1)
     new = rows is None
     if rows is None:
         rows = {k: [] for k in (
