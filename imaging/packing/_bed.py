@@ -40,9 +40,10 @@ class BedIndex:
     """
 
     def __init__(self, semi_axes: npt.NDArray[np.float64], box_width: float,
-                 contact_distance: float) -> None:
+                 contact_distance: float, scan_points: int = 0) -> None:
         self.box_width = box_width
         self.contact_distance = contact_distance
+        self.scan_points = scan_points
         n = semi_axes.shape[0]
         radius = np.hypot(semi_axes[:, 0], semi_axes[:, 2])
         fine_radius = float(np.quantile(radius, FINE_QUANTILE))
@@ -64,10 +65,12 @@ class BedIndex:
 
     @property
     def geometry(self) -> npt.NDArray[np.float64]:
-        """Layout of the grids for the kernels (see ``_grid_kernels.gather_levels``) [m]."""
+        """Layout of the grids for the kernels (see ``_grid_kernels.gather_levels``) [m],
+        then the contact scan's n_sp (0: exact contacts, see ``_settle_kernels.fall``)."""
         return np.array([self.box_width, self.contact_distance,
                          self.fine.cell_xy, self.fine.cell_z, self.fine.margin,
-                         self.coarse.cell_xy, self.coarse.cell_z, self.coarse.margin])
+                         self.coarse.cell_xy, self.coarse.cell_z, self.coarse.margin,
+                         float(self.scan_points)])
 
     @classmethod
     def of(cls, centers: npt.NDArray[np.float64], rotations: npt.NDArray[np.float64],

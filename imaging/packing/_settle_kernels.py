@@ -19,6 +19,7 @@ from imaging.packing._contact_kernels import (
     support,
 )
 from imaging.packing._grid_kernels import gather_levels
+from imaging.packing._scan_kernels import scan_drop
 
 MAX_CONTACTS = 8
 SLIDE = 0
@@ -32,8 +33,10 @@ def fall(center, rot, axes, centers, rots, all_axes, exts, fine, coarse, link, g
     """Vertical fall of a particle until its lowest gap to the bed or floor is d_cont/2.
 
     ``fine``, ``coarse`` and ``link`` are the two grids of the bed and ``geometry`` their
-    layout (see :func:`._grid_kernels.gather_levels`). Contacts (points [m] within
-    d_cont after the fall) are written to ``contacts``.
+    layout (see :func:`._grid_kernels.gather_levels`), then n_sp: 0 for exact contacts
+    (:func:`._contact_kernels.drop_to_contact`), else the contact scan with n_sp points
+    (:func:`._scan_kernels.scan_drop`; the floor is a plane, met exactly either way).
+    Contacts (points [m] within d_cont after the fall) are written to ``contacts``.
 
     Returns
     -------
@@ -43,6 +46,7 @@ def fall(center, rot, axes, centers, rots, all_axes, exts, fine, coarse, link, g
     """
     d_cont = geometry[1]
     step = geometry[3]
+    n_sp = int(geometry[8])
     ext = np.empty(3)
     half_extents(rot, axes, ext)
     floor_drop = center[2] - ext[2]
@@ -70,8 +74,12 @@ def fall(center, rot, axes, centers, rots, all_axes, exts, fine, coarse, link, g
             cb = centers[j].copy()
             cb[0] += shifts[k, 0]
             cb[1] += shifts[k, 1]
-            d, qx, qy, qz = drop_to_contact(center, rot, axes, cb, rots[j], all_axes[j], limit,
-                                            0.05 * d_cont)
+            if n_sp > 0:
+                d, qx, qy, qz = scan_drop(center, rot, axes, cb, rots[j], all_axes[j], limit, n_sp,
+                                          d_cont)
+            else:
+                d, qx, qy, qz = drop_to_contact(center, rot, axes, cb, rots[j], all_axes[j], limit,
+                                                0.05 * d_cont)
             if d < 0.0:
                 return -1.0, 0
             drops[k] = d

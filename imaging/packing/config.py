@@ -133,4 +133,5 @@ def parameters_of(section: Mapping[str, Any]) -> DepositionParameters:
         steepest_swivel=section["swivel_axis"] == "steepest",
         contact_line_swivel=section["two_contact_swivel"] == "line",
         log_interval=float(section["log_interval_s"]),
+        scan_points=int(section["scan_points"]) if section["contact_mode"] == "scan" else 0,
     )

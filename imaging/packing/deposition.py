@@ -6,10 +6,11 @@ then try ``n_cycles`` x ``attempts_per_cycle`` random moves (slide, swivel about
 contact point, in-plane rotation), each accepted only if the barycentre descends and no
 overlap appears; amplitudes are halved between cycles. Particles in the bed never move.
 
-Contacts and overlaps are computed exactly on the convex particle shape (GJK on the
-support functions, see :mod:`._contact_kernels`), which replaces the multiscale scan
-of Sec. II.B: there is no scan resolution n_sp, and a fall stops at a vertical gap of
-d_cont/2 to the first obstacle, which the scan only approached to within d_cont.
+Contacts and overlaps are computed exactly on the convex particle shape by default (GJK
+on the support functions, see :mod:`._contact_kernels`): a fall stops at a vertical gap
+of d_cont/2 to the first obstacle, which the paper's multiscale scan of Sec. II.B only
+approaches to within d_cont. ``scan_points`` > 0 uses that scan instead
+(:mod:`._scan_kernels`), with its small overlaps.
 
 Readings of Sec. II.A used here:
 
@@ -100,6 +101,8 @@ class DepositionParameters:
         of ``steepest_swivel`` through that foot.
     log_interval : float
         Seconds between progress log lines [s].
+    scan_points : int
+        n_sp of the contact scan (Sec. II B, :mod:`._scan_kernels`); 0: exact contacts.
     """
 
     box_width: float
@@ -116,6 +119,7 @@ class DepositionParameters:
     steepest_swivel: bool = True
     contact_line_swivel: bool = True
     log_interval: float = 30.0
+    scan_points: int = 0
 
 
 @dataclass
@@ -202,7 +206,7 @@ def deposit(
     """
     semi_axes = np.ascontiguousarray(semi_axes, dtype=np.float64)
     n = semi_axes.shape[0]
-    bed = BedIndex(semi_axes, params.box_width, params.contact_distance)
+    bed = BedIndex(semi_axes, params.box_width, params.contact_distance, params.scan_points)
     geometry = bed.geometry
     amplitudes = np.array(
         [params.slide_amplitude, params.swivel_amplitude, params.rotation_amplitude])

@@ -40,10 +40,11 @@ def packing_section(section: Mapping[str, Any] | None = None, name: str = "tiny"
 
 def small_bed(seed: int, n: int = 40, box_diameters: float = 3.0, theta_max: float = np.pi / 2,
               axis_ratio: float = 1.0, attempts: int = 800, size_sigma: float = 0.0,
-              steepest: bool = True) -> Packing:
+              steepest: bool = True, scan_points: int = 0) -> Packing:
     """A bed of R = 0.1 disks of median equivalent diameter 1 um, high freedom (Table II
     series 2); ``size_sigma`` is the log-normal sigma of the basal surface, ``steepest``
-    the direction rule of slides and swivels."""
+    the direction rule of slides and swivels, ``scan_points`` the contact scan's n_sp (0:
+    exact contacts)."""
     rng = np.random.default_rng(seed)
     population = Population(basal_surface_median=np.pi / 4 * DIAMETER**2,
                             basal_surface_sigma=size_sigma, aspect_ratio_median=0.1,
@@ -53,7 +54,7 @@ def small_bed(seed: int, n: int = 40, box_diameters: float = 3.0, theta_max: flo
         box_width=box_diameters * DIAMETER, contact_distance=5e-4 * DIAMETER, theta_max=theta_max,
         theta_random=True, slide_amplitude=5 * DIAMETER, swivel_amplitude=np.radians(80),
         rotation_amplitude=np.radians(80), attempts_per_cycle=attempts, steepest_slide=steepest,
-        steepest_swivel=steepest)
+        steepest_swivel=steepest, scan_points=scan_points)
     return deposit(semi_axes, params, rng)
 
 
@@ -61,6 +62,12 @@ def small_bed(seed: int, n: int = 40, box_diameters: float = 3.0, theta_max: flo
 def elliptic_bed() -> Packing:
     """40 elliptic disks (l_a / l_b = 1.5) in a 3 d box."""
     return small_bed(seed=7, axis_ratio=1.5)
+
+
+@pytest.fixture(scope="session")
+def scanned_bed() -> Packing:
+    """The elliptic bed's particles deposited with the paper's contact scan (n_sp = 150)."""
+    return small_bed(seed=7, axis_ratio=1.5, scan_points=150)
 
 
 @pytest.fixture(scope="session")

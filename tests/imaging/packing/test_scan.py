@@ -1,0 +1,103 @@
+"""The contact scan of Ferrage et al. 2015 Sec. II B against hand-computed falls and the
+exact contacts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from imaging.packing import _contact_kernels as contact
+from imaging.packing import _scan_kernels as scan
+from imaging.packing.orientation import rotation_matrices
+
+AXES = np.array([1.0, 1.0, 0.05])
+D_CONT = 1e-3
+
+
+def test_flat_disk_on_flat_disk_is_found_by_the_gap() -> None:
+    """Flat on flat, offset: the vertical gap is the distance between the faces, 0.9."""
+    gap, *point = scan.scan_drop(np.array([0.3, 0.2, 1.0]), np.eye(3), AXES, np.zeros(3), np.eye(3),
+                                 AXES, 10.0, 150, D_CONT)
+    assert gap == pytest.approx(0.9, abs=1e-12)
+    assert point[2] == pytest.approx(0.05, abs=1e-12)
+
+
+def _near(ca, ra, axes_a, cb, rb, axes_b, gap):
+    """A moved down so that its exact vertical gap above B is ``gap``; that gap."""
+    exact = contact.drop_to_contact(ca, ra, axes_a, cb, rb, axes_b, 10.0, 1e-12)[0]
+    return ca - [0.0, 0.0, exact - gap], gap
+
+
+def test_tilted_disk_lands_on_its_rim_within_d_cont() -> None:
+    """Tilted by 0.7 rad about x over a flat disk, its lowest rim corner within delta_1 of
+    the flat face: the refinement finds the gap to within d_cont from above (the scan sees
+    the rim only at its points). From afar the coarse grid alone answers, above the exact
+    gap 2 - sin(0.7) - 0.05 cos(0.7) - 0.05 by less than delta_1, as the text has it."""
+    rot_a = rotation_matrices([[0.0, 0.7, 0.0]])[0]
+    far = np.array([0.0, 1.5, 2.0])
+    exact_far = 2 - np.sin(0.7) - 0.05 * np.cos(0.7) - 0.05
+    delta = scan.scan_spacing(1.0, 1.0, 150)
+    coarse = scan.scan_drop(far, rot_a, AXES, np.zeros(3), np.eye(3), AXES, 10.0, 150, D_CONT)[0]
+    assert exact_far - 1e-12 <= coarse <= exact_far + delta
+    near, exact = _near(far, rot_a, AXES, np.zeros(3), np.eye(3), AXES, 0.02)
+    gap = scan.scan_drop(near, rot_a, AXES, np.zeros(3), np.eye(3), AXES, 10.0, 150, D_CONT)[0]
+    assert exact - 1e-12 <= gap <= exact + D_CONT
+
+
+def test_edge_on_flat_and_flat_on_edge_match_the_exact_fall() -> None:
+    """An upright disk just over a flat one and a flat disk just over an upright one: the
+    scan's gap is the exact contact's (GJK) to within d_cont, never below it."""
+    upright = rotation_matrices([[np.pi / 2, np.pi / 2, 0.0]])[0]
+    cases = [
+        (np.array([0.2, 0.1, 2.0]), upright, np.array([0.0, 0.0, 0.0]), np.eye(3)),
+        (np.array([0.13, 0.37, 2.0]), np.eye(3), np.array([0.0, 0.0, 0.0]), upright),
+    ]
+    for ca, ra, cb, rb in cases:
+        near, exact = _near(ca, ra, AXES, cb, rb, AXES, 0.01)
+        gap = scan.scan_drop(near, ra, AXES, cb, rb, AXES, 10.0, 150, D_CONT)[0]
+        assert exact - 1e-9 <= gap <= exact + D_CONT
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_random_poses_near_contact_are_found_within_d_cont(seed: int) -> None:
+    """Random tilts and offsets of two elliptic disks, A within delta_1 / 5 of B: the
+    scan's gap is never below the exact one and exceeds it by at most d_cont where the
+    refinement reaches the lowest point, and by less than delta_1 where the coarse grid
+    misses it (then falling by the scan's gap leaves the paper's small overlaps)."""
+    rng = np.random.default_rng(seed)
+    axes = np.array([1.0, 0.6, 0.05])
+    delta = scan.scan_spacing(axes[0], axes[1], 150)
+    rot = rotation_matrices(rng.uniform([0, 0, 0], [2 * np.pi, 1.4, 2 * np.pi], (2, 3)))
+    ca = np.array([*rng.uniform(-0.3, 0.3, 2), 3.0])  # B under A's centre: A lands on B
+    near, exact = _near(ca, rot[0], axes, np.zeros(3), rot[1], axes, 0.2 * delta)
+    gap = scan.scan_drop(near, rot[0], axes, np.zeros(3), rot[1], axes, 10.0, 150, D_CONT)[0]
+    assert gap >= exact - 1e-9
+    assert gap - exact <= delta
+
+
+def test_overlap_is_seen_by_either_scan() -> None:
+    """A disk sunk 0.02 into another (flat on flat) and a tilted disk whose rim cuts into a
+    flat one: both overlaps are found; disks apart are not."""
+    assert scan.scan_overlap(np.array([0.5, 0.0, 0.08]), np.eye(3), AXES, np.zeros(3), np.eye(3), AXES,
+                             150, D_CONT)
+    tilted = rotation_matrices([[0.0, 0.7, 0.0]])[0]
+    low = np.array([0.0, 1.5, np.sin(0.7) + 0.05 * np.cos(0.7) + 0.05 - 0.01])
+    assert scan.scan_drop(low, tilted, AXES, np.zeros(3), np.eye(3), AXES, 10.0, 150, D_CONT)[0] == -1.0
+    assert not scan.scan_overlap(np.array([0.5, 0.0, 0.2]), np.eye(3), AXES, np.zeros(3), np.eye(3),
+                                 AXES, 150, D_CONT)
+
+
+def test_a_small_disk_under_a_large_one_can_hide_between_scan_points() -> None:
+    """The paper's warning (Sec. II B): a large particle settling on a much smaller one can
+    miss it between its scan points; the inverse scan from the small one's faces finds
+    the overlap once they interpenetrate. With n_sp = 150 on a disk of radius 1 the grid
+    spacing is 0.145; a disk of radius 0.03 centred between four grid points is passed
+    by the contact scan from above."""
+    delta = scan.scan_spacing(1.0, 1.0, 150)
+    small = np.array([0.03, 0.03, 0.01])
+    centre = np.array([0.5 * delta, 0.5 * delta, 0.0])
+    gap = scan.scan_drop(np.array([0.0, 0.0, 1.0]), np.eye(3), AXES, centre, np.eye(3), small, 10.0,
+                         150, D_CONT)[0]
+    assert gap == contact.INFINITE_DROP
+    assert scan.scan_overlap(np.array([0.0, 0.0, 0.05]), np.eye(3), AXES, centre, np.eye(3), small, 150,
+                             D_CONT)
