@@ -20,8 +20,11 @@ import numpy as np
 import xarray as xr
 
 from benchmarks.parameters import CONFIG
+from shared.figures import new_figure, save_figure
 from shared.io import write_dataset
 from shared.upscaling import PermeabilityTable
+
+OUT = Path("results/benchmarks")
 
 __all__ = ["bench_macro_scaling", "bench_macro_steps", "synthetic_table"]
 
@@ -92,10 +95,20 @@ def bench_macro_scaling(steps: int = 100, radii: tuple[float, ...] = (5.99e-3, 4
     rows = [bench_macro_steps(steps, r) for r in radii]
     count = np.array([r["n_pellets"] for r in rows], dtype=float)
     fits = {}
+    fig, axes = new_figure(1, 1, width=4.6, height=3.6)
+    ax = axes[0][0]  # type: ignore[index]
     for phase in ("total", *rows[0]["phase_s"]):
         per_step = np.array([(1.0 / r["steps_per_s"]) if phase == "total" else r["phase_s"][phase] / steps
                              for r in rows])
         fits[phase] = float(np.polyfit(np.log(count), np.log(per_step), 1)[0])
+        ax.loglog(count, 1e3 * per_step, "o-" if phase == "total" else ".--",
+                  label=f"{phase} (N^{fits[phase]:.2f})")
+    ax.set_xlabel("pellets")
+    ax.set_ylabel("wall time per coupled step [ms]")
+    ax.set_title("macro model: cost per step (2 cores)")
+    ax.legend(fontsize=7)
+    OUT.mkdir(parents=True, exist_ok=True)
+    save_figure(fig, OUT / "macro_scaling.png")
     return {"runs": rows, "exponent_per_step": fits}
 
 
