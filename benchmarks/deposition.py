@@ -255,7 +255,8 @@ def reduced_box(n_particles: int) -> float:
 
 
 def sweep_run(n_particles: int, theta_max_deg: float, theta_random: bool, slide_d: float,
-              swivel_deg: float, axis_ratio: float = 1.0, seed: int = 0) -> dict[str, Any]:
+              swivel_deg: float, axis_ratio: float = 1.0, seed: int = 0,
+              scan_points: int = 0, **options: Any) -> dict[str, Any]:
     """Deposit monodisperse R = 0.1 disks of equivalent diameter d = 1 um and measure the
     linear zone.
 
@@ -273,6 +274,10 @@ def sweep_run(n_particles: int, theta_max_deg: float, theta_random: bool, slide_
     axis_ratio : float
         l_a / l_b.
     seed : int
+    scan_points : int
+        n_sp of the paper's contact scan; 0: exact contacts.
+    **options
+        Other fields of :class:`DepositionParameters` (readings of the moves, cycles).
 
     Returns
     -------
@@ -289,7 +294,7 @@ def sweep_run(n_particles: int, theta_max_deg: float, theta_random: bool, slide_
         box_width=width, contact_distance=5e-4 * DIAMETER, theta_max=math.radians(theta_max_deg),
         theta_random=theta_random, slide_amplitude=slide_d * DIAMETER,
         swivel_amplitude=math.radians(swivel_deg), rotation_amplitude=math.radians(swivel_deg),
-        log_interval=600.0)
+        log_interval=600.0, scan_points=scan_points, **options)
     start = time.perf_counter()
     bed = deposit(semi_axes, params, rng)
     elapsed = time.perf_counter() - start
@@ -300,7 +305,7 @@ def sweep_run(n_particles: int, theta_max_deg: float, theta_random: bool, slide_
     return {
         "n_particles": n_particles, "box_width_m": width, "axis_ratio": axis_ratio,
         "theta_max_deg": theta_max_deg, "theta_random": theta_random, "slide_d": slide_d,
-        "swivel_deg": swivel_deg, "seed": seed,
+        "swivel_deg": swivel_deg, "seed": seed, "scan_points": scan_points,
         "porosity": zone_porosity(z, bed.volumes, width, low, high),
         "S_part": legendre_order(bed.normals[zone]),
         "z_min_d": low / DIAMETER, "z_max_d": high / DIAMETER, "n_zone": int(zone.sum()),
@@ -309,11 +314,13 @@ def sweep_run(n_particles: int, theta_max_deg: float, theta_random: bool, slide_
 
 
 def bench_deposition_axis_ratio(n_particles: int = 400,
-                                seeds: int | Mapping[int, int] | None = None) -> dict:
+                                seeds: int | Mapping[int, int] | None = None,
+                                scan_points: int = 0) -> dict:
     """Fig. 7 analogue: porosity vs l_a / l_b in :data:`AXIS_RATIOS` for the three Table II
     series, ``n_particles`` per run in a box of 7.5 d sqrt(N / 2500), ``seeds`` runs per
-    point (an int for every series, or per series; default :data:`AXIS_RATIO_SEEDS`).
-    Writes ``results/benchmarks/deposition_axis_ratio.{json,png}``.
+    point (an int for every series, or per series; default :data:`AXIS_RATIO_SEEDS`), exact
+    contacts or (``scan_points`` > 0) the paper's scan.
+    Writes ``results/benchmarks/deposition_axis_ratio[_scan].{json,png}``.
 
     Returns
     -------
@@ -331,14 +338,79 @@ def bench_deposition_axis_ratio(n_particles: int = 400,
     for series, (theta, random, slide, swivel) in SERIES.items():
         for ratio in AXIS_RATIOS:
             for seed in range(seeds[series]):
-                row = sweep_run(n_particles, theta, random, slide, swivel, ratio, seed)
+                row = sweep_run(n_particles, theta, random, slide, swivel, ratio, seed, scan_points)
                 rows.append({"series": series, **row})
     out = {"n_particles": n_particles, "box_width_m": reduced_box(n_particles), "rows": rows,
            "total_s": time.perf_counter() - start}
     OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / "deposition_axis_ratio.json").write_text(json.dumps(out, indent=2))
-    axis_ratio_figure(out, OUT / "deposition_axis_ratio.png")
+    stem = "deposition_axis_ratio" + ("_scan" if scan_points else "")
+    (OUT / f"{stem}.json").write_text(json.dumps(out, indent=2))
+    axis_ratio_figure(out, OUT / f"{stem}.png")
     return out
+
+
+def bench_deposition_axis_ratio_scan(n_particles: int = 400) -> dict:
+    """:func:`bench_deposition_axis_ratio` with the paper's contact scan, n_sp = 150."""
+    return bench_deposition_axis_ratio(n_particles, scan_points=150)
+
+
+#: Parts of the algorithm varied one at a time by :func:`bench_deposition_sensitivity`:
+#: (label, scan_points, DepositionParameters fields).
+SENSITIVITY_VARIANTS: tuple[tuple[str, int, dict[str, Any]], ...] = (
+    ("exact contacts (reference)", 0, {}),
+    ("scan, n_sp = 150", 150, {}),
+    ("scan, n_sp = 500", 500, {}),
+    ("two-contact swivel about a horizontal axis", 0, {"contact_line_swivel": False}),
+    ("slides in random directions", 0, {"steepest_slide": False}),
+    ("swivels about random horizontal axes", 0, {"steepest_swivel": False}),
+    ("one cycle of 800 attempts", 0, {"n_cycles": 1}),
+    ("3 cycles of 200 attempts", 0, {"attempts_per_cycle": 200}),
+)
+
+
+def bench_deposition_sensitivity(n_particles: int = 400) -> dict:
+    """Which part of the algorithm moves porosity and S_part most: the Table II series 1
+    and 2 (low and high freedom) with each of :data:`SENSITIVITY_VARIANTS`, ``n_particles``
+    monodisperse R = 0.1 disks, one seed. Writes ``results/benchmarks/deposition_sensitivity.json``
+    and a markdown table ``deposition_sensitivity.md``.
+
+    Returns
+    -------
+    dict
+        ``rows`` (:func:`sweep_run` results with ``series`` and ``variant``),
+        ``n_particles``, ``total_s``.
+    """
+    _warm_up()
+    start = time.perf_counter()
+    rows = []
+    for series in (1, 2):
+        for label, scan_points, options in SENSITIVITY_VARIANTS:
+            row = sweep_run(n_particles, *SERIES[series], scan_points=scan_points, **options)
+            rows.append({"series": series, "variant": label, **row})
+    out = {"n_particles": n_particles, "rows": rows, "total_s": time.perf_counter() - start}
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "deposition_sensitivity.json").write_text(json.dumps(out, indent=2))
+    (OUT / "deposition_sensitivity.md").write_text(sensitivity_markdown(out))
+    return out
+
+
+def sensitivity_markdown(result: Mapping[str, Any]) -> str:
+    """The sensitivity table: porosity and S_part per variant, change from the reference."""
+    lines = [f"# Deposition: sensitivity to the parts of the algorithm (N = {result['n_particles']}, "
+             "one seed)", "",
+             "| variant | series 1 porosity | S_part | series 2 porosity | S_part |",
+             "|---|---|---|---|---|"]
+    rows = result["rows"]
+    reference = {r["series"]: r for r in rows if r["variant"] == SENSITIVITY_VARIANTS[0][0]}
+    for label, _, _ in SENSITIVITY_VARIANTS:
+        cells = []
+        for series in (1, 2):
+            row = next(r for r in rows if r["series"] == series and r["variant"] == label)
+            base = reference[series]
+            cells.append(f"{row['porosity']:.3f} ({row['porosity'] - base['porosity']:+.3f}) | "
+                         f"{row['S_part']:.2f} ({row['S_part'] - base['S_part']:+.2f})")
+        lines.append(f"| {label} | {cells[0]} | {cells[1]} |")
+    return "\n".join(lines) + "\n"
 
 
 def axis_ratio_figure(result: Mapping[str, Any], path: Path) -> Path:
@@ -370,11 +442,12 @@ def freedom_cases() -> list[tuple[float, bool, float, float]]:
 
 
 def bench_deposition_freedom(n_particles: int = 400,
-                             cases: Iterable[tuple[float, bool, float, float]] | None = None
-                             ) -> dict:
+                             cases: Iterable[tuple[float, bool, float, float]] | None = None,
+                             scan_points: int = 0) -> dict:
     """Fig. 4 / 6a analogue: porosity and S_part over a grid of deposition freedom
-    (:func:`freedom_cases`) at ``n_particles`` monodisperse R = 0.1 disks. Writes
-    ``results/benchmarks/deposition_freedom.{json,png}``.
+    (:func:`freedom_cases`) at ``n_particles`` monodisperse R = 0.1 disks, exact contacts
+    or (``scan_points`` > 0) the paper's scan. Writes
+    ``results/benchmarks/deposition_freedom[_scan].{json,png}``.
 
     Returns
     -------
@@ -383,13 +456,19 @@ def bench_deposition_freedom(n_particles: int = 400,
     """
     _warm_up()
     start = time.perf_counter()
-    rows = [sweep_run(n_particles, *case) for case in (cases or freedom_cases())]
+    rows = [sweep_run(n_particles, *case, scan_points=scan_points) for case in (cases or freedom_cases())]
     out = {"n_particles": n_particles, "box_width_m": reduced_box(n_particles), "rows": rows,
            "total_s": time.perf_counter() - start}
     OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / "deposition_freedom.json").write_text(json.dumps(out, indent=2))
-    freedom_figure(out, OUT / "deposition_freedom.png")
+    stem = "deposition_freedom" + ("_scan" if scan_points else "")
+    (OUT / f"{stem}.json").write_text(json.dumps(out, indent=2))
+    freedom_figure(out, OUT / f"{stem}.png")
     return out
+
+
+def bench_deposition_freedom_scan(n_particles: int = 400) -> dict:
+    """:func:`bench_deposition_freedom` with the paper's contact scan, n_sp = 150 (Table III)."""
+    return bench_deposition_freedom(n_particles, scan_points=150)
 
 
 def _freedom_label(row: Mapping[str, Any]) -> str:
