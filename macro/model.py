@@ -258,6 +258,11 @@ class MacroModel:
     def n_cells(self) -> int:
         return self.mesh.n_cells
 
+    @property
+    def n_vertices(self) -> int:
+        """Mesh vertices: the pellets, then the container's points."""
+        return self.n_pellets + int(self.container.shape[0])
+
     def vertex_positions(self) -> FloatArray:
         """(n_p + n_w, 3) the mesh's vertices now: pellet centres, container points [m]."""
         return np.concatenate([self.positions, self.container])
@@ -303,6 +308,7 @@ class MacroModel:
         )
         model._omega = omega
         model.spins = np.zeros_like(packing.positions)
+        model._wall_plastic = np.zeros((n_p, 3))
         if settings.pellet_permeability == "tensor":
             model.pellet_frames = Rotation.random(n_p, random_state=np.random.default_rng(settings.seed + 2)).as_matrix()
         model._hold_boundary()
@@ -630,7 +636,8 @@ class MacroModel:
         V_f grows; scaled by the powder's share of the tetrahedron V / V_t (Eq. 4.35); at
         most the yield pressure of the cell's weakest pellet (:func:`macro.laws.yield_pressure`:
         the pellets' surface gives way first). Continuous in the state, so that a cell's
-        push does not switch on and off as the pellets move. Zero everywhere when ``macro.powder_swelling_pressure`` is off.
+        push does not switch on and off as the pellets move. Zero everywhere when
+        ``macro.powder_swelling_pressure`` is off.
         """
         cells = slice(self.n_pellets, None)
         void = np.maximum(self.max_volume[cells], self.solid_volume[cells])
@@ -678,7 +685,8 @@ class MacroModel:
             unbounded = np.isinf(bound)
             if not unbounded.any():
                 break
-            around = np.where(neighbours >= 0, np.append(bound, -np.inf)[neighbours], -np.inf)
+            # a missing neighbour (-1) reads the appended -inf
+            around = np.append(bound, -np.inf)[neighbours]
             bound = np.where(unbounded, np.where(np.isfinite(around), around, -np.inf).max(axis=1), bound)
             bound[np.isneginf(bound)] = np.inf
         return bound
@@ -687,26 +695,17 @@ class MacroModel:
         """(n_p, 3) forces of the cell pressures on the pellets [N] (Eqs. 4.34-4.38).
 
         A pellet's sector A_k = theta r^2 / 2 of each triangle is pushed by the pressure
-        difference across it, A_k (P_i - P_j) n_ij (n_ij from cell i to j); on the hull,
-        A_k P_i n_out (none on the container: its points have no sectors).
+        difference across it, A_k (P_i - P_j) n_ij (n_ij from cell i to j). The mesh's hull
+        is made of container points, which have no sectors: no pellet is pushed there.
         """
         mesh = self.mesh
-        radii = self.vertex_radii()
-        n_v = radii.size
-        forces = np.zeros((n_v, 3))
-        for verts, cells, normals, outside in (
-            (mesh.facet_vertices, mesh.facet_cells, mesh.facet_normals, False),
-            (mesh.boundary_vertices, mesh.boundary_cells, mesh.boundary_normals, True),
-        ):
-            theta = facet_angles(mesh.points, verts)
-            sector = 0.5 * theta * radii[verts] ** 2
-            if outside:
-                jump = cell_pressure[cells]
-            else:
-                jump = cell_pressure[cells[:, 0]] - cell_pressure[cells[:, 1]]
-            vec = (sector * jump[:, None])[:, :, None] * normals[:, None, :]
-            for c in range(3):
-                forces[:, c] += np.bincount(verts.ravel(), vec[:, :, c].ravel(), minlength=n_v)
+        verts, cells = mesh.facet_vertices, mesh.facet_cells
+        sector = 0.5 * facet_angles(mesh.points, verts) * self.vertex_radii()[verts] ** 2
+        jump = cell_pressure[cells[:, 0]] - cell_pressure[cells[:, 1]]
+        vec = (sector * jump[:, None])[:, :, None] * mesh.facet_normals[:, None, :]
+        forces = np.empty((self.n_vertices, 3))
+        for c in range(3):
+            forces[:, c] = np.bincount(verts.ravel(), vec[:, :, c].ravel(), minlength=self.n_vertices)
         return forces[:self.n_pellets]
 
     def relax(self, substeps: int) -> Readings:
@@ -721,8 +720,7 @@ class MacroModel:
         n_p = self.n_pellets
         young = young_modulus(-self.pressure[:n_p], self.material)
         strength = yield_force(-self.pressure[:n_p], self.material)
-        if self._wall_plastic is None:
-            self._wall_plastic = np.zeros((n_p, 3))
+        assert self._wall_plastic is not None
         nu = self.material.poisson_ratio
         z_lo, z_hi = -0.5 * s.height, 0.5 * s.height
         skin = 0.2 * float(self.radii.mean())
@@ -737,7 +735,7 @@ class MacroModel:
         external = self.hydro_forces(self._cell_pressure)
         area = self._omega * self.vertex_radii()[tet] ** 2
         powder_stiffness = np.bincount(tet.ravel(), (slope[:, None] * area**2).ravel(),
-                                       minlength=self.on_plate.size)[:n_p]
+                                       minlength=self.n_vertices)[:n_p]
         # displacement and rotation of the last substep (none before the first)
         moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))
         for k in range(substeps + 1):

@@ -136,14 +136,6 @@ def _ray_interval(ox, oy, oz, dx, dy, dz, xb):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def vertical_hit(px, py, pz, cb, rb, xb):  # type: ignore[no-untyped-def]
-    """Interval (t_in, t_out) of the downward vertical p - t e_z inside particle B, or
-    (inf, inf) if it misses B."""
-    ox, oy, oz = _to_local(cb, rb, px, py, pz)
-    return _ray_interval(ox, oy, oz, -rb[2, 0], -rb[2, 1], -rb[2, 2], xb)
-
-
-@njit(cache=True)
 def _pair_frame(ca, ra, cb, rb):  # type: ignore[no-untyped-def]
     """A's frame in B's: (R, o) with x_B = o + R x_A, and the downward vertical in B's frame."""
     relative = rb.T @ ra
