@@ -12,12 +12,17 @@ idle machine) in milliseconds. Timings are measured, never asserted.
   drifted slightly.
 * :func:`bench_flow_scaling`: :func:`bench_flow` at 1.5k to 50k points, the fitted
   exponent of each step's cost versus N and a log-log figure of the curve.
+* :func:`bench_solver_crossover`: the two preconditioners of
+  :class:`shared.solver.SPDSolver` (CHOLMOD factor, multigrid hierarchy) on the same
+  transient systems, fresh and reused on a drifted matrix, with and without cracks, at
+  1.5k to 150k points: where ``method="auto"`` should switch.
 * :func:`bench_coupled_step`: coupled steps as :mod:`micro.hydration` runs them (DEM
   step, hydro-mechanical forces, flow step with the factor reused as the solver's
   rent-or-buy rule decides, geometry update), with the work of each step.
 
 Run ``python -m benchmarks.flow [--quick]`` to write ``results/benchmarks/flow.json``,
-``flow_scaling.json``, ``flow_scaling.png`` and ``flow_coupled.json``.
+``flow_scaling.json``, ``flow_scaling.png``, ``flow_coupled.json`` and
+``solver_crossover.json``/``.png``.
 """
 
 from __future__ import annotations
@@ -47,12 +52,16 @@ from shared.mesh import (
     update_mesh,
 )
 from shared.retention import saturation, saturation_derivative
-from shared.solver import CholeskySolver
+from shared.solver import SPDSolver
 
-__all__ = ["bench_flow", "bench_flow_scaling", "bench_coupled_step", "jittered_cube"]
+__all__ = [
+    "bench_flow", "bench_flow_scaling", "bench_solver_crossover", "bench_coupled_step",
+    "jittered_cube",
+]
 
 EDGE = 7e-3
 SCALING_SIZES = (1500, 5000, 15000, 50000)
+CROSSOVER_SIZES = (1500, 5000, 15000, 37500, 75000, 150000)
 
 
 def jittered_cube(
@@ -107,7 +116,7 @@ def bench_flow(
     repeats
         Timed calls per phase (after one untimed call).
     ordering_method
-        Passed to :class:`shared.solver.CholeskySolver`: None (the pattern's nested
+        Passed to :class:`shared.solver.SPDSolver`: None (the pattern's nested
         dissection) or a CHOLMOD ordering such as ``"metis"`` for comparison.
 
     Returns
@@ -116,7 +125,7 @@ def bench_flow(
         Sizes (points, cells, facets, unknowns), the machine's load average before the
         timings (other jobs share the cores); median and fastest time of each phase
         [ms] (``factorisation_solve_blas2``: the refactorisation with two OpenBLAS
-        threads, :class:`shared.solver.CholeskySolver` ``factor_blas_threads=2``);
+        threads, :class:`shared.solver.SPDSolver` ``factor_blas_threads=2``);
         ``remesh_step_ms`` (Delaunay + geometry + pattern + conductance +
         assembly + analysis + factorisation + solve), ``reuse_step_ms`` (one transient
         step with a reused factor), their ratio, ``coupled_flow_step_ms`` (geometry
@@ -141,10 +150,10 @@ def bench_flow(
     time_step = float(capacity.sum() / (2.0 * conductance.sum()))
     matrix = assemble_matrix(mesh, pattern, conductance, capacity / time_step)
     rhs = rng.standard_normal(pattern.n_free)
-    solver = CholeskySolver(ordering_method=ordering_method)
-    threaded = CholeskySolver(ordering_method=ordering_method, factor_blas_threads=2)
+    solver = SPDSolver(ordering_method=ordering_method)
+    threaded = SPDSolver(ordering_method=ordering_method, factor_blas_threads=2)
     drifted = pressure * (1.0 + relative_drift * rng.standard_normal(mesh.n_cells))
-    stale = CholeskySolver(ordering_method=ordering_method)
+    stale = SPDSolver(ordering_method=ordering_method)
 
     def reuse_step() -> object:
         return transient_step(
@@ -164,7 +173,7 @@ def bench_flow(
         "pattern": lambda: flow_pattern(mesh, dirichlet),
         "conductance": lambda: facet_conductance(mesh, water, porosity, "water", material),
         "assembly": lambda: assemble_matrix(mesh, pattern, conductance, capacity / time_step),
-        "analysis_factorisation_solve": lambda: CholeskySolver(
+        "analysis_factorisation_solve": lambda: SPDSolver(
             ordering_method=ordering_method
         ).solve(matrix, rhs, ordered=True),
         "factorisation_solve": lambda: solver.solve(
@@ -285,6 +294,121 @@ def _plot_scaling(records: list[dict], exponents: dict[str, float], path: Path) 
     figure.savefig(path, dpi=120)
 
 
+def _transient_system(
+    n_points: int, rng: np.random.Generator, crack_fraction: float = 0.0
+) -> tuple[Mesh, object, np.ndarray, np.ndarray, np.ndarray]:
+    """Mesh, pattern, conductances, storage and a drifted pressure of a transient flow
+    system as :func:`bench_flow` builds it; ``crack_fraction`` of the facets conduct
+    1e9-1e10 times the clay (open water-filled cracks)."""
+    mesh = build_mesh(jittered_cube(n_points))
+    porosity, pressure, water = _unsaturated_state(mesh.n_cells, rng)
+    pattern = flow_pattern(mesh, boundary_cell_mask(mesh, list(WALLS)))
+    conductance = facet_conductance(mesh, water, porosity, "water", CLAY)
+    capacity = porosity * mesh.volumes * saturation_derivative(-pressure, porosity, CLAY)
+    storage = capacity * 2.0 * conductance.sum() / capacity.sum()
+    cracked = rng.random(mesh.n_facets) < crack_fraction
+    conductance = np.where(cracked, conductance * 10.0 ** rng.uniform(9, 10, mesh.n_facets),
+                           conductance)
+    return mesh, pattern, conductance, storage, pressure
+
+
+def bench_solver_crossover(
+    sizes: tuple[int, ...] = CROSSOVER_SIZES,
+    *,
+    crack_fraction: float = 0.03,
+    repeats: int = 3,
+    figure: Path | None = Path("results/benchmarks/solver_crossover.png"),
+) -> dict:
+    """Cost of one solve with each preconditioner of :class:`shared.solver.SPDSolver`.
+
+    For each size and for a clay without and with cracks (``crack_fraction`` of the
+    facets 1e9-1e10 times more conductive), on the system of one transient step
+    (:func:`bench_flow`'s conditioning) at the micro run's tolerance (1e-8, judged on
+    the whole pressure): a fresh solve (analysis + factorisation + substitution, or
+    multigrid setup + V-cycle CG) and a solve reusing the preconditioner on the matrix
+    of a pressure drifted by 2e-3 (the factor then needs a few CG iterations, the
+    hierarchy about as many as fresh). The micro run's profile decides how the two
+    combine: at 8k points its flow solves buy a preconditioner 208 times in 214 solves
+    (110 patterns: remeshes and checkpoints), so the fresh solve is the one that
+    counts. Medians in seconds; iterations of one solve.
+    """
+    records = []
+    for n_points in sizes:
+        for fraction in (0.0, crack_fraction):
+            rng = np.random.default_rng(2)
+            mesh, pattern, conductance, storage, pressure = _transient_system(
+                n_points, rng, fraction)
+            matrix = assemble_matrix(mesh, pattern, conductance, storage)
+            drifted = assemble_matrix(mesh, pattern, conductance * (
+                1.0 + 2e-3 * rng.standard_normal(mesh.n_facets)), storage)
+            offset = pressure[pattern.free_cells]
+            rhs = 1e-3 * rng.standard_normal(pattern.n_free) * np.abs(matrix.diagonal()) \
+                * np.abs(offset).max()
+            record: dict = {"n_points": int(mesh.points.shape[0]), "n_unknowns": pattern.n_free,
+                            "crack_fraction": fraction,
+                            "load_average_1min": os.getloadavg()[0]}
+            for method in ("direct", "amg"):
+                solver = SPDSolver(method=method)
+
+                def fresh(solver: SPDSolver = solver) -> None:
+                    solver.reset()
+                    solver.solve(matrix, rhs, ordered=True, offset=offset)
+
+                def reused(solver: SPDSolver = solver) -> None:
+                    solver.solve(drifted, rhs, ordered=True, offset=offset)
+
+                def refresh(solver: SPDSolver = solver) -> None:
+                    solver.solve(matrix, rhs, ordered=True, offset=offset,
+                                 force_refactor=True)
+
+                record.update(_timings_ms(f"{method}_fresh", fresh, repeats))
+                record.update(_timings_ms(f"{method}_reused", reused, repeats, setup=refresh))
+                for name, call in (("fresh", fresh), ("reused", reused)):
+                    if name == "reused":
+                        refresh()
+                    before = solver.stats.iterations
+                    call()
+                    record[f"{method}_{name}_iterations"] = solver.stats.iterations - before
+            for key in [k for k in record if k.endswith("_ms")]:
+                record[key[:-3] + "_s"] = 1e-3 * record.pop(key)
+            records.append(record)
+    cracked = [r for r in records if r["crack_fraction"] > 0]
+    clean = [r for r in records if r["crack_fraction"] == 0]
+    points = [r["n_points"] for r in clean]
+    exponents = {
+        f"{method}_{name}{suffix}": _exponent(points, [r[f"{method}_{name}_s"] for r in rows])
+        for method in ("direct", "amg") for name in ("fresh", "reused")
+        for suffix, rows in (("", clean), ("_cracked", cracked))
+    }
+    result = {"records": records, "exponents": exponents}
+    if figure is not None:
+        _plot_crossover(records, figure)
+    return result
+
+
+def _plot_crossover(records: list[dict], path: Path) -> None:
+    """Log-log figure of the fresh and reused solve of each preconditioner versus N."""
+    figure = Figure(figsize=(7.0, 5.0))
+    axes = figure.add_subplot()
+    for cracked, style in ((False, "-"), (True, "--")):
+        rows = [r for r in records if (r["crack_fraction"] > 0) == cracked]
+        points = [r["n_points"] for r in rows]
+        for method, marker in (("direct", "o"), ("amg", "s")):
+            for name, colour in (("fresh", "C0" if method == "direct" else "C1"),
+                                 ("reused", "C2" if method == "direct" else "C3")):
+                axes.loglog(points, [r[f"{method}_{name}_s"] for r in rows],
+                            marker + style, color=colour,
+                            label=f"{method} {name}" + (", cracks" if cracked else ""))
+    axes.set_xlabel("points N")
+    axes.set_ylabel("median wall time of one solve [s]")
+    axes.set_title("SPDSolver: CHOLMOD factor vs Ruge-Stueben multigrid (7 mm cube)")
+    axes.grid(True, which="both", alpha=0.3)
+    axes.legend(fontsize=7)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+
+
 def bench_coupled_step(
     n_points: int = 15000, repeats: int = 8, seed: int = 0, radius_factor: float = 1.02,
     residual_tolerance: float | None = None,
@@ -319,7 +443,7 @@ def bench_coupled_step(
     radius_factor
         Interaction radius over half the grid spacing [1] (:func:`shared.dem.cube_points`).
     residual_tolerance
-        Solver tolerance; None keeps hydration's (:class:`shared.solver.CholeskySolver`'s
+        Solver tolerance; None keeps hydration's (:class:`shared.solver.SPDSolver`'s
         default). ``inf`` accepts the stale factor's single substitution as it is, never
         refactoring: Yade's reuse (a stale system solved silently, REFERENCE_NOTES 8.2),
         timed for a like-for-like comparison of the implementations, not a mode of ours.

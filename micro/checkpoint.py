@@ -11,7 +11,7 @@ mesh with its geometry, walls, the last hydro-mechanical loads, times and counte
   a fill-reducing order of the cell centroids at the last (re)mesh, so rebuilding it
   from the current geometry numbers the unknowns differently and changes the round-off
   of every later solve;
-* the solver's reuse state (:meth:`shared.solver.CholeskySolver.reuse_state`): its
+* the solver's reuse state (:meth:`shared.solver.SPDSolver.reuse_state`): its
   rent-or-buy counters (e.g. the back-off) outlive the reset of the factor at each
   checkpoint; the factored matrix is saved and refactored on loading;
 * the wall time spent so far, so that a resumed run reports the whole run's;
@@ -46,7 +46,7 @@ from shared.fv import FlowPattern
 from shared.materials import ClayParameters
 from shared.io import atomic_write
 from shared.mesh import Mesh
-from shared.solver import CholeskySolver
+from shared.solver import SPDSolver
 
 __all__ = ["CheckpointError", "save_checkpoint", "load_checkpoint", "checkpoint_wall_time"]
 
@@ -158,7 +158,7 @@ def load_checkpoint(
         dirichlet = data["dirichlet"]
         pattern = FlowPattern(dirichlet=dirichlet,
                               **{k: data[f"pattern_{k}"] for k in _PATTERN_ARRAYS})
-        system = FlowSystem(dirichlet, pattern, CholeskySolver())
+        system = FlowSystem(dirichlet, pattern, SPDSolver())
         system.solver.restore_reuse_state(
             meta["solver"], {k: data[f"solver_{k}"] for k in ("indptr", "indices", "data")
                              if f"solver_{k}" in data.files})

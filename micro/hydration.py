@@ -64,7 +64,7 @@ from shared.mesh import (
     update_mesh,
 )
 from shared.retention import saturation as retention_saturation
-from shared.solver import CholeskySolver, SolverError
+from shared.solver import AMG_UNKNOWNS, SolverError, SPDSolver
 from shared.swelling import swollen_radius, volumetric_strain
 
 __all__ = [
@@ -120,6 +120,11 @@ class HydrationSettings:
         does not know that the solid is incompressible [1].
     cracks
         Whether the crack model modifies conductances.
+    solver
+        Preconditioner of the flow solves, ``"auto"``, ``"direct"`` or ``"amg"``
+        (:class:`shared.solver.SPDSolver`).
+    amg_unknowns
+        Unknowns from which ``solver="auto"`` uses multigrid [1].
     """
 
     initial_time_step: float
@@ -135,6 +140,8 @@ class HydrationSettings:
     max_step_fraction: float
     porosity_bounds: tuple[float, float]
     cracks: bool
+    solver: str = "auto"
+    amg_unknowns: int = AMG_UNKNOWNS
 
 
 @dataclass
@@ -394,20 +401,24 @@ class FlowSystem:
 
     dirichlet: npt.NDArray[np.bool_]
     pattern: FlowPattern
-    solver: CholeskySolver
+    solver: SPDSolver
 
     @classmethod
     def for_mesh(
-        cls, mesh: Mesh, dirichlet: npt.NDArray[np.bool_] | None = None
+        cls, mesh: Mesh, dirichlet: npt.NDArray[np.bool_] | None = None,
+        settings: HydrationSettings | None = None,
     ) -> FlowSystem:
         """All six walls impose the boundary suction (thesis Sec. 3.5.1).
 
         The boundary layer is found from the geometry at a (re)mesh and kept until the
-        next one; pass the saved mask to rebuild the same system when resuming.
+        next one; pass the saved mask to rebuild the same system when resuming. The
+        solver's preconditioner follows ``settings`` (default: ``"auto"``).
         """
         if dirichlet is None:
             dirichlet = boundary_cell_mask(mesh, WALLS)
-        return cls(dirichlet, flow_pattern(mesh, dirichlet), CholeskySolver())
+        solver = SPDSolver() if settings is None else SPDSolver(
+            method=settings.solver, amg_unknowns=settings.amg_unknowns)
+        return cls(dirichlet, flow_pattern(mesh, dirichlet), solver)
 
 
 def conductances(
@@ -680,6 +691,6 @@ def _settle_geometry(
             f"the specimen flies apart (extent {extent.max():.3g} m) at t = {state.time:.3g} s"
         )
     if update_geometry(state, settings.porosity_bounds, material):
-        system = FlowSystem.for_mesh(state.mesh)
+        system = FlowSystem.for_mesh(state.mesh, settings=settings)
     update_cracks(state, material)
     return system

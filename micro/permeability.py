@@ -83,7 +83,7 @@ from shared.fv import (
 from shared.materials import ClayParameters
 from shared.mesh import WALLS, Mesh, boundary_cell_mask
 from shared.permeability import Phase, phase_viscosity
-from shared.solver import CholeskySolver, SolverError
+from shared.solver import SPDSolver, SolverError
 
 __all__ = [
     "AXES",
@@ -116,7 +116,7 @@ def _floored(conductance: FloatArray, floor: float) -> FloatArray | None:
     return np.maximum(conductance, floor * largest)
 
 
-def _measurement_solver() -> CholeskySolver:
+def _measurement_solver() -> SPDSolver:
     """A fresh solver at round-off backward error for each measurement.
 
     A factor kept from another phase or axis would precondition conjugate gradients
@@ -124,7 +124,7 @@ def _measurement_solver() -> CholeskySolver:
     (twelve decades) and still miss the fluxes of the clay matrix by orders of
     magnitude; a direct solve with the matrix's own factor balances them to 1e-12.
     """
-    return CholeskySolver(residual_tolerance=1e-13)
+    return SPDSolver(residual_tolerance=1e-13)
 
 
 def _imposed_profile(
@@ -205,7 +205,7 @@ def measure_permeability(
     inner_fraction: float = 0.8,
     conductance_floor: float = 1e-16,
     balance_tolerance: float = 1e-3,
-    solver: CholeskySolver | None = None,
+    solver: SPDSolver | None = None,
 ) -> float:
     """Permeability along one axis from a steady solve with frozen conductances.
 
@@ -294,7 +294,7 @@ def measure_permeability(
 def _refined_rates(
     mesh: Mesh,
     pattern: FlowPattern,
-    solver: CholeskySolver,
+    solver: SPDSolver,
     conductance: FloatArray,
     pressure: FloatArray,
     rates: Callable[[npt.NDArray], tuple[float, float]],
@@ -422,7 +422,7 @@ def measure_permeability_tensor(
     conductance_floor: float = 1e-16,
     balance_tolerance: float = 1e-3,
     sealed: npt.NDArray[np.bool_] | None = None,
-    solver: CholeskySolver | None = None,
+    solver: SPDSolver | None = None,
     label: str = "permeability tensor",
 ) -> FloatArray:
     """Full permeability tensor of one phase from three steady solves with one factor.

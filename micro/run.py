@@ -113,6 +113,8 @@ def hydration_settings(numerics: Mapping[str, Any], cracks: bool) -> HydrationSe
         max_step_fraction=numerics["max_step_fraction"],
         porosity_bounds=tuple(numerics["porosity_bounds"]),
         cracks=cracks,
+        solver=numerics["solver"],
+        amg_unknowns=numerics["amg_unknowns"],
     )
 
 
@@ -257,7 +259,8 @@ def run(
         source = grid if heterogeneous else None
         mean = None if heterogeneous else _specimen_mean(spec, grid, material, parameters)
         state = initial_state(spec, source, mean, material, parameters)
-        system, settled = settle(state, FlowSystem.for_mesh(state.mesh), spec, source, mean,
+        system, settled = settle(state, FlowSystem.for_mesh(state.mesh, settings=settings),
+                                 spec, source, mean,
                                  settings, material, parameters)
         log.info("%s: settled at the initial suction in %d DEM steps (unbalanced force %.3g)",
                  case, settled["dem_steps"], settled["unbalanced_force"])

@@ -44,7 +44,7 @@ from shared.permeability import (
 )
 from shared.retention import saturation as retention_saturation
 from shared.retention import saturation_derivative
-from shared.solver import CholeskySolver
+from shared.solver import SPDSolver
 
 __all__ = [
     "FlowPattern",
@@ -152,7 +152,7 @@ def flow_pattern(mesh: Mesh, dirichlet: npt.ArrayLike) -> FlowPattern:
 
     The unknowns are numbered in a fill-reducing order of the free cells' centroids
     (:func:`shared.ordering.nested_dissection`), so that the solver needs no ordering of
-    its own (:meth:`shared.solver.CholeskySolver.solve` with ``ordered=True``).
+    its own (:meth:`shared.solver.SPDSolver.solve` with ``ordered=True``).
 
     Parameters
     ----------
@@ -316,7 +316,7 @@ def facet_flux(mesh: Mesh, conductance: FloatArray, pressure: FloatArray) -> Flo
 def _solve_increment(
     mesh: Mesh,
     pattern: FlowPattern,
-    solver: CholeskySolver,
+    solver: SPDSolver,
     conductance: FloatArray,
     storage: FloatArray,
     pressure: FloatArray,
@@ -375,7 +375,7 @@ class StepResult:
 def transient_step(
     mesh: Mesh,
     pattern: FlowPattern,
-    solver: CholeskySolver,
+    solver: SPDSolver,
     pressure: FloatArray,
     saturation: FloatArray,
     porosity: FloatArray,
@@ -458,7 +458,7 @@ def transient_step(
 def steady_pressure(
     mesh: Mesh,
     pattern: FlowPattern,
-    solver: CholeskySolver,
+    solver: SPDSolver,
     conductance: FloatArray,
     imposed_pressure: FloatArray,
     initial_pressure: FloatArray | None = None,

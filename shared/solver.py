@@ -1,8 +1,18 @@
-"""Sparse Cholesky (CHOLMOD) solver that reuses its analysis and, within limits, its factor.
+"""SPD solver of the flow systems: CHOLMOD factor reuse, or algebraic multigrid for large systems.
 
 Factorising dominates the flow solve (thesis Chap. 5.3.1), so the factor is reused while
 the matrix changes little. Yade then silently solves a stale system (REFERENCE_NOTES
-section 8.2); here every answer solves the current matrix to the stated tolerance:
+section 8.2); here every answer solves the current matrix to the stated tolerance.
+
+Two preconditioners of conjugate gradients, chosen by the number of unknowns
+(``method="auto"``): below ``amg_unknowns`` a sparse Cholesky factor (CHOLMOD), which
+solves a matrix it has factored in one substitution; from there on a classical
+Ruge-Stueben hierarchy (pyamg), whose setup and V-cycles cost O(n) where the factor of a
+3D mesh costs O(n^2) to compute and O(n^(4/3)) to apply. The crossover is measured on
+the flow systems of the micro model (``benchmarks/reference/README.md``). Both paths
+stop on the same criterion, so the choice changes the work, not the answer beyond it.
+
+With the factor:
 
 * the symbolic analysis (fill-reducing ordering) is kept while the sparsity pattern is
   unchanged, and redone only when it changes;
@@ -31,6 +41,20 @@ section 8.2); here every answer solves the current matrix to the stated toleranc
   factor needs depend on how many entries changed, not on the largest change
   (``tests/shared/test_solver.py``).
 
+With the multigrid hierarchy, every solve iterates (typically 10-30 V-cycles to a
+row-wise 1e-8); the hierarchy is built for a new pattern or on demand and reused on
+drifted matrices (the coarsening of a conductance graph survives a step of drift) until
+a solve needs more than ``amg_rebuild_ratio`` times the iterations of the first solve
+after the setup; a stale hierarchy that misses the tolerance is rebuilt and the solve
+finishes from its iterate. A fresh hierarchy that still misses it (conductance
+contrasts of 1e15 and a tolerance of 1e-13, as a permeability measurement across
+gas-filled cracks sets) hands the system to the factor with ``method="auto"``, for
+the rest of that pattern; with ``method="amg"`` it is an error. The classical
+coarsening runs the second pass of Ruge and Stueben (every strong F-F connection gets
+a common C point): on the micro model's systems it takes the V-cycle CG from about 50
+to 7 iterations at 1e-8. The symmetric Gauss-Seidel V-cycle is a symmetric positive
+definite preconditioner, as CG needs.
+
 The rules only trade factorisations against iterations, deterministically (iteration
 counts, not timings, decide). Counters in :class:`SolverStats` serve the benchmarks;
 the measurements behind the defaults are in ``benchmarks/reference/README.md``.
@@ -40,22 +64,30 @@ from __future__ import annotations
 
 import ctypes
 import dataclasses
+import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+import pyamg
 import scipy.sparse as sp
 from numba import njit
 from sksparse.cholmod import CholmodNotPositiveDefiniteError, Factor, analyze
 
-__all__ = ["SolverError", "SolverStats", "CholeskySolver", "set_cholmod_blas_threads"]
+__all__ = ["SolverError", "SolverStats", "SPDSolver", "set_cholmod_blas_threads",
+           "AMG_UNKNOWNS"]
 
 FloatArray = npt.NDArray[np.float64]
+log = logging.getLogger("shared.solver")
 
 # Most solves that buy a factor at once between two probes of the stale factor.
 _MAX_BACKOFF = 32
+
+# Unknowns from which ``method="auto"`` preconditions with multigrid instead of a factor
+# (measured crossover of a whole run, benchmarks/reference/README.md).
+AMG_UNKNOWNS = 100_000
 
 
 class SolverError(RuntimeError):
@@ -175,20 +207,24 @@ def _check_lower(matrix: sp.csc_matrix) -> None:
 
 @dataclass
 class SolverStats:
-    """Work counters of a :class:`CholeskySolver`.
+    """Work counters of an :class:`SPDSolver`.
 
     Attributes
     ----------
     analyses
-        Symbolic analyses (fill-reducing ordering), one per new sparsity pattern.
+        Symbolic analyses (fill-reducing ordering), one per new sparsity pattern
+        (factor path only).
     factorisations
-        Numeric factorisations.
+        Numeric factorisations, or multigrid setups on the multigrid path.
     solves
-        Calls of :meth:`CholeskySolver.solve`.
+        Calls of :meth:`SPDSolver.solve`.
     factor_applications
-        Forward/backward substitutions with a factor (direct solves plus CG steps).
+        Applications of the preconditioner: forward/backward substitutions with a
+        factor, or V-cycles.
     iterations
-        Preconditioned CG iterations spent correcting stale factors.
+        Preconditioned CG iterations.
+    fallbacks
+        Patterns on which ``method="auto"`` fell back from multigrid to the factor.
     """
 
     analyses: int = 0
@@ -196,10 +232,18 @@ class SolverStats:
     solves: int = 0
     factor_applications: int = 0
     iterations: int = 0
+    fallbacks: int = 0
 
 
-class CholeskySolver:
-    """Solve SPD systems given by their lower triangle, reusing the CHOLMOD factor.
+def _full_matrix(lower: sp.csc_matrix) -> sp.csr_matrix:
+    """The symmetric matrix of a lower triangle, CSR (what pyamg takes)."""
+    full = (lower + sp.tril(lower, k=-1, format="csc").T).tocsr()
+    full.sort_indices()
+    return full
+
+
+class SPDSolver:
+    """Solve SPD systems given by their lower triangle, reusing a factor or a hierarchy.
 
     Parameters
     ----------
@@ -233,11 +277,22 @@ class CholeskySolver:
         supernodes of a factorisation may gain from threads that the small blocks of the
         substitutions lose to. Off by default: on a shared 2-core machine the gain
         was not reproducible.
+    method
+        ``"direct"`` (CHOLMOD factor), ``"amg"`` (multigrid hierarchy) or ``"auto"``:
+        multigrid from ``amg_unknowns`` unknowns on.
+    amg_unknowns
+        Crossover of ``method="auto"`` [1].
+    amg_max_iterations
+        CG iterations allowed in one solve on the multigrid path [1].
+    amg_rebuild_ratio
+        The hierarchy is rebuilt before the next solve once a solve needs more than this
+        many times the iterations of the first solve after its setup [1].
 
     Notes
     -----
     The factorisation is forced to supernodal LL^T so that an indefinite or singular
-    matrix raises instead of being factored as LDL^T with negative or zero pivots.
+    matrix raises instead of being factored as LDL^T with negative or zero pivots; on
+    the multigrid path a non-positive curvature or a stagnating CG raises instead.
     The CG vector work runs in numba kernels rather than numpy: numpy's dot products
     wake its own BLAS threads, which then compete with the CHOLMOD substitutions on a
     loaded machine.
@@ -252,12 +307,22 @@ class CholeskySolver:
         ordering_method: str | None = None,
         blas_threads: int | None = 1,
         factor_blas_threads: int | None = None,
+        method: str = "auto",
+        amg_unknowns: int = AMG_UNKNOWNS,
+        amg_max_iterations: int = 300,
+        amg_rebuild_ratio: float = 1.5,
     ) -> None:
+        if method not in ("auto", "direct", "amg"):
+            raise ValueError(f"method must be 'auto', 'direct' or 'amg', got {method!r}")
         self.refactor_tolerance = refactor_tolerance
         self.residual_tolerance = residual_tolerance
         self.max_iterations = max_iterations
         self.refactor_iterations = refactor_iterations
         self.ordering_method = ordering_method
+        self.method = method
+        self.amg_unknowns = amg_unknowns
+        self.amg_max_iterations = amg_max_iterations
+        self.amg_rebuild_ratio = amg_rebuild_ratio
         self.blas_threads = blas_threads
         self.blas_threads_set = blas_threads is not None and set_cholmod_blas_threads(blas_threads)
         self.factor_blas_threads = factor_blas_threads if self.blas_threads_set else None
@@ -266,6 +331,7 @@ class CholeskySolver:
         self.last_drift = float("nan")
         self.last_residual = 0.0
         self._factor: Factor | None = None
+        self._cycle: Any = None
         self._indptr: npt.NDArray[np.int32] | None = None
         self._indices: npt.NDArray[np.int32] | None = None
         self._factored_data: FloatArray | None = None
@@ -275,10 +341,20 @@ class CholeskySolver:
         self._stale_solves = 0
         self._buy_at_once = 0
         self._backoff = 1
+        # multigrid path: iterations of the first solve after the setup, and of the last;
+        # whether the factor path took over for the current pattern
+        self._setup_iterations = 0
+        self._last_iterations = 0
+        self._fallback = False
+
+    def uses_multigrid(self, unknowns: int) -> bool:
+        """Whether a system of ``unknowns`` unknowns is preconditioned by multigrid."""
+        return self.method == "amg" or (self.method == "auto" and unknowns >= self.amg_unknowns)
 
     def reset(self) -> None:
-        """Forget the analysis and factor (the next solve analyses again)."""
+        """Forget the analysis, factor and hierarchy (the next solve starts afresh)."""
         self._factor = None
+        self._cycle = None
         self._indptr = None
 
     def _same_pattern(self, matrix: sp.csc_matrix) -> bool:
@@ -291,15 +367,34 @@ class CholeskySolver:
         )
 
     def _factorise(self, matrix: sp.csc_matrix, ordered: bool) -> None:
+        """Buy a preconditioner of ``matrix``: a CHOLMOD factor or a multigrid hierarchy."""
+        same = self._same_pattern(matrix)
+        if not same:
+            _check_lower(matrix)
+        if self.uses_multigrid(matrix.shape[0]) and not self._fallback:
+            self._factor = None
+            hierarchy = pyamg.ruge_stuben_solver(
+                _full_matrix(matrix), CF=("RS", {"second_pass": True}), max_coarse=500)
+            self._cycle = hierarchy.aspreconditioner(cycle="V")
+            self._setup_iterations = -1
+        else:
+            self._cycle = None
+            self._cholesky(matrix, ordered, same and self._factor is not None)
+        if not same:
+            self._indptr = matrix.indptr.copy()
+            self._indices = matrix.indices.copy()
+        self._factored_data = matrix.data.copy()
+        self._stale_iterations = 0
+        self._stale_solves = 0
+        self.stats.factorisations += 1
+
+    def _cholesky(self, matrix: sp.csc_matrix, ordered: bool, analysed: bool) -> None:
         threaded = self.factor_blas_threads is not None
         try:
-            if not self._same_pattern(matrix):
-                _check_lower(matrix)
+            if not analysed:
                 method = self.ordering_method or ("natural" if ordered else "metis")
                 self._factor = analyze(matrix, mode="supernodal", ordering_method=method)
                 self._ordering = method
-                self._indptr = matrix.indptr.copy()
-                self._indices = matrix.indices.copy()
                 self.stats.analyses += 1
             assert self._factor is not None
             if threaded:
@@ -314,10 +409,6 @@ class CholeskySolver:
         finally:
             if threaded:
                 set_cholmod_blas_threads(self.blas_threads)
-        self._factored_data = matrix.data.copy()
-        self._stale_iterations = 0
-        self._stale_solves = 0
-        self.stats.factorisations += 1
 
     def reuse_state(self) -> tuple[dict[str, Any], dict[str, npt.NDArray[Any]]]:
         """What decides this solver's next refactorisations, for a checkpoint file.
@@ -325,25 +416,31 @@ class CholeskySolver:
         Returns
         -------
         scalars : dict
-            The rent-or-buy counters (stale iterations and solves, last rent, solves
-            left to buy at once, back-off), the diagnostics ``last_drift`` and
+            The preconditioner choice (``method``, ``amg_unknowns``), the rent-or-buy
+            counters (stale iterations and solves, last rent, solves left to buy at
+            once, back-off; on the multigrid path the iterations of the first and last
+            solves since the setup), the diagnostics ``last_drift`` and
             ``last_residual``, the work counters of :attr:`stats` and the ordering
             of the current analysis (JSON-serialisable).
         arrays : dict
             ``indptr``, ``indices`` and ``data`` of the factored lower triangle, empty
-            if there is no factor. The CHOLMOD factor itself cannot be saved: it is a
-            function of this matrix and the ordering, and :meth:`restore_reuse_state`
-            refactors it.
+            if there is no factor or hierarchy. Neither can be saved: each is a
+            deterministic function of this matrix (and the ordering), and
+            :meth:`restore_reuse_state` builds it again.
         """
         scalars: dict[str, Any] = {
             "stale_iterations": self._stale_iterations, "last_rent": self._last_rent,
             "stale_solves": self._stale_solves, "buy_at_once": self._buy_at_once,
             "backoff": self._backoff, "last_drift": self.last_drift,
             "last_residual": self.last_residual, "ordering": self._ordering,
+            "method": self.method, "amg_unknowns": self.amg_unknowns,
+            "setup_iterations": self._setup_iterations, "fallback": self._fallback,
+            "last_iterations": self._last_iterations,
             "stats": dataclasses.asdict(self.stats),
         }
         arrays: dict[str, npt.NDArray[Any]] = {}
-        if self._factor is not None and self._factored_data is not None:
+        if (self._factor is not None or self._cycle is not None) \
+                and self._factored_data is not None:
             assert self._indptr is not None and self._indices is not None
             arrays = {"indptr": self._indptr, "indices": self._indices,
                       "data": self._factored_data}
@@ -354,10 +451,15 @@ class CholeskySolver:
     ) -> None:
         """Continue as the solver whose :meth:`reuse_state` this was, bit for bit.
 
-        With a saved factored matrix, it is analysed (same ordering) and factored again:
-        CHOLMOD is deterministic for a given matrix and ordering, so the new factor
+        With a saved factored matrix, it is analysed (same ordering) and factored, or
+        its hierarchy built, again: CHOLMOD and the Ruge-Stueben setup are
+        deterministic for a given matrix (and ordering), so the new preconditioner
         applies exactly as the lost one did.
         """
+        # states saved before the multigrid path existed are factor states
+        self.method = scalars.get("method", "direct")
+        self.amg_unknowns = int(scalars.get("amg_unknowns", self.amg_unknowns))
+        self._fallback = bool(scalars.get("fallback", False))
         if arrays:
             n = arrays["indptr"].shape[0] - 1
             matrix = sp.csc_matrix(
@@ -379,9 +481,11 @@ class CholeskySolver:
         self._stale_solves = int(scalars["stale_solves"])
         self._buy_at_once = int(scalars["buy_at_once"])
         self._backoff = int(scalars["backoff"])
+        self._setup_iterations = int(scalars.get("setup_iterations", 0))
+        self._last_iterations = int(scalars.get("last_iterations", 0))
         self.last_drift = float(scalars["last_drift"])
         self.last_residual = float(scalars["last_residual"])
-        self.stats = SolverStats(**scalars["stats"])
+        self.stats = SolverStats(**{"fallbacks": 0, **scalars["stats"]})
 
     def drift(self, lower: sp.csc_matrix) -> float:
         """Largest scaled entry change of ``lower`` since the last factorisation [1].
@@ -394,8 +498,10 @@ class CholeskySolver:
         return _scaled_drift(lower.indptr, lower.indices, lower.data, self._factored_data)
 
     def _apply(self, vector: FloatArray) -> FloatArray:
-        assert self._factor is not None
         self.stats.factor_applications += 1
+        if self._cycle is not None:
+            return np.ascontiguousarray(self._cycle.matvec(vector), dtype=np.float64)
+        assert self._factor is not None
         return np.ascontiguousarray(self._factor(vector), dtype=np.float64)
 
     def solve(
@@ -417,7 +523,8 @@ class CholeskySolver:
         rhs
             Right-hand side b, shape (n,).
         force_refactor
-            Refactor even if the rent-or-buy rule would not (e.g. at remesh).
+            Refactor (or rebuild the hierarchy) even if the reuse rules would not
+            (e.g. at remesh).
         ordered
             The unknowns are already numbered in a fill-reducing order (as
             :func:`shared.fv.flow_pattern` numbers them): with the default
@@ -439,7 +546,7 @@ class CholeskySolver:
         ------
         SolverError
             If A is not positive definite, b or x is not finite, or CG with a fresh
-            factor still misses the tolerance.
+            factor or hierarchy still misses the tolerance.
         """
         rhs = np.ascontiguousarray(rhs, dtype=np.float64)
         if not np.all(np.isfinite(rhs)):
@@ -447,7 +554,40 @@ class CholeskySolver:
         if not np.all(np.isfinite(lower.data)):
             raise SolverError("matrix contains NaN or inf")
         self.stats.solves += 1
-        fresh = force_refactor or self._factor is None or not self._same_pattern(lower)
+        fresh = force_refactor or not self._same_pattern(lower) or (
+            self._factor is None and self._cycle is None)
+        diagonal = np.abs(lower.data[lower.indptr[:-1]])
+        if fresh:
+            self._fallback = False
+        if self.uses_multigrid(lower.shape[0]) and not self._fallback:
+            solution, converged = self._multigrid_solve(lower, rhs, diagonal, fresh, offset)
+            if not converged and self.method == "auto":
+                # a system the hierarchy cannot solve (extreme conductance contrasts):
+                # the factor solves it, and the next solves of this pattern too
+                log.info("multigrid missed the tolerance (%.1e) on %d unknowns: factor path "
+                         "until the next pattern", self.last_residual, lower.shape[0])
+                self._fallback = True
+                self.stats.fallbacks += 1
+                solution, converged = self._factor_solve(lower, rhs, diagonal, True, ordered,
+                                                         offset)
+        else:
+            solution, converged = self._factor_solve(lower, rhs, diagonal, fresh, ordered,
+                                                     offset)
+        if not converged:
+            raise SolverError(
+                f"residual {self.last_residual:.3e} above tolerance "
+                f"{self.residual_tolerance:.1e} even with a fresh preconditioner "
+                "(ill-conditioned or not positive definite?)"
+            )
+        return solution
+
+    def _factor_solve(
+        self, lower: sp.csc_matrix, rhs: FloatArray, diagonal: FloatArray, fresh: bool,
+        ordered: bool, offset: FloatArray | None,
+    ) -> tuple[FloatArray, bool]:
+        """The factor path: rent the stale factor or buy a new one (module docstring)."""
+        if self._cycle is not None:
+            fresh = True
         remaining = self.refactor_iterations - self._stale_iterations
         refactor = fresh or self._last_rent >= remaining or self._buy_at_once > 0
         self._buy_at_once = max(self._buy_at_once - 1, 0)
@@ -456,7 +596,6 @@ class CholeskySolver:
             refactor = refactor or self.last_drift > self.refactor_tolerance
         if refactor:
             self._factorise(lower, ordered)
-        diagonal = np.abs(lower.data[lower.indptr[:-1]])
         # A stale factor may only rent the iterations left before buying a new one.
         budget = self.max_iterations if refactor else min(self.max_iterations, remaining)
         rented = self._stale_iterations
@@ -476,12 +615,31 @@ class CholeskySolver:
             solution, converged = self._corrected_solve(
                 lower, rhs, diagonal, self.max_iterations, offset, solution
             )
-        if not converged:
-            raise SolverError(
-                f"residual {self.last_residual:.3e} above tolerance "
-                f"{self.residual_tolerance:.1e} even with a fresh factor (ill-conditioned?)"
-            )
-        return solution
+        return solution, converged
+
+    def _multigrid_solve(
+        self, lower: sp.csc_matrix, rhs: FloatArray, diagonal: FloatArray, fresh: bool,
+        offset: FloatArray | None,
+    ) -> tuple[FloatArray, bool]:
+        """The multigrid path: reuse the hierarchy while its iterations stay near the
+        first solve's (module docstring)."""
+        stale = self._cycle is not None and self._setup_iterations >= 0
+        rebuild = fresh or self._cycle is None or (
+            stale and self._last_iterations > self.amg_rebuild_ratio * self._setup_iterations)
+        if rebuild:
+            self._factorise(lower, ordered=True)
+        before = self.stats.iterations
+        solution, converged = self._corrected_solve(
+            lower, rhs, diagonal, self.amg_max_iterations, offset)
+        if not converged and not rebuild:
+            self._factorise(lower, ordered=True)
+            before = self.stats.iterations
+            solution, converged = self._corrected_solve(
+                lower, rhs, diagonal, self.amg_max_iterations, offset, solution)
+        self._last_iterations = self.stats.iterations - before
+        if self._setup_iterations < 0:
+            self._setup_iterations = self._last_iterations
+        return solution, converged
 
     def _corrected_solve(
         self,
@@ -492,7 +650,7 @@ class CholeskySolver:
         offset: FloatArray | None,
         start: FloatArray | None = None,
     ) -> tuple[FloatArray, bool]:
-        """Preconditioned CG on the current matrix, from the factor's solution or ``start``.
+        """Preconditioned CG on the current matrix, from the preconditioned rhs or ``start``.
 
         Convergence is judged row by row: max_i |r_i| / (|a_ii| ||x||_inf + |b_i|),
         ``diagonal`` = |a_ii| of the current matrix. For the diagonally dominant flow

@@ -71,7 +71,7 @@ from shared.dem.state import DEMState
 from shared.dem.walls import Walls, servo_walls, wall_forces
 from shared.fv import FlowPattern, assemble_matrix, flow_pattern
 from shared.mesh import Mesh, build_mesh
-from shared.solver import CholeskySolver
+from shared.solver import SPDSolver
 
 __all__ = ["SaturatedFlow", "drained_cells", "saturated_flow", "volume_gradient", "coupled_steps"]
 
@@ -121,7 +121,7 @@ class SaturatedFlow:
 
     mesh: Mesh
     pattern: FlowPattern
-    solver: CholeskySolver
+    solver: SPDSolver
     conductance: FloatArray
     laplacian: sp.csc_matrix
     system: sp.csc_matrix
@@ -209,7 +209,7 @@ def saturated_flow(
     *,
     drained_pressure: float = 0.0,
     enclosed: bool = True,
-    solver: CholeskySolver | None = None,
+    solver: SPDSolver | None = None,
 ) -> SaturatedFlow:
     """Mesh the points and set up the coupling, fluid at the drained pressure.
 
@@ -233,7 +233,7 @@ def saturated_flow(
         the hull triangles then drop out of B. False for a specimen surrounded by
         fluid at the drained pressure.
     solver
-        Solver to use; a new :class:`CholeskySolver` if None.
+        Solver to use; a new :class:`SPDSolver` if None.
 
     Returns
     -------
@@ -261,7 +261,7 @@ def saturated_flow(
     return SaturatedFlow(
         mesh=mesh,
         pattern=pattern,
-        solver=CholeskySolver() if solver is None else solver,
+        solver=SPDSolver() if solver is None else solver,
         conductance=conductance,
         laplacian=laplacian,
         system=system,

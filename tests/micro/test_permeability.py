@@ -8,7 +8,7 @@ import pytest
 from micro.permeability import measure_permeability, permeability_tensor_axes
 from shared.fv import facet_conductance, facet_flux, flow_pattern, steady_pressure
 from shared.mesh import WALLS, Mesh, boundary_cell_mask, build_mesh
-from shared.solver import CholeskySolver
+from shared.solver import SPDSolver
 from tests._defaults import clay
 
 K0 = 3e-20  # m2
@@ -132,7 +132,7 @@ def test_permeability_with_near_perfect_cracks_matches_moderate_contrast(seed: i
     departure = -100.0 / (high - low) * (np.clip(mesh.circumcentres[:, 2], low, high)
                                          - 0.5 * (low + high))
     pattern = flow_pattern(mesh, inlet | outlet)
-    pressure = steady_pressure(mesh, pattern, CholeskySolver(residual_tolerance=1e-13),
+    pressure = steady_pressure(mesh, pattern, SPDSolver(residual_tolerance=1e-13),
                                cracked, departure, departure)
     flux = facet_flux(mesh, cracked, pressure)
     inside, outside = inlet[mesh.facet_cells], outlet[mesh.facet_cells]

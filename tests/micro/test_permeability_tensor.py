@@ -18,7 +18,7 @@ from micro.run import _tensor_variables
 from shared.fv import facet_conductance
 from shared.mesh import WALLS, Mesh, boundary_cell_mask, build_mesh
 from shared.permeability import intrinsic_permeability
-from shared.solver import CholeskySolver
+from shared.solver import SPDSolver
 from tests._defaults import clay
 
 K0 = 3e-20  # m2
@@ -160,7 +160,7 @@ def test_tensor_solves_share_one_factorisation() -> None:
     rng = np.random.default_rng(2)
     conductance = facet_conductance(mesh, np.ones(mesh.n_cells), np.full(mesh.n_cells, 0.3),
                                     "water", MATERIAL) * np.exp(rng.normal(0.0, 1.0, mesh.n_facets))
-    solver = CholeskySolver(residual_tolerance=1e-13)
+    solver = SPDSolver(residual_tolerance=1e-13)
     tensor = measure_permeability_tensor(mesh, conductance, MATERIAL.water_viscosity,
                                          pressure_drop=1e5, solver=solver)
     assert np.all(np.isfinite(tensor)) and np.all(np.diag(tensor) > 0.0)
@@ -195,7 +195,7 @@ def test_tensor_with_near_perfect_cracks_matches_moderate_contrast(seed: int) ->
     clay_conductance = rng.uniform(0.5, 2.0, mesh.n_facets) * 1e-22
     tensors, solvers = {}, {}
     for contrast in (1e6, 1e15):
-        solvers[contrast] = CholeskySolver(residual_tolerance=1e-13)
+        solvers[contrast] = SPDSolver(residual_tolerance=1e-13)
         tensors[contrast] = measure_permeability_tensor(
             mesh, np.where(ring, clay_conductance * contrast, clay_conductance), 1.8e-5,
             pressure_drop=100.0, conductance_floor=1e-30, solver=solvers[contrast],

@@ -26,7 +26,7 @@ from micro.pellet import SpecimenSpec, initial_state
 from shared.config import validate_config
 from shared.io import write_dataset
 from shared.mesh import update_mesh
-from shared.solver import CholeskySolver
+from shared.solver import SPDSolver
 from tests._defaults import CLAY, DEM
 
 CHECKPOINTS = [132.0e6, 60.0e6, 20.0e6, 5.0e6, 1.0e6, 1.0e5]
@@ -196,7 +196,7 @@ def test_a_restored_solver_continues_bit_for_bit(growth):
     n = 400
     rhs = [rng.standard_normal(n) for _ in range(12)]
     matrices = [_laplacian(n, 1e-3 * growth**k) for k in range(12)]
-    original = CholeskySolver(refactor_iterations=6)
+    original = SPDSolver(refactor_iterations=6)
     for k in range(4):
         original.solve(matrices[k], rhs[k], ordered=True)
     scalars, arrays = original.reuse_state()
@@ -205,7 +205,7 @@ def test_a_restored_solver_continues_bit_for_bit(growth):
         assert scalars["buy_at_once"] > 0 and scalars["backoff"] > 1
     else:
         assert scalars["buy_at_once"] == 0
-    restored = CholeskySolver(refactor_iterations=6)
+    restored = SPDSolver(refactor_iterations=6)
     restored.restore_reuse_state(scalars, arrays)
     assert json.dumps(restored.reuse_state()[0]) == json.dumps(scalars)
     factored = restored.stats.factorisations

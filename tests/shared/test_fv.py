@@ -17,7 +17,7 @@ from shared.fv import (
 )
 from shared.mesh import WALLS, Mesh, boundary_cell_mask, build_mesh
 from shared.retention import saturation, saturation_derivative
-from shared.solver import CholeskySolver, SolverError
+from shared.solver import SPDSolver, SolverError
 from tests._defaults import CLAY, clay
 
 
@@ -36,7 +36,7 @@ def test_fv_reproduces_linear_pressure_on_jittered_mesh(rng: np.random.Generator
     conductance = 3e-20 * mesh.facet_areas / (1e-3 * mesh.facet_lengths)
     pattern = flow_pattern(mesh, dirichlet)
     assert 0 < pattern.n_free < mesh.n_cells
-    pressure = steady_pressure(mesh, pattern, CholeskySolver(), conductance, exact)
+    pressure = steady_pressure(mesh, pattern, SPDSolver(), conductance, exact)
     scale = np.abs(gradient).max() * 7e-3
     free = ~dirichlet
     assert np.abs(pressure[free] - exact[free]).max() < 1e-10 * scale
@@ -98,7 +98,7 @@ def test_fv_water_volume_conserved_without_boundary_flux(rng: np.random.Generato
     mesh = jittered_mesh(7, rng)
     pressure, water, porosity = _hydration_state(mesh, rng)
     pattern = flow_pattern(mesh, np.zeros(mesh.n_cells, dtype=bool))
-    solver = CholeskySolver()
+    solver = SPDSolver()
     initial = water_volume(mesh, porosity, water)
     spread = np.ptp(pressure)
     for _ in range(6):
@@ -127,7 +127,7 @@ def test_fv_water_conserved_with_crack_conductances_and_a_stale_factor(
     mesh = jittered_mesh(8, rng)
     pressure, water, porosity = _hydration_state(mesh, rng)
     pattern = flow_pattern(mesh, np.zeros(mesh.n_cells, dtype=bool))
-    solver = CholeskySolver()
+    solver = SPDSolver()
     initial = water_volume(mesh, porosity, water)
     cracks = rng.random(mesh.n_facets) < 0.03
     for _ in range(6):
@@ -150,7 +150,7 @@ def test_fv_boundary_inflow_accounts_for_water_gain(rng: np.random.Generator) ->
     pattern = flow_pattern(mesh, dirichlet)
     imposed = np.full(mesh.n_cells, -1e6)
     free = pattern.free_cells
-    solver = CholeskySolver()
+    solver = SPDSolver()
     for _ in range(3):
         before = water_volume(mesh, porosity, water, free)
         conductance = facet_conductance(mesh, water, porosity, "water", CLAY)
@@ -169,7 +169,7 @@ def test_fv_singular_system_is_reported(rng: np.random.Generator) -> None:
     pattern = flow_pattern(mesh, np.zeros(mesh.n_cells, dtype=bool))
     conductance = mesh.facet_areas / mesh.facet_lengths
     with pytest.raises(SolverError, match="positive definite"):
-        steady_pressure(mesh, pattern, CholeskySolver(), conductance, np.zeros(mesh.n_cells),
+        steady_pressure(mesh, pattern, SPDSolver(), conductance, np.zeros(mesh.n_cells),
                         np.linspace(0.0, 1.0, mesh.n_cells))
 
 
@@ -215,7 +215,7 @@ def test_fv_transient_uptake_follows_slab_diffusion_series(rng: np.random.Genera
     duration = 0.2 * length**2 / diffusivity
     free = pattern.free_cells
     initial = water_volume(mesh, porosity, water, free)
-    solver = CholeskySolver()
+    solver = SPDSolver()
     for _ in range(40):
         conductance = facet_conductance(mesh, water, porosity, "water", material)
         step = transient_step(
