@@ -43,10 +43,10 @@ With the factor:
 
 With the multigrid hierarchy, every solve iterates (typically 10-30 V-cycles to a
 row-wise 1e-8); the hierarchy is built for a new pattern or on demand and reused on
-drifted matrices (the coarsening of a conductance graph survives a step of drift) until
-a solve needs more than ``amg_rebuild_ratio`` times the iterations of the first solve
-after the setup; a stale hierarchy that misses the tolerance is rebuilt and the solve
-finishes from its iterate. A fresh hierarchy that still misses it (conductance
+drifted matrices (the coarsening of a conductance graph survives a step of drift) for
+at most ``amg_rebuild_ratio`` times the iterations of the first solve after the setup:
+a stale hierarchy that misses the tolerance within them (a crack opened and changed
+conductances by ten decades) is rebuilt and the solve finishes from its iterate. A fresh hierarchy that still misses it (conductance
 contrasts of 1e15 and a tolerance of 1e-13, as a permeability measurement across
 gas-filled cracks sets) hands the system to the factor with ``method="auto"``, for
 the rest of that pattern; with ``method="amg"`` it is an error. The classical
@@ -65,6 +65,7 @@ from __future__ import annotations
 import ctypes
 import dataclasses
 import logging
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -84,6 +85,10 @@ log = logging.getLogger("shared.solver")
 
 # Most solves that buy a factor at once between two probes of the stale factor.
 _MAX_BACKOFF = 32
+
+# Iterations a stale hierarchy may rent at least (times the rebuild ratio), however fast
+# its first solve was.
+_MIN_SETUP_ITERATIONS = 4
 
 # Unknowns from which ``method="auto"`` preconditions with multigrid instead of a factor
 # (measured crossover of a whole run, benchmarks/reference/README.md).
@@ -285,8 +290,8 @@ class SPDSolver:
     amg_max_iterations
         CG iterations allowed in one solve on the multigrid path [1].
     amg_rebuild_ratio
-        The hierarchy is rebuilt before the next solve once a solve needs more than this
-        many times the iterations of the first solve after its setup [1].
+        A stale hierarchy may spend this many times the iterations of the first solve
+        after its setup (at least 4) before it is rebuilt in the middle of the solve [1].
 
     Notes
     -----
@@ -309,7 +314,7 @@ class SPDSolver:
         factor_blas_threads: int | None = None,
         method: str = "auto",
         amg_unknowns: int = AMG_UNKNOWNS,
-        amg_max_iterations: int = 300,
+        amg_max_iterations: int = 100,
         amg_rebuild_ratio: float = 1.5,
     ) -> None:
         if method not in ("auto", "direct", "amg"):
@@ -341,10 +346,9 @@ class SPDSolver:
         self._stale_solves = 0
         self._buy_at_once = 0
         self._backoff = 1
-        # multigrid path: iterations of the first solve after the setup, and of the last;
-        # whether the factor path took over for the current pattern
+        # multigrid path: iterations of the first solve after the setup; whether the
+        # factor path took over for the current pattern
         self._setup_iterations = 0
-        self._last_iterations = 0
         self._fallback = False
 
     def uses_multigrid(self, unknowns: int) -> bool:
@@ -418,8 +422,8 @@ class SPDSolver:
         scalars : dict
             The preconditioner choice (``method``, ``amg_unknowns``), the rent-or-buy
             counters (stale iterations and solves, last rent, solves left to buy at
-            once, back-off; on the multigrid path the iterations of the first and last
-            solves since the setup), the diagnostics ``last_drift`` and
+            once, back-off; on the multigrid path the iterations of the first solve since
+            the setup, and whether the factor took over the pattern), the diagnostics ``last_drift`` and
             ``last_residual``, the work counters of :attr:`stats` and the ordering
             of the current analysis (JSON-serialisable).
         arrays : dict
@@ -435,7 +439,6 @@ class SPDSolver:
             "last_residual": self.last_residual, "ordering": self._ordering,
             "method": self.method, "amg_unknowns": self.amg_unknowns,
             "setup_iterations": self._setup_iterations, "fallback": self._fallback,
-            "last_iterations": self._last_iterations,
             "stats": dataclasses.asdict(self.stats),
         }
         arrays: dict[str, npt.NDArray[Any]] = {}
@@ -482,7 +485,6 @@ class SPDSolver:
         self._buy_at_once = int(scalars["buy_at_once"])
         self._backoff = int(scalars["backoff"])
         self._setup_iterations = int(scalars.get("setup_iterations", 0))
-        self._last_iterations = int(scalars.get("last_iterations", 0))
         self.last_drift = float(scalars["last_drift"])
         self.last_residual = float(scalars["last_residual"])
         self.stats = SolverStats(**{"fallbacks": 0, **scalars["stats"]})
@@ -621,24 +623,24 @@ class SPDSolver:
         self, lower: sp.csc_matrix, rhs: FloatArray, diagonal: FloatArray, fresh: bool,
         offset: FloatArray | None,
     ) -> tuple[FloatArray, bool]:
-        """The multigrid path: reuse the hierarchy while its iterations stay near the
-        first solve's (module docstring)."""
-        stale = self._cycle is not None and self._setup_iterations >= 0
-        rebuild = fresh or self._cycle is None or (
-            stale and self._last_iterations > self.amg_rebuild_ratio * self._setup_iterations)
+        """The multigrid path: reuse the hierarchy while it converges about as fast as it
+        did on its own matrix (module docstring)."""
+        rebuild = fresh or self._cycle is None
         if rebuild:
             self._factorise(lower, ordered=True)
+        # a stale hierarchy may rent what a solve with a fresh one would need; a crack
+        # that opened can make it useless, and then that bound is all it wastes
+        budget = self.amg_max_iterations if rebuild else min(self.amg_max_iterations, math.ceil(
+            self.amg_rebuild_ratio * max(self._setup_iterations, _MIN_SETUP_ITERATIONS)))
         before = self.stats.iterations
-        solution, converged = self._corrected_solve(
-            lower, rhs, diagonal, self.amg_max_iterations, offset)
+        solution, converged = self._corrected_solve(lower, rhs, diagonal, budget, offset)
         if not converged and not rebuild:
             self._factorise(lower, ordered=True)
             before = self.stats.iterations
             solution, converged = self._corrected_solve(
                 lower, rhs, diagonal, self.amg_max_iterations, offset, solution)
-        self._last_iterations = self.stats.iterations - before
         if self._setup_iterations < 0:
-            self._setup_iterations = self._last_iterations
+            self._setup_iterations = self.stats.iterations - before
         return solution, converged
 
     def _corrected_solve(
