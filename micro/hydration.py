@@ -41,7 +41,7 @@ from micro.cracks import (
     crack_network,
 )
 from micro.forces import hydromechanical_forces, point_suction
-from shared.dem.integrator import stable_time_step, step, unbalanced_force
+from shared.dem.integrator import limit_speed, stable_time_step, step, unbalanced_force
 from shared.dem.parameters import DEMParameters
 from shared.dem.state import DEMState
 from shared.dem.walls import Walls
@@ -225,19 +225,6 @@ def loaded_time_step(
     return float(parameters.time_step_safety * 2.0 / np.sqrt(12.0 * stiffness / mass))
 
 
-def _limit_speed(dem: DEMState, max_speed: float) -> None:
-    """Scale down velocities above ``max_speed`` [m/s] (kinetic limiter of quasi-static runs).
-
-    A relaxation only seeks the balanced state; a point that a burst of elastic energy
-    has launched would otherwise travel far before damping catches it, and a nearly
-    unconfined swollen assembly can then fall apart.
-    """
-    speed = np.sqrt((dem.velocities**2).sum(axis=1))
-    fast = speed > max_speed
-    if fast.any():
-        dem.velocities[fast] *= (max_speed / speed[fast])[:, None]
-
-
 def _holding_pairs(dem: DEMState, normal_forces: FloatArray) -> npt.NDArray[np.int64]:
     """Point pairs held together: compressive contacts and intact bonds."""
     return np.vstack([dem.contacts.pairs[normal_forces > 0.0], dem.bonds[~dem.bond_broken]])
@@ -305,7 +292,7 @@ def relax(
         if weight < 1.0 or count == settings.ramp_steps:
             dem.radii[:] = first_radii + weight * (final_radii - first_radii)
         report = step(dem, time_step, parameters, load, walls, settings.damping)
-        _limit_speed(dem, settings.max_step_fraction * float(dem.reference_radii.min()) / time_step)
+        limit_speed(dem, settings.max_step_fraction * float(dem.reference_radii.min()) / time_step)
         if count % settings.check_interval == 0:
             if count % (10 * settings.check_interval) == settings.check_interval:
                 body = _main_body(dem, report.normal_forces)

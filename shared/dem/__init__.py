@@ -21,6 +21,7 @@ from shared.dem.hertz import bond_stretches, bond_tension, contact_forces
 from shared.dem.integrator import (
     StepReport,
     integrate,
+    limit_speed,
     stable_time_step,
     step,
     unbalanced_force,
@@ -61,4 +62,5 @@ __all__ = [
     "update_contacts",
     "wall_forces",
     "walls_around",
+    "limit_speed",
 ]

@@ -325,3 +325,27 @@ def leapfrog(values, rates, drives, inertia, fixed, damping, time_step):
             rates[i, c] += time_step * f / inertia[i]
             if values.shape[0] > 0:
                 values[i, c] += time_step * rates[i, c]
+
+
+@njit(cache=True)
+def largest_distance(points, reference):
+    """max_i |points_i - reference_i| over the rows of two (n, 3) arrays [m]; 0 if n = 0."""
+    largest = 0.0
+    for i in range(points.shape[0]):
+        dx = points[i, 0] - reference[i, 0]
+        dy = points[i, 1] - reference[i, 1]
+        dz = points[i, 2] - reference[i, 2]
+        largest = max(largest, np.sqrt(dx * dx + dy * dy + dz * dz))
+    return largest
+
+
+@njit(cache=True)
+def cap_speed(velocities, max_speed):
+    """Scale down, in place, the rows of ``velocities`` faster than ``max_speed``."""
+    for i in range(velocities.shape[0]):
+        speed = np.sqrt(velocities[i, 0] ** 2 + velocities[i, 1] ** 2 + velocities[i, 2] ** 2)
+        if speed > max_speed:
+            scale = max_speed / speed
+            velocities[i, 0] *= scale
+            velocities[i, 1] *= scale
+            velocities[i, 2] *= scale

@@ -138,9 +138,9 @@ def contacts_need_update(state: DEMState) -> bool:
     below the skin.
     """
     contacts = state.contacts
-    moved = np.sqrt(((state.positions - contacts.detection_positions) ** 2).sum(axis=1))
+    moved = _kernels.largest_distance(state.positions, contacts.detection_positions)
     grown = state.radii - contacts.detection_radii
-    return bool(2.0 * moved.max(initial=0.0) + 2.0 * grown.max(initial=0.0) >= contacts.skin)
+    return bool(2.0 * moved + 2.0 * grown.max(initial=0.0) >= contacts.skin)
 
 
 def update_contacts(

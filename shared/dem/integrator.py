@@ -20,6 +20,7 @@ __all__ = [
     "integrate",
     "unbalanced_force",
     "step",
+    "limit_speed",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -229,3 +230,13 @@ def step(
     if walls is not None and loads is not None:
         servo_walls(walls, loads, time_step, parameters)
     return StepReport(forces, torques, normal_forces, loads, rebuilt)
+
+
+def limit_speed(state: DEMState, max_speed: float) -> None:
+    """Scale down velocities above ``max_speed`` [m/s] (kinetic limiter of quasi-static runs).
+
+    A relaxation only seeks the balanced state; a point that a burst of elastic energy
+    has launched would otherwise travel far before damping catches it, and a nearly
+    unconfined swollen assembly can then fall apart.
+    """
+    _kernels.cap_speed(state.velocities, max_speed)

@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 
 from shared.dem import (
+    contacts_need_update,
     cube_points,
+    limit_speed,
     new_state,
     stable_time_step,
     step,
@@ -131,3 +133,34 @@ def test_same_start_same_trajectory():
             step(state, min(0.5 * stable_time_step(state, DEM), 1e-8), DEM)
         runs.append(np.concatenate([state.positions, state.velocities, state.spins]))
     np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_limit_speed_caps_only_the_fast_points_and_keeps_their_direction(
+    rng: np.random.Generator,
+) -> None:
+    positions, radii = cube_points(64, rng)
+    state = new_state(positions, radii, DEM)
+    state.velocities[:] = rng.normal(0.0, 1.0, state.velocities.shape)
+    before = state.velocities.copy()
+    speed = np.linalg.norm(before, axis=1)
+    limit = float(np.median(speed))
+    limit_speed(state, limit)
+    after = np.linalg.norm(state.velocities, axis=1)
+    fast = speed > limit
+    np.testing.assert_allclose(after[fast], limit, rtol=1e-14)
+    np.testing.assert_array_equal(state.velocities[~fast], before[~fast])
+    np.testing.assert_allclose(state.velocities[fast] / after[fast, None],
+                               before[fast] / speed[fast, None], rtol=1e-14)
+
+
+def test_contacts_need_update_once_a_point_has_moved_half_the_skin(
+    rng: np.random.Generator,
+) -> None:
+    positions, radii = cube_points(64, rng)
+    state = new_state(positions, radii, DEM)
+    skin = state.contacts.skin
+    # a pair's gap closes by at most twice the largest displacement
+    state.positions[7] += np.array([0.3, 0.4, 0.0]) / 0.5 * 0.49 * skin
+    assert not contacts_need_update(state)
+    state.positions[7] += np.array([0.3, 0.4, 0.0]) / 0.5 * 0.02 * skin
+    assert contacts_need_update(state)
