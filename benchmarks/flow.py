@@ -35,6 +35,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from benchmarks.dem import _timings_ms
@@ -284,9 +285,15 @@ def _plot_scaling(records: list[dict], exponents: dict[str, float], path: Path) 
     guide = points * np.log(points)
     anchor = records[0]["coupled_flow_step_ms"]
     axes.loglog(points, anchor * guide / guide[0], "k:", label="N log N")
+    _save_cost_figure(figure, axes, "median wall time [ms]",
+                      "Flow machinery, 7 mm cube, jittered grid", path)
+
+
+def _save_cost_figure(figure: Figure, axes: Axes, ylabel: str, title: str, path: Path) -> None:
+    """Label, grid and legend a log-log cost-versus-N axes, and write its figure."""
     axes.set_xlabel("points N")
-    axes.set_ylabel("median wall time [ms]")
-    axes.set_title("Flow machinery, 7 mm cube, jittered grid")
+    axes.set_ylabel(ylabel)
+    axes.set_title(title)
     axes.grid(True, which="both", alpha=0.3)
     axes.legend(fontsize=7)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -399,14 +406,8 @@ def _plot_crossover(records: list[dict], path: Path) -> None:
                 axes.loglog(points, [r[f"{method}_{name}_s"] for r in rows],
                             marker + style, color=colour,
                             label=f"{method} {name}" + (", cracks" if cracked else ""))
-    axes.set_xlabel("points N")
-    axes.set_ylabel("median wall time of one solve [s]")
-    axes.set_title("SPDSolver: CHOLMOD factor vs Ruge-Stueben multigrid (7 mm cube)")
-    axes.grid(True, which="both", alpha=0.3)
-    axes.legend(fontsize=7)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure.tight_layout()
-    figure.savefig(path, dpi=120)
+    _save_cost_figure(figure, axes, "median wall time of one solve [s]",
+                      "SPDSolver: CHOLMOD factor vs Ruge-Stueben multigrid (7 mm cube)", path)
 
 
 def bench_coupled_step(
