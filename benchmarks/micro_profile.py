@@ -5,7 +5,8 @@ heterogeneous case at N DEM points (default protocol: every checkpoint from 132 
 1 kPa, balanced) under cProfile, on the porosity grid of ``results/porosity/pellet.nc``
 (``bash claychain run`` makes it), and reports the cumulative wall time of the functions
 that make up the phases: DEM relaxation, flow steps and their linear solves, remeshes
-(triangulations), permeability measurements, the initial settling, and output. Phases
+(triangulations), permeability measurements, the initial settling, and output, with
+the solvers' work counters (``solver_work``: flow steps and measurements apart). Phases
 nest (a flow step contains its solve; balancing a checkpoint contains flow steps and
 relaxations), so the numbers are cumulative, not a partition. Timings are measured,
 never asserted.
@@ -40,11 +41,36 @@ PHASES = {
 }
 
 
+def _counting_solves(work: dict[str, dict[str, int]]):  # type: ignore[no-untyped-def]
+    """:meth:`shared.solver.SPDSolver.solve` that adds each call's work to ``work``, keyed
+    by ``flow`` (tolerance 1e-8) or ``measurement`` (1e-13)."""
+    import dataclasses
+
+    from shared.solver import SPDSolver
+
+    solve = SPDSolver.solve
+
+    def counted(self, lower, rhs, **options):  # type: ignore[no-untyped-def]
+        before = dataclasses.replace(self.stats)
+        try:
+            return solve(self, lower, rhs, **options)
+        finally:
+            kind = "flow" if self.residual_tolerance > 1e-10 else "measurement"
+            totals = work.setdefault(kind, {})
+            for name, value in dataclasses.asdict(self.stats).items():
+                totals[name] = totals.get(name, 0) + value - getattr(before, name)
+
+    return counted
+
+
 def bench_micro_profile(points: int = 8000, grid: str = "results/porosity/pellet.nc") -> dict:
-    """Cumulative wall time per phase of one heterogeneous micro run at ``points`` points."""
+    """Cumulative wall time per phase of one heterogeneous micro run at ``points`` points,
+    and the solvers' work (solves, factorisations or hierarchy setups, CG iterations,
+    fallbacks to the factor) of its flow steps and of its measurements."""
     import logging
 
     from micro.run import run
+    from shared.solver import SPDSolver
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     config = copy.deepcopy(CONFIG)
@@ -52,12 +78,18 @@ def bench_micro_profile(points: int = 8000, grid: str = "results/porosity/pellet
     config["micro"]["vtk_snapshots"] = False
     case = "heterogeneous"
     profiler = cProfile.Profile()
-    with tempfile.TemporaryDirectory() as folder:
-        start = time.perf_counter()
-        profiler.enable()
-        ds = run(config, case, grid, Path(folder) / "case.nc", Path(folder) / "case.png")
-        profiler.disable()
-        wall = time.perf_counter() - start
+    work: dict[str, dict[str, int]] = {}
+    solve = SPDSolver.solve
+    SPDSolver.solve = _counting_solves(work)  # type: ignore[method-assign]
+    try:
+        with tempfile.TemporaryDirectory() as folder:
+            start = time.perf_counter()
+            profiler.enable()
+            ds = run(config, case, grid, Path(folder) / "case.nc", Path(folder) / "case.png")
+            profiler.disable()
+            wall = time.perf_counter() - start
+    finally:
+        SPDSolver.solve = solve  # type: ignore[method-assign]
     stats = pstats.Stats(profiler).stats  # type: ignore[attr-defined]
     phases = {}
     for phase, (module, name) in PHASES.items():
@@ -69,6 +101,7 @@ def bench_micro_profile(points: int = 8000, grid: str = "results/porosity/pellet
         "wall_s": wall,
         "cumulative_s": phases,
         "fraction_of_wall": {k: v / wall for k, v in phases.items()},
+        "solver_work": work,
     }
 
 
