@@ -42,7 +42,13 @@ from benchmarks.dem import _timings_ms
 from benchmarks.parameters import CLAY, DEM, SETTINGS
 from micro.hydration import FlowSystem, PelletState, swell, update_geometry
 from shared.dem import cube_points, new_state, step
-from shared.fv import assemble_matrix, facet_conductance, flow_pattern, transient_step
+from shared.fv import (
+    FlowPattern,
+    assemble_matrix,
+    facet_conductance,
+    flow_pattern,
+    transient_step,
+)
 from shared.mesh import (
     WALLS,
     Mesh,
@@ -303,9 +309,9 @@ def _save_cost_figure(figure: Figure, axes: Axes, ylabel: str, title: str, path:
 
 def _transient_system(
     n_points: int, rng: np.random.Generator, crack_fraction: float = 0.0
-) -> tuple[Mesh, object, np.ndarray, np.ndarray, np.ndarray]:
-    """Mesh, pattern, conductances, storage and a drifted pressure of a transient flow
-    system as :func:`bench_flow` builds it; ``crack_fraction`` of the facets conduct
+) -> tuple[Mesh, FlowPattern, np.ndarray, np.ndarray, np.ndarray]:
+    """Mesh, pattern, conductances, storage and pressure of a transient flow system as
+    :func:`bench_flow` builds it; ``crack_fraction`` of the facets conduct
     1e9-1e10 times the clay (open water-filled cracks)."""
     mesh = build_mesh(jittered_cube(n_points))
     porosity, pressure, water = _unsaturated_state(mesh.n_cells, rng)

@@ -260,8 +260,7 @@ def run(
         mean = None if heterogeneous else _specimen_mean(spec, grid, material, parameters)
         state = initial_state(spec, source, mean, material, parameters)
         system, settled = settle(state, FlowSystem.for_mesh(state.mesh, settings=settings),
-                                 spec, source, mean,
-                                 settings, material, parameters)
+                                 spec, source, mean, settings, material, parameters)
         log.info("%s: settled at the initial suction in %d DEM steps (unbalanced force %.3g)",
                  case, settled["dem_steps"], settled["unbalanced_force"])
         records: list[dict[str, Any]] = []

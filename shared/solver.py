@@ -41,12 +41,13 @@ With the factor:
   factor needs depend on how many entries changed, not on the largest change
   (``tests/shared/test_solver.py``).
 
-With the multigrid hierarchy, every solve iterates (typically 10-30 V-cycles to a
-row-wise 1e-8); the hierarchy is built for a new pattern or on demand and reused on
-drifted matrices (the coarsening of a conductance graph survives a step of drift) for
-at most ``amg_rebuild_ratio`` times the iterations of the first solve after the setup:
-a stale hierarchy that misses the tolerance within them (a crack opened and changed
-conductances by ten decades) is rebuilt and the solve finishes from its iterate. A fresh hierarchy that still misses it (conductance
+With the multigrid hierarchy, every solve iterates (5-9 V-cycles to a row-wise 1e-8
+with a fresh hierarchy on the micro model's systems); the hierarchy is built for a new
+pattern or on demand and reused on drifted matrices (the coarsening of a conductance
+graph survives a step of drift) for at most ``amg_rebuild_ratio`` times the iterations
+of the first solve after the setup: a stale hierarchy that misses the tolerance within
+them (a crack opened and changed conductances by ten decades) is rebuilt and the solve
+finishes from its iterate. A fresh hierarchy that still misses it (conductance
 contrasts of 1e15 and a tolerance of 1e-13, as a permeability measurement across
 gas-filled cracks sets) hands the system to the factor with ``method="auto"``, for
 the rest of that pattern; with ``method="amg"`` it is an error. The classical
@@ -297,7 +298,8 @@ class SPDSolver:
     -----
     The factorisation is forced to supernodal LL^T so that an indefinite or singular
     matrix raises instead of being factored as LDL^T with negative or zero pivots; on
-    the multigrid path a non-positive curvature or a stagnating CG raises instead.
+    the multigrid path such a matrix stops CG (non-positive curvature) short of the
+    tolerance, which raises or, with ``method="auto"``, hands it to the factor.
     The CG vector work runs in numba kernels rather than numpy: numpy's dot products
     wake its own BLAS threads, which then compete with the CHOLMOD substitutions on a
     loaded machine.
@@ -422,9 +424,9 @@ class SPDSolver:
         scalars : dict
             The preconditioner choice (``method``, ``amg_unknowns``), the rent-or-buy
             counters (stale iterations and solves, last rent, solves left to buy at
-            once, back-off; on the multigrid path the iterations of the first solve since
-            the setup, and whether the factor took over the pattern), the diagnostics ``last_drift`` and
-            ``last_residual``, the work counters of :attr:`stats` and the ordering
+            once, back-off; on the multigrid path the iterations of the first solve
+            since the setup, and whether the factor took over the pattern), the
+            diagnostics ``last_drift`` and ``last_residual``, the work counters of :attr:`stats` and the ordering
             of the current analysis (JSON-serialisable).
         arrays : dict
             ``indptr``, ``indices`` and ``data`` of the factored lower triangle, empty
@@ -588,8 +590,6 @@ class SPDSolver:
         ordered: bool, offset: FloatArray | None,
     ) -> tuple[FloatArray, bool]:
         """The factor path: rent the stale factor or buy a new one (module docstring)."""
-        if self._cycle is not None:
-            fresh = True
         remaining = self.refactor_iterations - self._stale_iterations
         refactor = fresh or self._last_rent >= remaining or self._buy_at_once > 0
         self._buy_at_once = max(self._buy_at_once - 1, 0)

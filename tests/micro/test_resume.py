@@ -24,10 +24,10 @@ from micro.checkpoint import checkpoint_wall_time, load_checkpoint, save_checkpo
 from micro.hydration import DivergenceError, FlowSystem
 from micro.pellet import SpecimenSpec, initial_state
 from shared.config import validate_config
-from shared.io import write_dataset
 from shared.mesh import update_mesh
 from shared.solver import SPDSolver
 from tests._defaults import CLAY, DEM
+from .porosity_grid import write_porosity_grid
 
 CHECKPOINTS = [132.0e6, 60.0e6, 20.0e6, 5.0e6, 1.0e6, 1.0e5]
 
@@ -50,17 +50,7 @@ def case(tmp_path_factory):
                   "checkpoints_suction_pa": CHECKPOINTS, "cases": {"c": {"porosity": "ct"}}},
         "upscaling": {"conditions": {"free": "c", "confined": "c"}},
     })
-    rng = np.random.default_rng(0)
-    values = np.clip(0.25 + 0.03 * rng.standard_normal((14, 14, 14)), 0.05, 0.6)
-    axis = np.arange(14) * 4e-4
-    grid = xr.DataArray(values, dims=("z", "y", "x"), coords={"z": axis, "y": axis, "x": axis},
-                        attrs={"units": "1", "long_name": "porosity"})
-    ds = grid.to_dataset(name="porosity")
-    for name in "zyx":
-        ds[name].attrs.update(units="m", long_name=name)
-    path = tmp / "porosity.nc"
-    write_dataset(ds, path, stage="imaging", title="test grid")
-    return config, path, tmp
+    return config, write_porosity_grid(tmp / "porosity.nc", 4e-4), tmp
 
 
 @pytest.fixture(scope="module")

@@ -16,8 +16,8 @@ import xarray as xr
 
 import micro.run as micro_run
 from shared.config import validate_config
-from shared.io import write_dataset
 from shared.solver import SPDSolver
+from .porosity_grid import write_porosity_grid
 
 CHECKPOINTS = [132.0e6, 40.0e6, 10.0e6, 1.0e6]
 NAMES = ("eps_v", "saturation", "porosity_mean")
@@ -43,15 +43,7 @@ def _perturbing_solve(seed: int):
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("solver_choice")
-    rng = np.random.default_rng(0)
-    values = np.clip(0.25 + 0.03 * rng.standard_normal((14, 14, 14)), 0.05, 0.6)
-    axis = np.arange(14) * 5e-4
-    grid = xr.DataArray(values, dims=("z", "y", "x"), coords={"z": axis, "y": axis, "x": axis},
-                        attrs={"units": "1", "long_name": "porosity"}).to_dataset(name="porosity")
-    for name in "zyx":
-        grid[name].attrs.update(units="m", long_name=name)
-    path = tmp / "porosity.nc"
-    write_dataset(grid, path, stage="imaging", title="test grid")
+    path = write_porosity_grid(tmp / "porosity.nc", 5e-4)
     datasets = {}
     with pytest.MonkeyPatch.context() as patch:
         for label, solver, seed in (("direct", "direct", None), ("amg", "amg", None),
