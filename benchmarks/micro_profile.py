@@ -10,6 +10,12 @@ the solvers' work counters (``solver_work``: flow steps and measurements apart).
 nest (a flow step contains its solve; balancing a checkpoint contains flow steps and
 relaxations), so the numbers are cumulative, not a partition. Timings are measured,
 never asserted.
+
+``python -m benchmarks run micro_scaling`` reads the finished cases of the convergence
+preset (``results/micro/points_<N>.nc``, ``config/paper/micro_convergence_full.yaml``):
+their wall time and peak memory, and the wall time per phase that every micro run
+records (``wall_time_<phase>_s`` attributes), with the exponent of a power law fitted
+per phase from 15k points up, and a log-log figure of the curve.
 """
 
 from __future__ import annotations
@@ -21,9 +27,17 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+import xarray as xr
+from matplotlib.figure import Figure
+
+from benchmarks.flow import _exponent, _save_cost_figure
 from benchmarks.parameters import CONFIG
 
-__all__ = ["bench_micro_profile"]
+__all__ = ["bench_micro_profile", "bench_micro_relaxation", "bench_micro_scaling"]
+
+# The convergence study's cases from which the issue's N^1.1 target is fitted.
+SCALING_FROM_POINTS = 15_000
 
 PHASES = {
     "checkpoint_balance": ("micro/hydration.py", "advance_to_balance"),
@@ -144,3 +158,56 @@ def bench_micro_relaxation(points: int = 1000, grid: str = "results/porosity/pel
             "steps_percentiles_10_50_90_99": np.percentile(steps, [10, 50, 90, 99]).tolist(),
             "ended_at_ramp": int((steps <= ramp).sum()), "ramp_steps": ramp,
             "final_eps_v": float(ds["eps_v"].values[-1])}
+
+
+def bench_micro_scaling(folder: str = "results/micro") -> dict:
+    """Wall time per phase and peak memory of the convergence preset's finished cases
+    versus N, with the exponent fitted per phase from 15k points up."""
+    records = []
+    for path in Path(folder).glob("points_*.nc"):
+        with xr.open_dataset(path) as ds:
+            attrs = dict(ds.attrs)
+        phases = {k[len("wall_time_"):-2]: float(v) for k, v in attrs.items()
+                  if k.startswith("wall_time_") and k != "wall_time_s"}
+        records.append({"case": path.stem, "n_points": int(attrs["n_points"]),
+                        "n_cells": int(attrs["n_cells"]), "wall_s": float(attrs["wall_time_s"]),
+                        "peak_memory_mb": float(attrs["peak_memory_mb"]), "phases_s": phases})
+    records.sort(key=lambda r: r["n_points"])
+    fitted = [r for r in records if r["n_points"] >= SCALING_FROM_POINTS]
+    exponents: dict[str, float] = {}
+    if len(fitted) >= 2:
+        exponents["wall"] = _exponent([r["n_points"] for r in fitted], [r["wall_s"] for r in fitted])
+        timed = [r for r in fitted if r["phases_s"]]
+        for name in sorted({k for r in timed for k in r["phases_s"]}):
+            rows = [r for r in timed if r["phases_s"].get(name, 0.0) > 0.0]
+            if len(rows) >= 2:
+                exponents[name] = _exponent([r["n_points"] for r in rows],
+                                            [r["phases_s"][name] for r in rows])
+    if records:
+        _plot_micro_scaling(records, exponents, Path("results/benchmarks/micro_scaling.png"))
+    return {"records": records, "exponents_from_15k": exponents,
+            "fitted_points": [r["n_points"] for r in fitted]}
+
+
+def _plot_micro_scaling(records: list[dict], exponents: dict[str, float], path: Path) -> None:
+    """Log-log figure of a whole run's wall time and its phases versus N, with N^1.1."""
+    figure = Figure(figsize=(7.0, 5.0))
+    axes = figure.add_subplot()
+    points = np.array([r["n_points"] for r in records], dtype=float)
+    walls = np.array([r["wall_s"] for r in records])
+
+    def label(name: str) -> str:
+        return f"{name} (N^{exponents[name]:.2f})" if name in exponents else name
+
+    axes.loglog(points, walls, "ko-", label=label("wall"))
+    for name in sorted({k for r in records for k in r["phases_s"]}):
+        rows = [r for r in records if r["phases_s"].get(name, 0.0) > 0.0]
+        axes.loglog([r["n_points"] for r in rows], [r["phases_s"][name] for r in rows], "s--",
+                    label=label(name))
+    anchor = points >= SCALING_FROM_POINTS
+    if np.any(anchor):
+        first = int(np.argmax(anchor))
+        axes.loglog(points[first:], walls[first] * (points[first:] / points[first]) ** 1.1, "k:",
+                    label="N^1.1 (target)")
+    _save_cost_figure(figure, axes, "wall time [s]",
+                      "Whole heterogeneous micro runs (default protocol), 2 cores", path)

@@ -14,7 +14,8 @@ mesh with its geometry, walls, the last hydro-mechanical loads, times and counte
 * the solver's reuse state (:meth:`shared.solver.SPDSolver.reuse_state`): its
   rent-or-buy counters (e.g. the back-off) outlive the reset of the factor at each
   checkpoint; the factored matrix is saved and refactored on loading;
-* the wall time spent so far, so that a resumed run reports the whole run's;
+* the wall time spent so far, in all and per phase (:class:`shared.progress.PhaseClock`),
+  so that a resumed run reports the whole run's;
 * between flow steps, the balance's own progress (:class:`micro.hydration.BalanceProgress`:
   flow and DEM steps done, the next time step).
 
@@ -85,12 +86,13 @@ def _jsonable(record: dict[str, Any]) -> dict[str, Any]:
 def save_checkpoint(
     path: Path, digest: str, state: PelletState, system: FlowSystem,
     records: list[dict[str, Any]], reference_volume: float, wall_time: float = 0.0,
-    balance: BalanceProgress | None = None,
+    balance: BalanceProgress | None = None, phase_seconds: dict[str, float] | None = None,
 ) -> None:
     """Write the state, its flow system and the records so far, atomically.
 
-    ``wall_time`` is the wall time the run has taken so far [s]; ``balance`` where the
-    balance at the next checkpoint stands, for a file written between two flow steps.
+    ``wall_time`` is the wall time the run has taken so far [s] and ``phase_seconds``
+    its split by phase [s]; ``balance`` where the balance at the next checkpoint
+    stands, for a file written between two flow steps.
     """
     arrays: dict[str, Any] = {f"dem_{k}": getattr(state.dem, k) for k in _DEM_ARRAYS}
     arrays.update({f"contacts_{k}": getattr(state.dem.contacts, k) for k in _CONTACT_ARRAYS})
@@ -110,6 +112,7 @@ def save_checkpoint(
                "reference_volume": reference_volume,
                "walls_servo": None if state.walls is None else bool(state.walls.servo),
                "solver": solver_scalars, "wall_time": float(wall_time),
+               "phase_seconds": dict(phase_seconds or {}),
                "records": [_jsonable(r) for r in records],
                "balance": None if balance is None else asdict(balance)}
     atomic_write(path, lambda tmp: np.savez(tmp, meta=np.array(json.dumps(scalars)), **arrays))
@@ -169,7 +172,9 @@ def load_checkpoint(
     return state, system, records, float(meta["reference_volume"]), balance
 
 
-def checkpoint_wall_time(path: Path) -> float:
-    """Wall time [s] the run had taken when it wrote the checkpoint file ``path``."""
+def checkpoint_wall_time(path: Path) -> tuple[float, dict[str, float]]:
+    """Wall time [s] the run had taken when it wrote the checkpoint file ``path``, in all
+    and per phase (empty for a file written before phases were timed)."""
     with _opened(path) as data:
-        return float(json.loads(str(data["meta"])).get("wall_time", 0.0))
+        meta = json.loads(str(data["meta"]))
+    return float(meta.get("wall_time", 0.0)), dict(meta.get("phase_seconds", {}))

@@ -25,6 +25,7 @@ specimen reach each checkpoint's state.
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -63,6 +64,7 @@ from shared.mesh import (
     mesh_from_tetrahedra,
     update_mesh,
 )
+from shared.progress import PhaseClock
 from shared.retention import saturation as retention_saturation
 from shared.solver import AMG_UNKNOWNS, SolverError, SPDSolver
 from shared.swelling import swollen_radius, volumetric_strain
@@ -596,6 +598,7 @@ def advance_to_balance(
     parameters: DEMParameters,
     start: BalanceProgress | None = None,
     snapshot: Callable[[FlowSystem, BalanceProgress], None] | None = None,
+    clock: PhaseClock | None = None,
 ) -> tuple[FlowSystem, dict[str, float]]:
     """Impose a boundary suction and advance the coupled model to hydraulic balance.
 
@@ -606,7 +609,10 @@ def advance_to_balance(
     ``start`` continues a balance interrupted after a flow step (its state and flow
     system as saved then); ``snapshot(system, progress)`` is called after every flow
     step that does not reach balance (the caller decides whether to save), and changes
-    nothing.
+    nothing. ``clock`` adds the wall time of the flow steps, swelling, relaxations,
+    geometry updates, remeshes (the updates that remeshed, with the new flow system)
+    and crack updates to its phases ``flow``, ``swelling``, ``relaxation``,
+    ``geometry``, ``remesh`` and ``cracks``.
 
     Returns
     -------
@@ -631,14 +637,19 @@ def advance_to_balance(
     time_step, dem_steps = start.time_step, start.dem_steps
     unbalanced, misfit = start.unbalanced, start.misfit
     flow_steps = start.flow_steps
+    clock = PhaseClock() if clock is None else clock
     for flow_steps in range(start.flow_steps + 1, settings.max_flow_steps + 1):
-        time_step = _flow_step(state, system, boundary_suction, time_step, settings, material)
-        radii, forces = swell(state, material, settings.cracks)
-        taken, unbalanced = relax(state.dem, state.walls, forces, settings, parameters,
-                                  state.hydraulic_forces, radii)
+        with clock.phase("flow"):
+            time_step = _flow_step(state, system, boundary_suction, time_step, settings,
+                                   material)
+        with clock.phase("swelling"):
+            radii, forces = swell(state, material, settings.cracks)
+        with clock.phase("relaxation"):
+            taken, unbalanced = relax(state.dem, state.walls, forces, settings, parameters,
+                                      state.hydraulic_forces, radii)
         state.hydraulic_forces = forces
         dem_steps += taken
-        system = _settle_geometry(state, system, settings, material)
+        system = _settle_geometry(state, system, settings, material, clock)
         misfit = float(np.abs(-state.pressure / boundary_suction - 1.0).max())
         if misfit < settings.hydraulic_tolerance:
             break
@@ -651,10 +662,11 @@ def advance_to_balance(
     for _ in range(settings.final_relaxations if hydraulic else 0):
         if unbalanced < settings.unbalanced_force_tolerance:
             break
-        taken, unbalanced = relax(state.dem, state.walls, state.hydraulic_forces, settings,
-                                  parameters)
+        with clock.phase("relaxation"):
+            taken, unbalanced = relax(state.dem, state.walls, state.hydraulic_forces,
+                                      settings, parameters)
         dem_steps += taken
-        system = _settle_geometry(state, system, settings, material)
+        system = _settle_geometry(state, system, settings, material, clock)
     mechanical = unbalanced < settings.unbalanced_force_tolerance
     return system, {
         "flow_steps": float(flow_steps),
@@ -667,17 +679,22 @@ def advance_to_balance(
 
 def _settle_geometry(
     state: PelletState, system: FlowSystem, settings: HydrationSettings,
-    material: ClayParameters,
+    material: ClayParameters, clock: PhaseClock,
 ) -> FlowSystem:
     """After a relaxation: check the points, update geometry and cracks; the flow system
-    (rebuilt after a remesh)."""
+    (rebuilt after a remesh). The update counts to ``clock``'s phase ``remesh`` if it
+    remeshed, else to ``geometry``."""
     _check_finite(state, "mechanical relaxation")
     extent = np.ptp(state.dem.positions, axis=0)
     if np.any(extent > 2.0 * state.reference_extent):
         raise DivergenceError(
             f"the specimen flies apart (extent {extent.max():.3g} m) at t = {state.time:.3g} s"
         )
-    if update_geometry(state, settings.porosity_bounds, material):
+    start = time.perf_counter()
+    remeshed = update_geometry(state, settings.porosity_bounds, material)
+    if remeshed:
         system = FlowSystem.for_mesh(state.mesh, settings=settings)
-    update_cracks(state, material)
+    clock.add("remesh" if remeshed else "geometry", time.perf_counter() - start)
+    with clock.phase("cracks"):
+        update_cracks(state, material)
     return system

@@ -37,7 +37,7 @@ from shared.dem.parameters import DEM_MATERIAL_KEYS, DEMParameters, dem_paramete
 from shared.io import read_dataset, write_dataset
 from shared.materials import CLAY_CONFIG_KEYS, ClayParameters, clay_parameters
 from shared.mesh import mesh_from_tetrahedra
-from shared.progress import Progress
+from shared.progress import ConvergenceProgress, PhaseClock, Progress
 from shared.provenance import config_sha256
 
 __all__ = [
@@ -232,6 +232,14 @@ def run(
     rule
         Snakemake rule name, for provenance.
 
+    Returns
+    -------
+    xarray.Dataset
+        The written results. Besides ``wall_time_s`` and ``peak_memory_mb``, the
+        attributes ``wall_time_<phase>_s`` split the wall time [s] into settling,
+        flow, swelling, relaxation, geometry, remesh, cracks, measurement and output
+        (what remains is set-up and the figure).
+
     Raises
     ------
     DivergenceError
@@ -258,9 +266,11 @@ def run(
             vtk.clear_snapshots(vtk_dir, output.stem)
         source = grid if heterogeneous else None
         mean = None if heterogeneous else _specimen_mean(spec, grid, material, parameters)
-        state = initial_state(spec, source, mean, material, parameters)
-        system, settled = settle(state, FlowSystem.for_mesh(state.mesh, settings=settings),
-                                 spec, source, mean, settings, material, parameters)
+        clock = PhaseClock()
+        with clock.phase("settling"):
+            state = initial_state(spec, source, mean, material, parameters)
+            system, settled = settle(state, FlowSystem.for_mesh(state.mesh, settings=settings),
+                                     spec, source, mean, settings, material, parameters)
         log.info("%s: settled at the initial suction in %d DEM steps (unbalanced force %.3g)",
                  case, settled["dem_steps"], settled["unbalanced_force"])
         records: list[dict[str, Any]] = []
@@ -270,28 +280,41 @@ def run(
     else:
         state, system, records, reference_volume, balance = resumed
         # the wall time of the runs before, up to their last checkpoint file
-        earlier = checkpoint_wall_time(state_file)
+        earlier, phase_seconds = checkpoint_wall_time(state_file)
+        clock = PhaseClock(phase_seconds)
         log.info("%s: resuming after checkpoint %d of %d%s", case, len(records), checkpoints.size,
                  "" if balance is None else f", {balance.flow_steps} flow steps into the next")
-    progress = Progress(checkpoints.size, f"micro {case}", log, interval=0.0)
+    progress = Progress(checkpoints.size, f"micro {case}", log, interval=0.0,
+                        done_before=len(records))
     interval = float(config["micro"]["snapshot_interval_s"])
     last_save = time.monotonic()
+    balancing: ConvergenceProgress | None = None
 
     def snapshot(system: FlowSystem, balance: BalanceProgress) -> None:
-        """Save the state between two flow steps when ``interval`` has passed."""
+        """Log the balance's progress (once a minute); save the state between two flow
+        steps when ``interval`` has passed."""
         nonlocal last_save
+        if balancing is not None:
+            balancing.update(balance.flow_steps, balance.misfit)
         if time.monotonic() - last_save < interval:
             return
-        save_checkpoint(state_file, digest, state, system, records, reference_volume,
-                        wall_time=earlier + time.monotonic() - started, balance=balance)
+        with clock.phase("output"):
+            save_checkpoint(state_file, digest, state, system, records, reference_volume,
+                            wall_time=earlier + time.monotonic() - started, balance=balance,
+                            phase_seconds=clock.seconds)
         last_save = time.monotonic()
 
     for index in range(len(records), checkpoints.size):
         suction = float(checkpoints[index])
+        # flow steps and the largest relative suction misfit, down to the tolerance
+        balancing = ConvergenceProgress(
+            settings.hydraulic_tolerance,
+            f"{case}: balance at {suction:.3g} Pa (checkpoint {index + 1}/{checkpoints.size}), "
+            "suction misfit", log)
         try:
             system, diagnostics = advance_to_balance(state, system, suction, settings,
                                                      material, parameters, start=balance,
-                                                     snapshot=snapshot)
+                                                     snapshot=snapshot, clock=clock)
             balance = None
         except DivergenceError as err:
             raise DivergenceError(
@@ -300,16 +323,20 @@ def run(
             ) from err
         # each checkpoint is measured on a mesh rebuilt from the moved points (not the
         # per-step update_mesh, which rounds differently); the checkpoint file keeps it
-        state.mesh = mesh_from_tetrahedra(state.dem.positions, state.mesh.tetrahedra,
-                                          state.mesh.neighbours, reorient=False)
-        record = measure_checkpoint(state, suction, reference_volume, material, settings.cracks)
+        with clock.phase("measurement"):
+            state.mesh = mesh_from_tetrahedra(state.dem.positions, state.mesh.tetrahedra,
+                                              state.mesh.neighbours, reorient=False)
+            record = measure_checkpoint(state, suction, reference_volume, material,
+                                        settings.cracks)
         record.update(diagnostics)
         records.append(record)
-        save_checkpoint(state_file, digest, state, system, records, reference_volume,
-                        wall_time=earlier + time.monotonic() - started)
+        with clock.phase("output"):
+            save_checkpoint(state_file, digest, state, system, records, reference_volume,
+                            wall_time=earlier + time.monotonic() - started,
+                            phase_seconds=clock.seconds)
+            if vtk_dir is not None:
+                vtk.write_checkpoint_snapshot(vtk_dir, output.stem, index, state)
         last_save = time.monotonic()
-        if vtk_dir is not None:
-            vtk.write_checkpoint_snapshot(vtk_dir, output.stem, index, state)
         log.info("%s: s = %.3g Pa, S = %.3f, eps_v = %.4f, cracks %d, k_w,x = %.3g m2, "
                  "k_g,x = %.3g m2, balanced %d", case, suction, record["saturation"],
                  record["eps_v"], record["crack_count"], record["permeability"][0, 0],
@@ -320,7 +347,8 @@ def run(
                     confinement=spec.confinement, crack_model=int(settings.cracks),
                     porosity_source="ct" if heterogeneous else "homogeneous",
                     wall_time_s=earlier + time.monotonic() - started,
-                    peak_memory_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0)
+                    peak_memory_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+                    **{f"wall_time_{name}_s": seconds for name, seconds in clock.seconds.items()})
     write_dataset(ds, output, stage="micro", title=f"micro pellet hydration, case {case}",
                   config=section, seed=spec.seed, inputs=[porosity_input], rule=rule,
                   references="Caulk (2022), PhD thesis, Univ. Grenoble Alpes, Chap. 3")

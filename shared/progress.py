@@ -1,11 +1,15 @@
-"""Progress of long loops: a periodic log line with the fraction done and an ETA."""
+"""Progress of long loops: a periodic log line with the fraction done and an ETA, and
+the cumulative wall time of a run's phases."""
 
 from __future__ import annotations
 
 import logging
+import math
 import time
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 
-__all__ = ["Progress"]
+__all__ = ["ConvergenceProgress", "PhaseClock", "Progress"]
 
 
 class Progress:
@@ -21,15 +25,26 @@ class Progress:
         Where the lines go.
     interval
         Minimum time between lines [s].
+    done_before
+        Units finished before this process started (a resumed run): the ETA extrapolates
+        the rate of the units done since.
     """
 
-    def __init__(self, total: float, label: str, log: logging.Logger, interval: float = 10.0):
+    def __init__(self, total: float, label: str, log: logging.Logger, interval: float = 10.0,
+                 done_before: float = 0.0):
         self.total = float(total)
         self.label = label
         self.log = log
         self.interval = interval
+        self.done_before = float(done_before)
         self.start = time.monotonic()
         self._last = -float("inf")
+
+    def eta(self, done: float) -> float:
+        """Seconds left at the rate so far, once ``done`` units are finished [s]."""
+        elapsed = time.monotonic() - self.start
+        rate = (done - self.done_before) / elapsed if elapsed > 0 else 0.0
+        return max(self.total - done, 0.0) / rate if rate > 0 else float("nan")
 
     def update(self, done: float, force: bool = False) -> None:
         """Report ``done`` units finished; logs only when the interval has elapsed."""
@@ -37,10 +52,87 @@ class Progress:
         if not force and now - self._last < self.interval:
             return
         self._last = now
-        elapsed = now - self.start
         fraction = min(max(done / self.total, 0.0), 1.0) if self.total > 0 else 1.0
-        eta = elapsed * (1.0 - fraction) / fraction if fraction > 0 else float("nan")
         self.log.info(
             "%s: %g/%g (%.0f %%), elapsed %.1f s, ETA %.1f s",
-            self.label, done, self.total, 100.0 * fraction, elapsed, eta,
+            self.label, done, self.total, 100.0 * fraction, now - self.start, self.eta(done),
         )
+
+
+class ConvergenceProgress:
+    """Log ``label: step k, residual r (target t), elapsed, ETA`` at most every
+    ``interval`` seconds, for an iteration that drives a residual down to a target.
+
+    The ETA extrapolates the geometric decay of the residual since the first finite
+    one: (ln r - ln t) divided by the rate of fall of ln r per second so far (NaN
+    while the residual has not fallen).
+
+    Parameters
+    ----------
+    target
+        Residual at which the iteration stops [1], > 0.
+    label, log, interval
+        As for :class:`Progress`.
+    """
+
+    def __init__(self, target: float, label: str, log: logging.Logger, interval: float = 60.0):
+        if not target > 0.0:
+            raise ValueError(f"target must be > 0, got {target}")
+        self.target = float(target)
+        self.label = label
+        self.log = log
+        self.interval = interval
+        self.start = time.monotonic()
+        self._first: tuple[float, float] | None = None
+        self._last = time.monotonic()
+
+    def eta(self, residual: float) -> float:
+        """Seconds left to the target at the residual's rate of fall so far [s]."""
+        now = time.monotonic()
+        if not math.isfinite(residual) or residual <= 0.0:
+            return float("nan")
+        if self._first is None:
+            self._first = (now, residual)
+            return float("nan")
+        since, first = self._first
+        fall = (math.log(first) - math.log(residual)) / (now - since) if now > since else 0.0
+        if residual <= self.target:
+            return 0.0
+        return (math.log(residual) - math.log(self.target)) / fall if fall > 0 else float("nan")
+
+    def update(self, step: int, residual: float) -> None:
+        """Report the residual after ``step`` iterations; logs only when the interval
+        has elapsed."""
+        eta = self.eta(residual)
+        now = time.monotonic()
+        if now - self._last < self.interval:
+            return
+        self._last = now
+        self.log.info("%s: step %d, residual %.3g (target %.3g), elapsed %.1f s, ETA %.1f s",
+                      self.label, step, residual, self.target, now - self.start, eta)
+
+
+class PhaseClock:
+    """Cumulative wall time of the named phases of a run [s], carried over a restart.
+
+    Parameters
+    ----------
+    seconds
+        Totals so far per phase [s] (those of an interrupted run to resume).
+    """
+
+    def __init__(self, seconds: Mapping[str, float] | None = None):
+        self.seconds: dict[str, float] = {k: float(v) for k, v in (seconds or {}).items()}
+
+    def add(self, name: str, seconds: float) -> None:
+        """Count ``seconds`` [s] to phase ``name``."""
+        self.seconds[name] = self.seconds.get(name, 0.0) + seconds
+
+    @contextmanager
+    def phase(self, name: str) -> Iterator[None]:
+        """Count the wall time of the ``with`` block to phase ``name``."""
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.add(name, time.perf_counter() - start)

@@ -73,9 +73,14 @@ def _assert_same_file(resumed: Path, reference: Path) -> None:
             else:
                 assert np.array_equal(x, y), name
             assert a[name].attrs == b[name].attrs, name
-        same = {k: v for k, v in a.attrs.items() if k not in VOLATILE}
-        assert same == {k: v for k, v in b.attrs.items() if k not in VOLATILE}
+        same = {k: v for k, v in a.attrs.items() if not _volatile(k)}
+        assert same == {k: v for k, v in b.attrs.items() if not _volatile(k)}
         assert VOLATILE <= set(b.attrs)
+
+
+def _volatile(attribute: str) -> bool:
+    """Provenance times and the wall time in all and per phase (``wall_time_<phase>_s``)."""
+    return attribute in VOLATILE or attribute.startswith("wall_time_")
 
 
 @pytest.mark.parametrize("kill", range(1, len(CHECKPOINTS)))
@@ -96,13 +101,19 @@ def test_resume_after_a_kill_at_every_checkpoint_is_bit_identical(case, uninterr
     with pytest.raises(DivergenceError, match="simulated kill"):
         micro_run.run(config, "c", grid, output, output.with_suffix(".png"))
     state_file = output.with_suffix(".checkpoint.npz")
-    before = checkpoint_wall_time(state_file)
+    before, phases = checkpoint_wall_time(state_file)
     assert before > 0.0 and not output.exists()
     monkeypatch.setattr(micro_run, "advance_to_balance", original)
     resumed = micro_run.run(config, "c", grid, output, output.with_suffix(".png"))
     assert not state_file.exists()
-    # the whole run: the killed run's time up to its checkpoint file, and the rest
+    # the whole run: the killed run's time up to its checkpoint file, and the rest; the
+    # phases partition it and carry the killed run's share over
     assert resumed.attrs["wall_time_s"] > before
+    timed = {k[len("wall_time_"):-2]: v for k, v in resumed.attrs.items()
+             if k.startswith("wall_time_") and k != "wall_time_s"}
+    assert set(phases) <= set(timed) and all(timed[k] >= v for k, v in phases.items())
+    assert {"settling", "flow", "relaxation", "measurement"} <= set(timed)
+    assert sum(timed.values()) <= resumed.attrs["wall_time_s"]
     _assert_same_file(output, uninterrupted)
 
 

@@ -1,0 +1,63 @@
+"""Progress lines and phase clocks against closed forms, on a simulated clock."""
+
+from __future__ import annotations
+
+import logging
+import math
+import types
+
+import pytest
+
+from shared import progress
+from shared.progress import ConvergenceProgress, PhaseClock, Progress
+
+LOG = logging.getLogger("test.progress")
+
+
+@pytest.fixture
+def clock(monkeypatch):
+    """A settable clock standing for both ``time.monotonic`` and ``time.perf_counter``."""
+    now = {"t": 1000.0}
+    fake = types.SimpleNamespace(monotonic=lambda: now["t"], perf_counter=lambda: now["t"])
+    monkeypatch.setattr(progress, "time", fake)
+    return now
+
+
+def test_eta_of_a_resumed_loop_uses_the_rate_since_the_restart(clock):
+    """9 of 14 units were done before the restart, 1 more in 100 s: 4 left take 400 s."""
+    bar = Progress(14, "run", LOG, done_before=9)
+    clock["t"] += 100.0
+    assert bar.eta(10) == pytest.approx(400.0)
+    assert bar.eta(14) == 0.0
+    fresh = Progress(14, "run", LOG)
+    clock["t"] += 100.0
+    assert fresh.eta(7) == pytest.approx(100.0 * 7 / 7)
+
+
+def test_convergence_eta_extrapolates_a_geometric_decay(clock, caplog):
+    """r = r0 exp(-t / 10 s): from r0 e^-1 to a target r0 e^-3 takes 20 s more."""
+    bar = ConvergenceProgress(math.exp(-3.0), "balance", LOG, interval=0.0)
+    assert math.isnan(bar.eta(float("inf")))  # no finite residual yet
+    assert math.isnan(bar.eta(1.0))  # the first finite one only starts the clock
+    clock["t"] += 10.0
+    assert bar.eta(math.exp(-1.0)) == pytest.approx(20.0)
+    clock["t"] += 5.0
+    assert math.isnan(bar.eta(2.0))  # rose since the start: no estimate
+    assert bar.eta(math.exp(-4.0)) == 0.0
+    with caplog.at_level(logging.INFO, logger="test.progress"):
+        bar.update(7, math.exp(-2.0))
+    assert "step 7" in caplog.text and "target" in caplog.text
+    with pytest.raises(ValueError, match="target"):
+        ConvergenceProgress(0.0, "balance", LOG)
+
+
+def test_phase_clock_partitions_and_resumes(clock):
+    """Blocks add up per phase, an exception still counts, and totals carry over."""
+    timer = PhaseClock({"flow": 2.0})
+    with timer.phase("flow"):
+        clock["t"] += 3.0
+    with pytest.raises(RuntimeError), timer.phase("relaxation"):
+        clock["t"] += 0.5
+        raise RuntimeError("diverged")
+    timer.add("relaxation", 1.0)
+    assert timer.seconds == {"flow": 5.0, "relaxation": 1.5}
