@@ -272,7 +272,8 @@ def convergence_dataset(cases: Mapping[str, xr.Dataset]) -> xr.Dataset:
         leading dimension ``n_points`` in ascending order: ``saturation(n_points,
         checkpoint)``, ``permeability(n_points, checkpoint, phase, axis)`` [m2], ...;
         ``suction(checkpoint)`` [Pa]; ``n_cells``, ``wall_time_s`` and ``peak_memory_mb``
-        over ``n_points`` when the inputs record them; ``<var>_relative_change`` of the
+        over ``n_points`` when the inputs record them, ``wall_time_phase(n_points,
+        run_phase)`` [s] when some do (NaN where one does not); ``<var>_relative_change`` of the
         tracked quantities (saturation, eps_v, permeability, porosity_mean, crack_count,
         crack_volume), |x_N - x_N-1| / |x_N|. Attribute ``cases``: the case names in
         ``n_points`` order.
@@ -303,6 +304,15 @@ def convergence_dataset(cases: Mapping[str, xr.Dataset]) -> xr.Dataset:
         if all(attr in cases[name].attrs for name in order):
             data[attr] = ("n_points", np.array([float(cases[name].attrs[attr]) for name in order]),
                           {"units": units, "long_name": long_name})
+    phases = sorted({k[len("wall_time_"):-2] for name in order for k in cases[name].attrs
+                     if k.startswith("wall_time_") and k != "wall_time_s"})
+    if phases:
+        data["wall_time_phase"] = (
+            ("n_points", "run_phase"),
+            np.array([[float(cases[name].attrs.get(f"wall_time_{phase}_s", np.nan))
+                       for phase in phases] for name in order]),
+            {"units": "s", "long_name": "wall time of the case's run per phase (NaN: not "
+                                        "recorded)"})
     for var in _TRACKED:
         if var in data:
             values = np.asarray(data[var].values, dtype=float)
@@ -316,6 +326,9 @@ def convergence_dataset(cases: Mapping[str, xr.Dataset]) -> xr.Dataset:
     coords: dict[str, Any] = _shared_coords(base)
     coords["n_points"] = ("n_points", np.array([counts[name] for name in order], dtype=np.int64),
                           {"units": "1", "long_name": "number of DEM points of the case"})
+    if phases:
+        coords["run_phase"] = ("run_phase", np.array(phases),
+                               {"long_name": "phase of a micro run (micro.run.run)"})
     ds = xr.Dataset(data, coords=coords)
     ds.attrs.update(study="convergence", cases=json.dumps(order))
     return ds

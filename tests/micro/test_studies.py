@@ -73,6 +73,18 @@ def test_convergence_stacks_the_cases_sorted_by_n_points(rng):
             assert ds[var].attrs == cases[name][var].attrs
         assert float(ds["n_cells"].isel(n_points=index)) == 6 * cases[name].attrs["n_points"]
     np.testing.assert_array_equal(ds["suction"].values, SUCTIONS)
+    assert "wall_time_phase" not in ds
+
+
+def test_convergence_stacks_the_phase_times_that_cases_record(rng):
+    """A case run before phases were timed gets NaN; the phases are the union."""
+    cases = {"old": _case(rng, 125), "new": _case(rng, 343), "newer": _case(rng, 1000)}
+    cases["new"].attrs.update(wall_time_flow_s=2.0, wall_time_relaxation_s=3.0)
+    cases["newer"].attrs.update(wall_time_flow_s=5.0, wall_time_remesh_s=1.0)
+    ds = convergence_dataset(cases)
+    assert list(ds["run_phase"].values) == ["flow", "relaxation", "remesh"]
+    np.testing.assert_array_equal(ds["wall_time_phase"].values,
+                                  [[np.nan] * 3, [2.0, 3.0, np.nan], [5.0, np.nan, 1.0]])
     assert ds["suction"].dims == ("checkpoint",)
 
 
