@@ -1,14 +1,16 @@
 """numba kernels of the DEM core: cell lists, Hertz-Mindlin contacts, bonds, walls, leapfrog.
 
 Arrays in, arrays out; no Python objects and no globals (the on-disk cache freezes them).
-Every kernel is serial: each loop scatters into shared per-point arrays, and a serial
-scatter keeps the summation order, hence the results, identical from run to run.
+Every sum over contacts or bonds into shared per-point arrays runs serially, in list
+order: the summation order, hence the results, are the same from run to run and
+whatever the thread count. Only work without such sums runs in parallel (each contact's
+Hertz-Mindlin force into its own row, per-point updates).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True)
@@ -79,7 +81,7 @@ def find_pairs(positions, radii, cutoff_factor, skin, cell_xyz, dims, cell_start
     return pairs, count
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def hertz_mindlin(positions, velocities, spins, radii, reference_radii, pairs,
                   reference_overlaps, shear_forces, effective_modulus, shear_coefficient,
                   time_step, forces, torques):
@@ -90,16 +92,26 @@ def hertz_mindlin(positions, velocities, spins, radii, reference_radii, pairs,
     stress-free overlap, ``reference_overlaps[k]`` at the reference radii, scaled with
     r_i + r_j; the shear stiffness on the whole overlap.
     Returns the normal force magnitude per contact [N] (0 if apart).
-    Scalar arithmetic only: small temporary arrays would be heap-allocated per contact.
+    The contacts are evaluated in parallel, each into its own row, and scattered onto
+    the points serially in contact order: the sums, hence the results, do not depend
+    on the thread count. Scalar arithmetic only: small temporary arrays would be
+    heap-allocated per contact.
     """
-    normal_forces = np.zeros(pairs.shape[0])
-    for k in range(pairs.shape[0]):
+    n_pairs = pairs.shape[0]
+    normal_forces = np.zeros(n_pairs)
+    touching = np.zeros(n_pairs, dtype=np.bool_)
+    # per contact: force on i, n x (shear force) and the two branch lengths
+    pushes = np.empty((n_pairs, 3))
+    turns = np.empty((n_pairs, 3))
+    arms = np.empty((n_pairs, 2))
+    for k in prange(n_pairs):
         i, j = pairs[k, 0], pairs[k, 1]
         dx, dy, dz, dist = _separation(positions, i, j)
         overlap = radii[i] + radii[j] - dist
         if overlap <= 0.0 or dist == 0.0:
             shear_forces[k, 0] = shear_forces[k, 1] = shear_forces[k, 2] = 0.0
             continue
+        touching[k] = True
         loaded = -_stretch(overlap, reference_overlaps[k], radii[i], radii[j],
                            reference_radii[i], reference_radii[j])
         nx, ny, nz = dx / dist, dy / dist, dz / dist
@@ -122,7 +134,16 @@ def hertz_mindlin(positions, velocities, spins, radii, reference_radii, pairs,
         sy -= kdt * (vy - vn * ny)
         sz -= kdt * (vz - vn * nz)
         shear_forces[k, 0], shear_forces[k, 1], shear_forces[k, 2] = sx, sy, sz
-        apply_contact(forces, torques, i, j, fn, nx, ny, nz, sx, sy, sz, arm_i, arm_j)
+        pushes[k, 0], pushes[k, 1], pushes[k, 2] = sx - fn * nx, sy - fn * ny, sz - fn * nz
+        turns[k, 0] = ny * sz - nz * sy
+        turns[k, 1] = nz * sx - nx * sz
+        turns[k, 2] = nx * sy - ny * sx
+        arms[k, 0], arms[k, 1] = arm_i, arm_j
+    for k in range(n_pairs):
+        if touching[k]:
+            _scatter_contact(forces, torques, pairs[k, 0], pairs[k, 1], pushes[k, 0],
+                             pushes[k, 1], pushes[k, 2], turns[k, 0], turns[k, 1],
+                             turns[k, 2], arms[k, 0], arms[k, 1])
     return normal_forces
 
 
@@ -143,14 +164,21 @@ def contact_velocity(velocities, spins, i, j, nx, ny, nz, arm_i, arm_j):  # type
 def apply_contact(forces, torques, i, j, fn, nx, ny, nz, sx, sy, sz, arm_i, arm_j):  # type: ignore[no-untyped-def]
     """Add a contact's normal force fn along -n and shear (sx, sy, sz) on i, the opposite
     on j, and the shear's torques about each centre (arms to the contact point)."""
-    forces[i, 0] += sx - fn * nx
-    forces[i, 1] += sy - fn * ny
-    forces[i, 2] += sz - fn * nz
-    forces[j, 0] += fn * nx - sx
-    forces[j, 1] += fn * ny - sy
-    forces[j, 2] += fn * nz - sz
     # torques arm_i n x F_s on i and (-arm_j n) x (-F_s) on j point the same way
-    tx, ty, tz = ny * sz - nz * sy, nz * sx - nx * sz, nx * sy - ny * sx
+    _scatter_contact(forces, torques, i, j, sx - fn * nx, sy - fn * ny, sz - fn * nz,
+                     ny * sz - nz * sy, nz * sx - nx * sz, nx * sy - ny * sx, arm_i, arm_j)
+
+
+@njit(cache=True)
+def _scatter_contact(forces, torques, i, j, fx, fy, fz, tx, ty, tz, arm_i, arm_j):  # type: ignore[no-untyped-def]
+    """Add the force (fx, fy, fz) on i and its opposite on j, and the torques arm t on
+    both (t = n x F_s)."""
+    forces[i, 0] += fx
+    forces[i, 1] += fy
+    forces[i, 2] += fz
+    forces[j, 0] -= fx
+    forces[j, 1] -= fy
+    forces[j, 2] -= fz
     torques[i, 0] += arm_i * tx
     torques[i, 1] += arm_i * ty
     torques[i, 2] += arm_i * tz
@@ -304,7 +332,7 @@ def wall_contacts(positions, radii, lower, upper, active, effective_modulus, for
     return wall_force, wall_stiffness
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def leapfrog(values, rates, drives, inertia, fixed, damping, time_step):
     """Advance half-step ``rates`` (and ``values`` if given) by one step, in place.
 
@@ -314,7 +342,7 @@ def leapfrog(values, rates, drives, inertia, fixed, damping, time_step):
     each drive component by 1 - damping sign(drive rate_mid), rate_mid the rate at
     the current time (second-order form of Yade's NewtonIntegrator).
     """
-    for i in range(rates.shape[0]):
+    for i in prange(rates.shape[0]):
         if fixed[i]:
             continue
         for c in range(3):
@@ -339,10 +367,10 @@ def largest_distance(points, reference):
     return largest
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def cap_speed(velocities, max_speed):
     """Scale down, in place, the rows of ``velocities`` faster than ``max_speed``."""
-    for i in range(velocities.shape[0]):
+    for i in prange(velocities.shape[0]):
         speed = np.sqrt(velocities[i, 0] ** 2 + velocities[i, 1] ** 2 + velocities[i, 2] ** 2)
         if speed > max_speed:
             scale = max_speed / speed

@@ -141,3 +141,32 @@ def test_without_strength_a_bond_breaks_at_its_first_stretch():
     state.positions[1, 0] += 1e-9
     assert _pair_force(state, parameters) == 0.0
     assert state.bond_broken.all()
+
+
+def test_steps_do_not_depend_on_the_thread_count():
+    """Forces, shear history and motion of a random assembly after 20 steps, with spins
+    and drifting velocities, bit for bit on one and on two threads."""
+    import numba
+
+    from shared.dem import step
+
+    def run(threads):
+        rng = np.random.default_rng(5)
+        state = new_state(rng.uniform(0.0, 1e-3, (400, 3)), rng.uniform(6e-5, 1.2e-4, 400), DEM)
+        state.velocities[:] = rng.normal(0.0, 1e-3, state.velocities.shape)
+        state.spins[:] = rng.normal(0.0, 10.0, state.spins.shape)
+        before = numba.get_num_threads()
+        numba.set_num_threads(threads)
+        try:
+            reports = [step(state, 1e-8, DEM) for _ in range(20)]
+        finally:
+            numba.set_num_threads(before)
+        return [state.positions, state.velocities, state.spins, state.contacts.shear_forces,
+                reports[-1].forces, reports[-1].torques, reports[-1].normal_forces]
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba has a single thread here")
+    one, two = run(1), run(2)
+    assert np.count_nonzero(one[-1]) > 100
+    for a, b in zip(one, two):
+        assert np.array_equal(a, b)
