@@ -218,7 +218,8 @@ def _checks(ours: Mapping[str, float], paper: Mapping[str, Any]) -> dict[str, bo
     return checks
 
 
-def validate_preset(name: str, scale: float, directory: Path, mode: str = "exact") -> dict[str, Any]:
+def validate_preset(name: str, scale: float, directory: Path, mode: str = "exact",
+                    seed: int | None = None) -> dict[str, Any]:
     """Run one preset and compare it with the paper.
 
     Parameters
@@ -231,11 +232,13 @@ def validate_preset(name: str, scale: float, directory: Path, mode: str = "exact
         Where the packing file and its figure are written.
     mode : str
         Contact mode, ``exact`` or ``scan`` (the preset's ``scan_points``).
+    seed : int, optional
+        Random seed in place of the preset's (run-to-run spread).
 
     Returns
     -------
     dict
-        ``preset``, ``scale``, ``mode``, ``n_particles``, ``box_width_m``, ``ours`` (the quantities
+        ``preset``, ``scale``, ``mode``, ``seed``, ``n_particles``, ``box_width_m``, ``ours`` (the quantities
         of :data:`QUANTITIES` in the table's units, plus ``S``), ``paper``, ``rel_diff``
         (ours / paper - 1 where the paper gives a value), ``checks``, ``passed``,
         ``wall_time_s`` (deposition, analyses and writing), ``deposition_s`` (summed
@@ -243,9 +246,13 @@ def validate_preset(name: str, scale: float, directory: Path, mode: str = "exact
     """
     section = preset_section(name, scale)
     section["contact_mode"] = mode
-    start = time.perf_counter()
     suffix = "" if mode == "exact" else f"_{mode}"
-    ds = run(packing_section(section, name), directory / f"{name}_s{scale:g}{suffix}.nc")
+    if seed is not None and seed != section.get("seed", 1):
+        section["seed"] = seed
+        suffix += f"_seed{seed}"
+    section = packing_section(section, name)
+    start = time.perf_counter()
+    ds = run(section, directory / f"{name}_s{scale:g}{suffix}.nc")
     wall = time.perf_counter() - start
     ours = {key: float(ds[var]) * factor if var in ds else float("nan")
             for key, _, _, var, factor in QUANTITIES}
@@ -258,6 +265,7 @@ def validate_preset(name: str, scale: float, directory: Path, mode: str = "exact
         "preset": name,
         "scale": scale,
         "mode": mode,
+        "seed": int(section["seed"]),
         "n_particles": n_particles,
         "box_width_m": float(section["box_width_m"]),
         "ours": ours,
@@ -440,15 +448,16 @@ def markdown_table(rows: Iterable[Mapping[str, Any]]) -> str:
              "beta < 1.5 deg (all runs); A_L, A_B, A_T within 15 % of Table IV (fractions). "
              "Scale < 1: N x scale, w x sqrt(scale) (a quick check, not a validation).", "",
              CONTACT_ACCURACY, "",
-             "| preset | scale | contacts | N | porosity (paper) | S_part (paper) | eta | "
+             "| preset | scale | contacts | seed | N | porosity (paper) | S_part (paper) | eta | "
              "beta [deg] | A_T [m2/g] (paper) | f_o | wall [s] | particles/s | result |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for row in rows:
         ours, paper = row["ours"], row["paper"]
         porosity = ("{:.2f}-{:.2f}".format(*paper["porosity_range"])
                     if "porosity_range" in paper else _cell(paper["porosity"]))
         lines.append(
-            f"| {row['preset']} | {row['scale']:g} | {row.get('mode', 'exact')} | {row['n_particles']} | "
+            f"| {row['preset']} | {row['scale']:g} | {row.get('mode', 'exact')} | {_seed(row)} | "
+            f"{row['n_particles']} | "
             f"{_cell(ours['porosity'])} ({porosity}) | "
             f"{_cell(ours['S_part'])} ({_cell(paper.get('S_part'))}) | {_cell(ours['eta'])} | "
             f"{_cell(ours['beta'])} | {_cell(ours['A_T'])} ({_cell(paper.get('A_T'))}) | "
@@ -458,7 +467,7 @@ def markdown_table(rows: Iterable[Mapping[str, Any]]) -> str:
     for row in rows:
         paper, checks = row["paper"], row["checks"]
         lines += [f"## {row['preset']} ({row.get('mode', 'exact')} contacts, scale {row['scale']:g}, "
-                  f"N = {row['n_particles']}, "
+                  f"seed {_seed(row)}, N = {row['n_particles']}, "
                   f"w = {row['box_width_m'] * 1e6:.3g} um): "
                   f"{'PASS' if row['passed'] else 'FAIL'}", "",
                   f"paper source: {paper['source']}; wall time {row['wall_time_s']:.0f} s "
@@ -478,6 +487,38 @@ def markdown_table(rows: Iterable[Mapping[str, Any]]) -> str:
                          f"{f'{diff:+.1%}' if np.isfinite(diff) else ''} | {check} |")
         lines.append("")
     return "\n".join(lines)
+
+
+def spread_markdown(rows: Iterable[Mapping[str, Any]]) -> str:
+    """Run-to-run spread: porosity and S_part of every preset, scale and contact mode run
+    with more than one seed, their mean and range, and the mean's difference from the
+    paper (Table IV; the Sec. III range's nearest bound for the Table II series)."""
+    groups: dict[tuple[str, float, str], list[Mapping[str, Any]]] = {}
+    for row in rows:
+        groups.setdefault(_row_key(row)[:3], []).append(row)
+    lines = ["## Run-to-run spread (same preset, other seeds)", "",
+             "| preset | scale | contacts | seeds | porosity: values, range | "
+             "mean - paper | S_part: values, range | mean - paper |",
+             "|---|---|---|---|---|---|---|---|"]
+    for (preset, scale, mode), group in groups.items():
+        if len(group) < 2:
+            continue
+        cells = []
+        for key in ("porosity", "S_part"):
+            values = np.array([row["ours"][key] for row in group])
+            paper = group[0]["paper"]
+            if key == "porosity" and "porosity_range" in paper:
+                low, high = paper["porosity_range"]
+                gap = values.mean() - np.clip(values.mean(), low, high)
+            else:
+                gap = values.mean() - paper[key] if isinstance(paper.get(key), float) else np.nan
+            cells += [", ".join(_cell(v) for v in values) + f"; {np.ptp(values):.3f}",
+                      f"{gap:+.3f}" if np.isfinite(gap) else "n/a"]
+        lines.append(f"| {preset} | {scale:g} | {mode} | "
+                     f"{', '.join(str(_seed(row)) for row in group)} | " + " | ".join(cells) + " |")
+    if len(lines) == 4:
+        return ""
+    return "\n".join(lines + [""])
 
 
 def _sweep(name: str) -> dict[str, Any] | None:
@@ -605,7 +646,7 @@ def porosity_order_figure(rows: Iterable[Mapping[str, Any]], path: Path,
 
 
 def bench_deposition_validation(scale: float = 1.0, presets: Iterable[str] = PRESETS,
-                                mode: str = "exact") -> dict:
+                                mode: str = "exact", seed_offset: int = 0) -> dict:
     """Run the paper presets and tabulate them against Ferrage et al. (2015).
 
     Parameters
@@ -617,6 +658,9 @@ def bench_deposition_validation(scale: float = 1.0, presets: Iterable[str] = PRE
         Subset of :data:`PRESETS` to run (default: all six).
     mode : str
         Contact mode, ``exact`` or ``scan`` (rows of both modes share the table).
+    seed_offset : int
+        Added to each preset's seed (0: the preset's own); rows of several seeds share
+        the table, which then gives their spread.
 
     Returns
     -------
@@ -639,14 +683,15 @@ def bench_deposition_validation(scale: float = 1.0, presets: Iterable[str] = PRE
     truncations = {name: truncation_table(name) for name in TABLE_IV}
     fresh = []
     for name in presets:
-        fresh.append(validate_preset(name, scale, directory, mode))
+        seed = preset_section(name, scale).get("seed", 1) + seed_offset
+        fresh.append(validate_preset(name, scale, directory, mode, seed))
         # Rows of earlier or concurrent calls (other presets or scales) are re-read before
         # every write and kept, so that one table gathers the runs a time budget allows;
         # writing after every preset keeps what a call cut short had finished.
         previous = json.loads(json_path.read_text())["rows"] if json_path.exists() else []
-        table = {(row["preset"], row["scale"], row.get("mode", "exact")): row for row in previous + fresh}
+        table = {_row_key(row): row for row in previous + fresh}
         rows = sorted(table.values(), key=lambda r: (PRESETS.index(r["preset"]), r["scale"],
-                                                     r.get("mode", "exact")))
+                                                     r.get("mode", "exact"), _seed(r)))
         result = {"rows": rows, "passed": all(r["passed"] for r in fresh),
                   "total_s": time.perf_counter() - start, "truncations": truncations}
         json_path.write_text(json.dumps(result, indent=2))
@@ -659,6 +704,27 @@ def bench_deposition_validation_scan(scale: float = 1.0) -> dict:
     return bench_deposition_validation(scale, mode="scan")
 
 
+def bench_deposition_seed_spread(seed_offset: int = 1000) -> dict:
+    """Every preset again at full scale in both contact modes with its seed plus
+    ``seed_offset``, cheapest first: the table then gives the run-to-run spread."""
+    cheapest_first = ("table2_series1", "table2_series2", "table2_series3",
+                      "fraction_10-20um", "fraction_1-2um", "fraction_0p1-0p2um")
+    result: dict = {}
+    for name in cheapest_first:
+        for mode in ("exact", "scan"):
+            result = bench_deposition_validation(1.0, (name,), mode, seed_offset)
+    return result
+
+
+def _seed(row: Mapping[str, Any]) -> int:
+    """The seed of a row (rows written before seeds were recorded: the preset's)."""
+    return int(row.get("seed", preset_section(row["preset"]).get("seed", 1)))
+
+
+def _row_key(row: Mapping[str, Any]) -> tuple[str, float, str, int]:
+    return row["preset"], row["scale"], row.get("mode", "exact"), _seed(row)
+
+
 def write_report(result: Mapping[str, Any] | None = None) -> None:
     """Write ``deposition_validation.md`` and ``.png`` from a result of
     :func:`bench_deposition_validation` (default: the JSON file), with the sweeps of
@@ -668,6 +734,6 @@ def write_report(result: Mapping[str, Any] | None = None) -> None:
     rows = result["rows"]
     appendix = "\n".join(truncation_markdown(name, table)
                          for name, table in result["truncations"].items())
-    (OUT / f"{STEM}.md").write_text(markdown_table(rows) + "\n" + sweeps_markdown() + "\n"
-                                    + appendix)
+    (OUT / f"{STEM}.md").write_text(markdown_table(rows) + "\n" + spread_markdown(rows) + "\n"
+                                    + sweeps_markdown() + "\n" + appendix)
     porosity_order_figure(rows, OUT / f"{STEM}.png", _sweep("freedom"))

@@ -63,9 +63,11 @@ class ConvergenceProgress:
     """Log ``label: step k, residual r (target t), elapsed, ETA`` at most every
     ``interval`` seconds, for an iteration that drives a residual down to a target.
 
-    The ETA extrapolates the geometric decay of the residual since the first finite
-    one: (ln r - ln t) divided by the rate of fall of ln r per second so far (NaN
-    while the residual has not fallen).
+    The ETA extrapolates a geometric decay: (ln r - ln t) over the rate of fall of ln r
+    per second since the residual first fell below half its first finite value. A
+    largest departure often stays on a plateau before it decays (the farthest cell of a
+    diffusion front has not moved yet); until it leaves it, and while it does not fall,
+    there is no estimate.
 
     Parameters
     ----------
@@ -83,21 +85,25 @@ class ConvergenceProgress:
         self.log = log
         self.interval = interval
         self.start = time.monotonic()
-        self._first: tuple[float, float] | None = None
+        self._first: float | None = None
+        self._decaying: tuple[float, float] | None = None
         self._last = time.monotonic()
 
     def eta(self, residual: float) -> float:
-        """Seconds left to the target at the residual's rate of fall so far [s]."""
+        """Seconds left to the target at the residual's rate of fall [s]; NaN if unknown."""
         now = time.monotonic()
         if not math.isfinite(residual) or residual <= 0.0:
             return float("nan")
-        if self._first is None:
-            self._first = (now, residual)
-            return float("nan")
-        since, first = self._first
-        fall = (math.log(first) - math.log(residual)) / (now - since) if now > since else 0.0
         if residual <= self.target:
             return 0.0
+        if self._first is None:
+            self._first = residual
+        if self._decaying is None:
+            if residual <= 0.5 * self._first:
+                self._decaying = (now, residual)
+            return float("nan")
+        since, first = self._decaying
+        fall = (math.log(first) - math.log(residual)) / (now - since) if now > since else 0.0
         return (math.log(residual) - math.log(self.target)) / fall if fall > 0 else float("nan")
 
     def update(self, step: int, residual: float) -> None:
@@ -108,8 +114,9 @@ class ConvergenceProgress:
         if now - self._last < self.interval:
             return
         self._last = now
-        self.log.info("%s: step %d, residual %.3g (target %.3g), elapsed %.1f s, ETA %.1f s",
-                      self.label, step, residual, self.target, now - self.start, eta)
+        self.log.info("%s: step %d, residual %.3g (target %.3g), elapsed %.1f s, ETA %s",
+                      self.label, step, residual, self.target, now - self.start,
+                      f"{eta:.1f} s" if math.isfinite(eta) else "not yet known")
 
 
 class PhaseClock:

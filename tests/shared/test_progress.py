@@ -35,18 +35,24 @@ def test_eta_of_a_resumed_loop_uses_the_rate_since_the_restart(clock):
 
 
 def test_convergence_eta_extrapolates_a_geometric_decay(clock, caplog):
-    """r = r0 exp(-t / 10 s): from r0 e^-1 to a target r0 e^-3 takes 20 s more."""
-    bar = ConvergenceProgress(math.exp(-3.0), "balance", LOG, interval=0.0)
+    """A plateau at 1, then r = exp(-(t - t1) / 10 s): from e^-2 to a target e^-4 takes
+    20 s more, measured from where the decay began (below half the first residual)."""
+    bar = ConvergenceProgress(math.exp(-4.0), "balance", LOG, interval=0.0)
     assert math.isnan(bar.eta(float("inf")))  # no finite residual yet
-    assert math.isnan(bar.eta(1.0))  # the first finite one only starts the clock
+    assert math.isnan(bar.eta(1.0))
+    clock["t"] += 30.0
+    assert math.isnan(bar.eta(0.9))  # still on the plateau
     clock["t"] += 10.0
-    assert bar.eta(math.exp(-1.0)) == pytest.approx(20.0)
+    assert math.isnan(bar.eta(math.exp(-1.0)))  # the decay starts the clock
+    clock["t"] += 10.0
+    assert bar.eta(math.exp(-2.0)) == pytest.approx(20.0)
     clock["t"] += 5.0
-    assert math.isnan(bar.eta(2.0))  # rose since the start: no estimate
-    assert bar.eta(math.exp(-4.0)) == 0.0
+    assert math.isnan(bar.eta(1.0))  # rose again: no estimate
+    assert bar.eta(math.exp(-5.0)) == 0.0
     with caplog.at_level(logging.INFO, logger="test.progress"):
-        bar.update(7, math.exp(-2.0))
-    assert "step 7" in caplog.text and "target" in caplog.text
+        bar.update(7, math.exp(-3.0))
+        bar.update(8, 1.0)
+    assert "step 7" in caplog.text and "ETA" in caplog.text and "not yet known" in caplog.text
     with pytest.raises(ValueError, match="target"):
         ConvergenceProgress(0.0, "balance", LOG)
 
