@@ -706,13 +706,19 @@ def bench_deposition_validation_scan(scale: float = 1.0) -> dict:
 
 def bench_deposition_seed_spread(seed_offset: int = 1000) -> dict:
     """Every preset again at full scale in both contact modes with its seed plus
-    ``seed_offset``, cheapest first: the table then gives the run-to-run spread."""
+    ``seed_offset``, cheapest first, skipping the runs the table already has: the
+    table then gives the run-to-run spread."""
     cheapest_first = ("table2_series1", "table2_series2", "table2_series3",
                       "fraction_10-20um", "fraction_1-2um", "fraction_0p1-0p2um")
+    json_path = OUT / f"{STEM}.json"
+    done = {_row_key(row) for row in json.loads(json_path.read_text())["rows"]} \
+        if json_path.exists() else set()
     result: dict = {}
     for name in cheapest_first:
+        seed = preset_section(name).get("seed", 1) + seed_offset
         for mode in ("exact", "scan"):
-            result = bench_deposition_validation(1.0, (name,), mode, seed_offset)
+            if (name, 1.0, mode, seed) not in done:
+                result = bench_deposition_validation(1.0, (name,), mode, seed_offset)
     return result
 
 
