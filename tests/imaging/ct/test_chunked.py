@@ -89,9 +89,10 @@ def test_memory_is_set_by_the_slab(tmp_path, monkeypatch):
     _traced_peak(tmp_path, 16)  # compiled kernels and imports outside the measured runs
     short, short_size = _traced_peak(tmp_path, 192)
     long, size = _traced_peak(tmp_path, 768)
-    # 4x the scan: the peak grows by the dask graph's bookkeeping (measured 1.1 MB for
-    # 72 more slabs), nowhere near a share of the 10.6 MB more scan
-    assert long - short < 0.25 * (size - short_size)
+    # 4x the scan: the peak grows by the dask graph's bookkeeping (1.1 MB for 72 more
+    # slabs on an idle machine, up to 2.7 MB with the workers slowed by other jobs), not by
+    # a share of the 10.6 MB more scan: holding half of it would fail
+    assert long - short < 0.5 * (size - short_size)
     assert long < size  # the scan is never held whole
     assert long < estimated_peak_bytes((768, 96, 96), 8, 1, 0)
 
