@@ -33,6 +33,7 @@ from matplotlib.figure import Figure
 
 from benchmarks.flow import _exponent, _save_cost_figure
 from benchmarks.parameters import CONFIG
+from micro.run import phase_wall_times
 
 __all__ = ["bench_micro_profile", "bench_micro_relaxation", "bench_micro_scaling"]
 
@@ -167,8 +168,7 @@ def bench_micro_scaling(folder: str = "results/micro") -> dict:
     for path in Path(folder).glob("points_*.nc"):
         with xr.open_dataset(path) as ds:
             attrs = dict(ds.attrs)
-        phases = {k[len("wall_time_"):-2]: float(v) for k, v in attrs.items()
-                  if k.startswith("wall_time_") and k != "wall_time_s"}
+        phases = phase_wall_times(attrs)
         records.append({"case": path.stem, "n_points": int(attrs["n_points"]),
                         "n_cells": int(attrs["n_cells"]), "wall_s": float(attrs["wall_time_s"]),
                         "peak_memory_mb": float(attrs["peak_memory_mb"]), "phases_s": phases})

@@ -42,6 +42,7 @@ from shared.provenance import config_sha256
 
 __all__ = [
     "MATERIAL_KEYS",
+    "phase_wall_times",
     "run",
     "case_settings",
     "hydration_settings",
@@ -206,6 +207,13 @@ def _tensor_variables(records: list[dict[str, Any]]) -> dict[str, Any]:
                                         "permeability tensor"},
         ),
     }
+
+
+def phase_wall_times(attrs: Mapping[str, Any]) -> dict[str, float]:
+    """The wall time per phase [s] that :func:`run` writes as ``wall_time_<phase>_s``
+    attributes, by phase name (empty for an output written before phases were timed)."""
+    return {key[len("wall_time_"):-len("_s")]: float(value) for key, value in attrs.items()
+            if key.startswith("wall_time_") and key.endswith("_s") and key != "wall_time_s"}
 
 
 def run(

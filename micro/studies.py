@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from micro.run import phase_wall_times
 from shared.config import ConfigError
 
 __all__ = [
@@ -304,13 +305,12 @@ def convergence_dataset(cases: Mapping[str, xr.Dataset]) -> xr.Dataset:
         if all(attr in cases[name].attrs for name in order):
             data[attr] = ("n_points", np.array([float(cases[name].attrs[attr]) for name in order]),
                           {"units": units, "long_name": long_name})
-    phases = sorted({k[len("wall_time_"):-2] for name in order for k in cases[name].attrs
-                     if k.startswith("wall_time_") and k != "wall_time_s"})
+    times = {name: phase_wall_times(cases[name].attrs) for name in order}
+    phases = sorted({phase for name in order for phase in times[name]})
     if phases:
         data["wall_time_phase"] = (
             ("n_points", "run_phase"),
-            np.array([[float(cases[name].attrs.get(f"wall_time_{phase}_s", np.nan))
-                       for phase in phases] for name in order]),
+            np.array([[times[name].get(phase, np.nan) for phase in phases] for name in order]),
             {"units": "s", "long_name": "wall time of the case's run per phase (NaN: not "
                                         "recorded)"})
     for var in _TRACKED:
