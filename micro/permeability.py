@@ -91,6 +91,8 @@ __all__ = [
     "PrincipalPermeability",
     "measure_permeability",
     "measure_permeability_tensor",
+    "measurement_pattern",
+    "tensor_pattern",
     "permeability_tensor",
     "permeability_tensor_axes",
     "principal_permeability",
@@ -213,6 +215,7 @@ def measure_permeability(
     conductance_floor: float = 1e-16,
     balance_tolerance: float = 1e-3,
     solver: SPDSolver | None = None,
+    pattern: FlowPattern | None = None,
 ) -> float:
     """Permeability along one axis from a steady solve with frozen conductances.
 
@@ -243,6 +246,9 @@ def measure_permeability(
     solver
         Solver to use; default a fresh one. A solver that already factored other
         conductances would only precondition this solve (see ``_measurement_solver``).
+    pattern
+        System pattern of this method's Dirichlet cells for this axis
+        (:func:`measurement_pattern`), e.g. shared by the two phases; default built here.
 
     Returns
     -------
@@ -252,6 +258,8 @@ def measure_permeability(
     """
     if axis not in (0, 1, 2):
         raise ValueError(f"axis must be 0, 1 or 2, got {axis}")
+    if method not in ("wall_flux", "velocity"):
+        raise ValueError(f"method must be 'wall_flux' or 'velocity', got {method!r}")
     if not pressure_drop > 0.0:
         raise ValueError(f"pressure_drop must be > 0, got {pressure_drop}")
     floored = _floored(conductance, conductance_floor)
@@ -262,11 +270,13 @@ def measure_permeability(
     )
     length = mesh.bounds[1, axis] - mesh.bounds[0, axis]
     solver = _measurement_solver() if solver is None else solver
+    if pattern is None:
+        pattern = measurement_pattern(mesh, axis, method)
+    elif not np.array_equal(pattern.dirichlet, _dirichlet_cells(mesh, axis, method)):
+        raise ValueError(f"pattern: its Dirichlet cells are not those of the {method} "
+                         f"method along axis {axis}")
     if method == "wall_flux":
-        lower_wall, upper_wall = WALLS[2 * axis], WALLS[2 * axis + 1]
-        inlet = boundary_cell_mask(mesh, [lower_wall])
-        outlet = boundary_cell_mask(mesh, [upper_wall]) & ~inlet
-        pattern = flow_pattern(mesh, inlet | outlet)
+        inlet, outlet = _wall_layers(mesh, axis)
         pressure = steady_pressure(mesh, pattern, solver, floored, departure, departure)
         entering, leaving = _wall_rates(mesh, facet_flux(mesh, floored, pressure), inlet, outlet)
         if not _balanced(entering, leaving, balance_tolerance):
@@ -283,19 +293,33 @@ def measure_permeability(
             return float("nan")
         area = mesh.volumes.sum() / length
         return viscosity * 0.5 * (entering + leaving) / (area * abs(gradient))
-    if method == "velocity":
-        dirichlet = boundary_cell_mask(mesh, list(WALLS))
-        pattern = flow_pattern(mesh, dirichlet)
-        pressure = steady_pressure(mesh, pattern, solver, floored, departure, departure)
-        flux = facet_flux(mesh, floored, pressure)
-        centre = 0.5 * (mesh.bounds[0] + mesh.bounds[1])
-        half = 0.5 * inner_fraction * (mesh.bounds[1] - mesh.bounds[0])
-        inner = np.all(np.abs(mesh.centroids - centre) <= half, axis=1) & ~dirichlet
-        if not np.any(inner):
-            raise ValueError("no free cell in the inner region: mesh too coarse")
-        velocity = _mean_velocity(mesh, flux, inner)
-        return viscosity * float(np.linalg.norm(velocity)) / abs(gradient)
-    raise ValueError(f"method must be 'wall_flux' or 'velocity', got {method!r}")
+    pressure = steady_pressure(mesh, pattern, solver, floored, departure, departure)
+    flux = facet_flux(mesh, floored, pressure)
+    inner = _inner_cells(mesh, pattern.dirichlet, inner_fraction)
+    if not np.any(inner):
+        raise ValueError("no free cell in the inner region: mesh too coarse")
+    velocity = _mean_velocity(mesh, flux, inner)
+    return viscosity * float(np.linalg.norm(velocity)) / abs(gradient)
+
+
+def _wall_layers(mesh: Mesh, axis: int) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Cells of the inlet (lower) and outlet (upper) wall layers normal to ``axis``."""
+    inlet = boundary_cell_mask(mesh, [WALLS[2 * axis]])
+    return inlet, boundary_cell_mask(mesh, [WALLS[2 * axis + 1]]) & ~inlet
+
+
+def _dirichlet_cells(mesh: Mesh, axis: int, method: Method) -> npt.NDArray[np.bool_]:
+    if method == "wall_flux":
+        inlet, outlet = _wall_layers(mesh, axis)
+        return inlet | outlet
+    return boundary_cell_mask(mesh, list(WALLS))
+
+
+def measurement_pattern(mesh: Mesh, axis: int, method: Method = "wall_flux") -> FlowPattern:
+    """System pattern of a measurement along ``axis`` (0, 1, 2) by ``method``: its
+    Dirichlet cells are the two wall layers normal to the axis (``wall_flux``) or all
+    six (``velocity``, the same for every axis)."""
+    return flow_pattern(mesh, _dirichlet_cells(mesh, axis, method))
 
 
 def _refined_rates(
@@ -374,14 +398,19 @@ def permeability_tensor_axes(
     if not suction > 0.0:
         raise ValueError(f"suction must be > 0, got {suction}")
     given = {} if conductances is None else dict(conductances)
-    result: dict[str, dict[str, float]] = {}
-    # The velocity method imposes pressure on all walls: one pattern for every axis.
-    for phase in PHASES:
-        conductance = given.get(phase)
-        if conductance is None:
-            conductance = facet_conductance(mesh, saturation, porosity, phase, material)
-        result[phase] = {
-            name: measure_permeability(
+    phases = {
+        phase: given[phase] if given.get(phase) is not None
+        else facet_conductance(mesh, saturation, porosity, phase, material)
+        for phase in PHASES
+    }
+    result: dict[str, dict[str, float]] = {phase: {} for phase in PHASES}
+    pattern = None
+    for axis, name in enumerate(AXES):
+        # one pattern per axis for both phases; the velocity method's serves every axis
+        if pattern is None or method == "wall_flux":
+            pattern = measurement_pattern(mesh, axis, method)
+        for phase, conductance in phases.items():
+            result[phase][name] = measure_permeability(
                 mesh,
                 conductance,
                 phase_viscosity(phase, material),
@@ -389,9 +418,8 @@ def permeability_tensor_axes(
                 mean_pressure=-suction,
                 pressure_drop=drop_fraction * suction,
                 method=method,
+                pattern=pattern,
             )
-            for axis, name in enumerate(AXES)
-        }
     return result
 
 
@@ -431,6 +459,7 @@ def measure_permeability_tensor(
     sealed: npt.NDArray[np.bool_] | None = None,
     solver: SPDSolver | None = None,
     label: str = "permeability tensor",
+    pattern: FlowPattern | None = None,
 ) -> FloatArray:
     """Full permeability tensor of one phase from three steady solves with one factor.
 
@@ -487,6 +516,9 @@ def measure_permeability_tensor(
         would only precondition these solves, see ``_measurement_solver``).
     label
         Name of the measurement in warnings (e.g. the phase and suction).
+    pattern
+        System pattern of these Dirichlet cells (:func:`tensor_pattern` with the same
+        ``sealed``), e.g. shared by the two phases; default built here.
 
     Returns
     -------
@@ -509,15 +541,15 @@ def measure_permeability_tensor(
     floored = _floored(conductance, conductance_floor)
     if floored is None:
         return np.zeros((3, 3))
-    dirichlet = boundary_cell_mask(mesh, list(WALLS))
-    if sealed is not None:
-        dirichlet &= ~np.asarray(sealed, dtype=bool)
+    dirichlet = _tensor_dirichlet(mesh, sealed)
+    if pattern is not None and not np.array_equal(pattern.dirichlet, dirichlet):
+        raise ValueError("pattern: its Dirichlet cells are not the wall layers less ``sealed``")
     inner = _inner_cells(mesh, dirichlet, inner_fraction)
     if not np.any(inner):
         log.warning("%s: no free cell in the inner region (mesh too coarse); tensor set to NaN",
                     label)
         return tensor
-    pattern = flow_pattern(mesh, dirichlet)
+    pattern = flow_pattern(mesh, dirichlet) if pattern is None else pattern
     matrix = assemble_matrix(mesh, pattern, floored, np.zeros(mesh.n_cells))
     solver = _measurement_solver() if solver is None else solver
     free = pattern.free_cells
@@ -554,6 +586,21 @@ def measure_permeability_tensor(
             continue
         tensor[:, j] = column
     return _dissipative(tensor, label)
+
+
+def _tensor_dirichlet(
+    mesh: Mesh, sealed: npt.NDArray[np.bool_] | None
+) -> npt.NDArray[np.bool_]:
+    dirichlet = boundary_cell_mask(mesh, list(WALLS))
+    if sealed is not None:
+        dirichlet &= ~np.asarray(sealed, dtype=bool)
+    return dirichlet
+
+
+def tensor_pattern(mesh: Mesh, sealed: npt.NDArray[np.bool_] | None = None) -> FlowPattern:
+    """System pattern of :func:`measure_permeability_tensor`: the six wall layers are
+    Dirichlet but for the ``sealed`` cells."""
+    return flow_pattern(mesh, _tensor_dirichlet(mesh, sealed))
 
 
 def _dissipative(tensor: FloatArray, label: str) -> FloatArray:
@@ -623,6 +670,7 @@ def permeability_tensor(
         raise ValueError(f"suction must be > 0, got {suction}")
     given = {} if conductances is None else dict(conductances)
     result = np.empty((len(PHASES), 3, 3))
+    pattern = tensor_pattern(mesh, sealed)
     for index, phase in enumerate(PHASES):
         conductance = given.get(phase)
         if conductance is None:
@@ -630,7 +678,7 @@ def permeability_tensor(
         result[index] = measure_permeability_tensor(
             mesh, conductance, phase_viscosity(phase, material),
             pressure_drop=drop_fraction * suction, inner_fraction=inner_fraction, sealed=sealed,
-            label=f"{phase} permeability tensor at {suction:.4g} Pa",
+            label=f"{phase} permeability tensor at {suction:.4g} Pa", pattern=pattern,
         )
     return result
 

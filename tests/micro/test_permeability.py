@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from micro.permeability import measure_permeability, permeability_tensor_axes
+from micro.permeability import measure_permeability, measurement_pattern, permeability_tensor_axes
 from shared.fv import facet_conductance, facet_flux, flow_pattern, steady_pressure
 from shared.mesh import WALLS, Mesh, boundary_cell_mask, build_mesh
 from shared.solver import SPDSolver
@@ -144,3 +144,13 @@ def test_permeability_with_near_perfect_cracks_matches_moderate_contrast(seed: i
                                         conductance_floor=1e-30)
          for contrast in (1e6, 1e15)}
     assert k[1e15] == pytest.approx(k[1e6], rel=2e-3)
+
+
+def test_a_pattern_of_another_axis_is_refused(mesh: Mesh) -> None:
+    """The two phases share one pattern per axis; a pattern of the x walls passed for a
+    z measurement would impose pressure on the wrong walls: it is refused by name."""
+    conductance = facet_conductance(mesh, np.ones(mesh.n_cells), np.full(mesh.n_cells, 0.3),
+                                    "water", MATERIAL)
+    with pytest.raises(ValueError, match="pattern"):
+        measure_permeability(mesh, conductance, MATERIAL.water_viscosity, 2, mean_pressure=-1e6,
+                             pressure_drop=1e5, pattern=measurement_pattern(mesh, 0))
