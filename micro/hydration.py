@@ -407,7 +407,9 @@ class FlowSystem:
             dirichlet = boundary_cell_mask(mesh, WALLS)
         solver = SPDSolver() if settings is None else SPDSolver(
             method=settings.solver, amg_unknowns=settings.amg_unknowns)
-        return cls(dirichlet, flow_pattern(mesh, dirichlet), solver)
+        # multigrid needs no fill-reducing order (a fallback factor orders itself)
+        fill_reducing = not solver.uses_multigrid(int((~dirichlet).sum()))
+        return cls(dirichlet, flow_pattern(mesh, dirichlet, fill_reducing), solver)
 
 
 def conductances(

@@ -35,7 +35,7 @@ from scipy.spatial import cKDTree
 
 from shared.materials import ClayParameters
 from shared.mesh import Mesh
-from shared.ordering import nested_dissection
+from shared.ordering import locality_order, nested_dissection
 from shared.permeability import (
     Phase,
     intrinsic_permeability,
@@ -92,6 +92,9 @@ class FlowPattern:
         Data position of each diagonal entry.
     facet_position : ndarray of int64, shape (n_facets,)
         Data position of each facet's off-diagonal entry, -1 unless both cells are free.
+    fill_reducing : bool
+        The unknowns are in a fill-reducing order (nested dissection) that a factor can
+        use as it is; else in a locality order, for multigrid (a factor orders itself).
     """
 
     dirichlet: npt.NDArray[np.bool_]
@@ -101,6 +104,7 @@ class FlowPattern:
     indices: npt.NDArray[np.int32]
     diagonal_position: IntArray
     facet_position: IntArray
+    fill_reducing: bool = True
 
     @property
     def n_free(self) -> int:
@@ -147,12 +151,14 @@ def _lower_pattern(
     return indptr, indices, facet_position
 
 
-def flow_pattern(mesh: Mesh, dirichlet: npt.ArrayLike) -> FlowPattern:
+def flow_pattern(mesh: Mesh, dirichlet: npt.ArrayLike, fill_reducing: bool = True) -> FlowPattern:
     """Build the system's sparsity pattern for a mesh and a set of Dirichlet cells.
 
     The unknowns are numbered in a fill-reducing order of the free cells' centroids
     (:func:`shared.ordering.nested_dissection`), so that the solver needs no ordering of
-    its own (:meth:`shared.solver.SPDSolver.solve` with ``ordered=True``).
+    its own (:meth:`shared.solver.SPDSolver.solve` with ``ordered=True``), or, for a
+    system that multigrid will solve, along a space-filling curve
+    (:func:`shared.ordering.locality_order`).
 
     Parameters
     ----------
@@ -160,6 +166,8 @@ def flow_pattern(mesh: Mesh, dirichlet: npt.ArrayLike) -> FlowPattern:
         The mesh.
     dirichlet
         Boolean mask, shape (n_cells,): cells with an imposed pressure.
+    fill_reducing
+        Nested dissection (True) or the locality order (False).
 
     Returns
     -------
@@ -172,8 +180,11 @@ def flow_pattern(mesh: Mesh, dirichlet: npt.ArrayLike) -> FlowPattern:
     n_free = free.shape[0]
     local = np.full(mesh.n_cells, -1, dtype=np.int64)
     local[free] = np.arange(n_free, dtype=np.int64)
-    ends = local[mesh.facet_cells]
-    free_cells = free[nested_dissection(mesh.centroids[free], ends[np.all(ends >= 0, axis=1)])]
+    if fill_reducing:
+        ends = local[mesh.facet_cells]
+        free_cells = free[nested_dissection(mesh.centroids[free], ends[np.all(ends >= 0, axis=1)])]
+    else:
+        free_cells = free[locality_order(mesh.centroids[free])]
     free_index = np.full(mesh.n_cells, -1, dtype=np.int64)
     free_index[free_cells] = np.arange(n_free, dtype=np.int64)
     indptr, indices, facet_position = _lower_pattern(free_index, mesh.facet_cells, n_free)
@@ -185,6 +196,7 @@ def flow_pattern(mesh: Mesh, dirichlet: npt.ArrayLike) -> FlowPattern:
         indices=indices,
         diagonal_position=indptr[:-1].copy(),
         facet_position=facet_position,
+        fill_reducing=fill_reducing,
     )
 
 
@@ -341,7 +353,7 @@ def _solve_increment(
     rhs = facet_divergence(mesh, conductance, start)[pattern.free_cells]
     matrix = assemble_matrix(mesh, pattern, conductance, storage)
     increment = solver.solve(
-        matrix, rhs, force_refactor=force_refactor, ordered=True,
+        matrix, rhs, force_refactor=force_refactor, ordered=pattern.fill_reducing,
         offset=start[pattern.free_cells] if judge_whole else None,
     )
     start[pattern.free_cells] += increment
