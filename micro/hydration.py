@@ -64,7 +64,7 @@ from shared.mesh import (
     mesh_from_tetrahedra,
     update_mesh,
 )
-from shared.progress import PhaseClock
+from shared.progress import ConvergenceProgress, PhaseClock
 from shared.retention import saturation as retention_saturation
 from shared.solver import AMG_UNKNOWNS, SolverError, SPDSolver
 from shared.swelling import swollen_radius, volumetric_strain
@@ -270,7 +270,8 @@ def relax(
     specimen), and it is stopped, since damping proportional to force does not slow a
     point that no force acts on. Single points are checked every ``check_interval``
     steps, groups every ten times that (a connected-components pass costs more than a
-    DEM step).
+    DEM step). A relaxation longer than a minute (hundreds of thousands of points) logs
+    its step, unbalanced-force ratio and ETA once a minute.
 
     Returns
     -------
@@ -287,6 +288,8 @@ def relax(
     unbalanced = float("inf")
     attached = np.ones(dem.n_points, dtype=bool)
     body = attached
+    progress = ConvergenceProgress(settings.unbalanced_force_tolerance,
+                                   "relaxation: unbalanced force ratio", log)
     for count in range(1, settings.max_relaxation_steps + 1):
         weight = min(count / settings.ramp_steps, 1.0)
         load = start + weight * (external_forces - start)
@@ -303,6 +306,7 @@ def relax(
             # speed for ever and carry the specimen's extent away with it
             dem.velocities[~attached] = 0.0
             unbalanced = unbalanced_force(report.forces, report.normal_forces, dem.fixed)
+            progress.update(count, unbalanced)
             if weight == 1.0 and unbalanced < settings.unbalanced_force_tolerance:
                 return count, unbalanced
             time_step = min(stable_time_step(dem, parameters, walls), cap)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 
 import numpy as np
 import pytest
@@ -131,6 +132,23 @@ def test_a_checkpoint_relaxes_on_until_mechanical_balance():
     assert reports[100]["balanced"] == 1.0
     check = step(state.dem, 1e-15, DEM, state.hydraulic_forces, state.walls, 0.0)
     assert unbalanced_force(check.forces, check.normal_forces) < 1e-3
+
+
+def test_a_long_relaxation_reports_its_unbalanced_force(monkeypatch, caplog):
+    """With the report interval at 0 s, every force check of a relaxation logs its step
+    and the ratio that it returns at the end."""
+    monkeypatch.setattr(hydration, "ConvergenceProgress", functools.partial(
+        hydration.ConvergenceProgress, interval=0.0))
+    state = initial_state(SMALL, None, None, CLAY, DEM)
+    tuned = settings(unbalanced_force_tolerance=1e-6, max_relaxation_steps=40, ramp_steps=10,
+                     check_interval=10)
+    with caplog.at_level("INFO", logger="micro.hydration"):
+        steps, unbalanced = hydration.relax(state.dem, state.walls,
+                                            np.zeros_like(state.dem.positions), tuned, DEM)
+    lines = [r.getMessage() for r in caplog.records if "relaxation" in r.getMessage()]
+    assert steps == 40 and len(lines) == 4
+    assert lines[-1].startswith("relaxation: unbalanced force ratio: step 40, residual "
+                                f"{unbalanced:.3g}")
 
 
 def test_suction_front_moves_inwards_and_balances():
