@@ -49,8 +49,8 @@ from shared.dem.walls import Walls
 from shared.fv import (
     FlowPattern,
     facet_conductance,
-    flow_pattern,
     porosity_from_solid_volume,
+    solver_pattern,
     transfer_cell_state,
     transient_step,
 )
@@ -411,9 +411,7 @@ class FlowSystem:
             dirichlet = boundary_cell_mask(mesh, WALLS)
         solver = SPDSolver() if settings is None else SPDSolver(
             method=settings.solver, amg_unknowns=settings.amg_unknowns)
-        # multigrid needs no fill-reducing order (a fallback factor orders itself)
-        fill_reducing = not solver.uses_multigrid(int((~dirichlet).sum()))
-        return cls(dirichlet, flow_pattern(mesh, dirichlet, fill_reducing), solver)
+        return cls(dirichlet, solver_pattern(mesh, dirichlet, solver), solver)
 
 
 def conductances(

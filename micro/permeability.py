@@ -77,7 +77,7 @@ from shared.fv import (
     facet_conductance,
     facet_divergence,
     facet_flux,
-    flow_pattern,
+    solver_pattern,
     steady_pressure,
 )
 from shared.materials import ClayParameters
@@ -141,8 +141,7 @@ def _pattern(
 ) -> FlowPattern:
     """The pattern of these Dirichlet cells, ordered for the solver's path (default the
     measurements' solver): fill-reducing for a factor, by locality for multigrid."""
-    solver = _measurement_solver() if solver is None else solver
-    return flow_pattern(mesh, dirichlet, not solver.uses_multigrid(int((~dirichlet).sum())))
+    return solver_pattern(mesh, dirichlet, _measurement_solver() if solver is None else solver)
 
 
 def _imposed_profile(
@@ -279,13 +278,17 @@ def measure_permeability(
     )
     length = mesh.bounds[1, axis] - mesh.bounds[0, axis]
     solver = _measurement_solver() if solver is None else solver
+    if method == "wall_flux":
+        inlet, outlet = _wall_layers(mesh, axis)
+        dirichlet = inlet | outlet
+    else:
+        dirichlet = _dirichlet_cells(mesh, axis, method)
     if pattern is None:
-        pattern = _pattern(mesh, _dirichlet_cells(mesh, axis, method), solver)
-    elif not np.array_equal(pattern.dirichlet, _dirichlet_cells(mesh, axis, method)):
+        pattern = _pattern(mesh, dirichlet, solver)
+    elif not np.array_equal(pattern.dirichlet, dirichlet):
         raise ValueError(f"pattern: its Dirichlet cells are not those of the {method} "
                          f"method along axis {axis}")
     if method == "wall_flux":
-        inlet, outlet = _wall_layers(mesh, axis)
         pressure = steady_pressure(mesh, pattern, solver, floored, departure, departure)
         entering, leaving = _wall_rates(mesh, facet_flux(mesh, floored, pressure), inlet, outlet)
         if not _balanced(entering, leaving, balance_tolerance):
