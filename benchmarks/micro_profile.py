@@ -16,6 +16,14 @@ preset (``results/micro/points_<N>.nc``, ``config/paper/micro_convergence_full.y
 their wall time and peak memory, and the wall time per phase that every micro run
 records (``wall_time_<phase>_s`` attributes), with the exponent of a power law fitted
 per phase from 15k points up, and a log-log figure of the curve.
+
+``python -m benchmarks run micro_ramp --size N`` runs the heterogeneous case with load
+ramps of 50 to 400 DEM steps (``micro.numerics.ramp_steps``) beside two runs that differ
+from the 200-step one only in ways that the tolerances allow (multigrid instead of the
+factor for the flow solves; the unbalanced force checked every 11 steps instead of 10):
+their spread is the envelope of equally valid checkpoints that a ramp length must stay
+within. Two protocols: the default 14 checkpoints, and four (132, 40, 10, 1 MPa) whose
+larger suction steps load each relaxation more.
 """
 
 from __future__ import annotations
@@ -35,7 +43,8 @@ from benchmarks.flow import _exponent, _save_cost_figure
 from benchmarks.parameters import CONFIG
 from micro.run import phase_wall_times
 
-__all__ = ["bench_micro_profile", "bench_micro_relaxation", "bench_micro_scaling"]
+__all__ = ["bench_micro_profile", "bench_micro_ramp", "bench_micro_relaxation",
+           "bench_micro_scaling"]
 
 # The convergence study's cases from which the issue's N^1.1 target is fitted.
 SCALING_FROM_POINTS = 15_000
@@ -159,6 +168,66 @@ def bench_micro_relaxation(points: int = 1000, grid: str = "results/porosity/pel
             "steps_percentiles_10_50_90_99": np.percentile(steps, [10, 50, 90, 99]).tolist(),
             "ended_at_ramp": int((steps <= ramp).sum()), "ramp_steps": ramp,
             "final_eps_v": float(ds["eps_v"].values[-1])}
+
+
+# The ramp lengths of ``micro_ramp`` and the runs whose spread makes its envelope.
+RAMPS = (50, 100, 200, 400)
+ENVELOPE_RUNS = {"solver amg": {"solver": "amg"}, "check interval 11": {"check_interval": 11}}
+ENVELOPE_RAMP = 200
+PROTOCOLS = {"default": None, "four checkpoints": [132.0e6, 40.0e6, 10.0e6, 1.0e6]}
+
+
+def _case_run(points: int, numerics: dict, grid: str,
+              checkpoints: list[float] | None = None) -> dict:
+    """One heterogeneous run with these ``micro.numerics`` changes: wall time, phases,
+    DEM steps and the checkpoints' eps_v, saturation and water permeability (geometric
+    mean of the axes)."""
+    from micro.run import run
+
+    config = copy.deepcopy(CONFIG)
+    config["micro"]["n_points"] = points
+    config["micro"]["vtk_snapshots"] = False
+    config["micro"]["numerics"].update(numerics)
+    if checkpoints is not None:
+        config["micro"]["checkpoints_suction_pa"] = checkpoints
+    with tempfile.TemporaryDirectory() as folder:
+        start = time.perf_counter()
+        ds = run(config, "heterogeneous", grid, Path(folder) / "c.nc", Path(folder) / "c.png")
+        wall = time.perf_counter() - start
+    water = ds["permeability"].sel(phase="water").values
+    return {"numerics": numerics, "wall_s": wall, "phases_s": phase_wall_times(ds.attrs),
+            "dem_steps": int(ds["dem_steps"].values.sum()),
+            "eps_v": ds["eps_v"].values.tolist(), "saturation": ds["saturation"].values.tolist(),
+            "permeability_water": np.exp(np.log(water).mean(axis=-1)).tolist()}
+
+
+def bench_micro_ramp(points: int = 8000, grid: str = "results/porosity/pellet.nc") -> dict:
+    """Checkpoints and cost of the heterogeneous case for several load ramps, and the
+    envelope of equally valid runs (see the module docstring), for each protocol: per
+    run the largest departure of eps_v and saturation, and of log10 k_w, from the
+    200-step run."""
+    import logging
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+    result: dict = {"n_points": points, "protocols": {}}
+    for protocol, checkpoints in PROTOCOLS.items():
+        runs = {f"ramp {ramp}": _case_run(points, {"ramp_steps": ramp}, grid, checkpoints)
+                for ramp in RAMPS}
+        for label, change in ENVELOPE_RUNS.items():
+            runs[label] = _case_run(points, {"ramp_steps": ENVELOPE_RAMP, **change}, grid,
+                                    checkpoints)
+        reference = runs[f"ramp {ENVELOPE_RAMP}"]
+        for entry in runs.values():
+            entry["departure"] = {
+                name: float(np.max(np.abs(np.subtract(entry[name], reference[name]))))
+                for name in ("eps_v", "saturation")}
+            entry["departure"]["log10_permeability_water"] = float(np.max(np.abs(
+                np.log10(entry["permeability_water"])
+                - np.log10(reference["permeability_water"]))))
+        envelope = {name: max(runs[label]["departure"][name] for label in ENVELOPE_RUNS)
+                    for name in reference["departure"]}
+        result["protocols"][protocol] = {"runs": runs, "envelope": envelope}
+    return result
 
 
 def bench_micro_scaling(folder: str = "results/micro") -> dict:

@@ -59,6 +59,7 @@ from shared.mesh import (
     WALLS,
     Mesh,
     boundary_cell_mask,
+    cell_volumes,
     delaunay_tetrahedra,
     face_planes,
     mesh_from_tetrahedra,
@@ -313,12 +314,6 @@ def relax(
     return settings.max_relaxation_steps, unbalanced
 
 
-def _unsigned_volumes(positions: FloatArray, tetrahedra: npt.NDArray[np.int64]) -> FloatArray:
-    """Volumes of tetrahedra, whatever their orientation [m3]."""
-    edges = positions[tetrahedra[:, 1:]] - positions[tetrahedra[:, :1]]
-    return np.abs(np.einsum("ij,ij->i", edges[:, 0], np.cross(edges[:, 1], edges[:, 2]))) / 6.0
-
-
 def triangulate(
     positions: FloatArray, flat_ratio: float = 1e-9
 ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
@@ -333,7 +328,7 @@ def triangulate(
         As :func:`shared.mesh.delaunay_tetrahedra`, with -1 for no neighbour.
     """
     _, tetrahedra, neighbours = delaunay_tetrahedra(positions)
-    volumes = _unsigned_volumes(positions, tetrahedra)
+    volumes = np.abs(cell_volumes(positions, tetrahedra))
     keep = volumes > flat_ratio * volumes.mean()
     renumber = np.full(tetrahedra.shape[0] + 1, -1, dtype=np.int64)
     renumber[:-1][keep] = np.arange(int(keep.sum()))
@@ -350,9 +345,11 @@ def update_geometry(
     With fixed connectivity the solid volume of each cell is conserved exactly (the
     porosity is clamped to ``porosity_bounds``). A cell that inverts triggers a full
     Delaunay remesh; :func:`shared.fv.transfer_cell_state` carries porosity and
-    saturation over by nearest centroid and conserves the water volume, and the solid
-    volumes are then scaled so that their total is conserved too: otherwise every
-    remesh would reset the porosity that swelling has built up.
+    saturation over (a cell the remesh kept keeps its own) and conserves the water
+    volume, and the solid volumes are then scaled so that their total is conserved too:
+    otherwise every remesh would reset the porosity that swelling has built up. The
+    solid of inverted cells, counted twice where they overlap, cannot stay where it
+    was: the scaling spreads it over the specimen.
 
     Returns
     -------
@@ -370,7 +367,7 @@ def update_geometry(
         pass
     # the water of the moved cells, as the fixed-connectivity path would count it, so
     # that a remesh neither adds nor removes water of its own
-    moved_volumes = _unsigned_volumes(positions, state.mesh.tetrahedra)
+    moved_volumes = np.abs(cell_volumes(positions, state.mesh.tetrahedra))
     moved_porosity = porosity_from_solid_volume(state.solid_volume, moved_volumes, *porosity_bounds)
     water = float((moved_porosity * moved_volumes * state.saturation).sum())
     new = mesh_from_tetrahedra(positions, *triangulate(positions))

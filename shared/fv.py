@@ -556,6 +556,49 @@ def porosity_from_solid_volume(
     return np.clip(1.0 - solid_volume / volumes, minimum, maximum)
 
 
+@njit(cache=True)
+def _sorted_rows(tetrahedra: IntArray) -> IntArray:
+    rows = tetrahedra.copy()
+    for c in range(rows.shape[0]):
+        for a in range(1, 4):
+            value, b = rows[c, a], a
+            while b > 0 and rows[c, b - 1] > value:
+                rows[c, b] = rows[c, b - 1]
+                b -= 1
+            rows[c, b] = value
+    return rows
+
+
+@njit(cache=True)
+def _same_cells(old: IntArray, new: IntArray, n_points: int) -> IntArray:
+    """Old cell with the same four vertices as each new cell, -1 where there is none.
+
+    The old cells are listed under their smallest vertex (a counting sort), so each new
+    cell is compared with the few old cells that share its smallest vertex.
+    """
+    old_rows, new_rows = _sorted_rows(old), _sorted_rows(new)
+    start = np.zeros(n_points + 1, dtype=np.int64)
+    for c in range(old_rows.shape[0]):
+        start[old_rows[c, 0] + 1] += 1
+    for v in range(n_points):
+        start[v + 1] += start[v]
+    listed = np.empty(old_rows.shape[0], dtype=np.int64)
+    fill = start[:-1].copy()
+    for c in range(old_rows.shape[0]):
+        listed[fill[old_rows[c, 0]]] = c
+        fill[old_rows[c, 0]] += 1
+    same = np.full(new_rows.shape[0], -1, dtype=np.int64)
+    for c in range(new_rows.shape[0]):
+        v = new_rows[c, 0]
+        for slot in range(start[v], start[v + 1]):
+            o = listed[slot]
+            if (old_rows[o, 1] == new_rows[c, 1] and old_rows[o, 2] == new_rows[c, 2]
+                    and old_rows[o, 3] == new_rows[c, 3]):
+                same[c] = o
+                break
+    return same
+
+
 @dataclass(frozen=True)
 class TransferredState:
     """Cell state carried from an old mesh to a new one (see :func:`transfer_cell_state`).
@@ -589,7 +632,10 @@ def transfer_cell_state(
 ) -> TransferredState:
     """Carry the cell state across a remesh (REFERENCE_NOTES sections 8.3 and 8.4).
 
-    Each new cell takes the state of the old cell with the nearest centroid. The solid
+    A remesh of moved points keeps most cells: a new cell with the same four vertices
+    as an old one keeps that cell's state (its material moved with its vertices); the
+    others fill the region that the removed old cells leave, and each takes the state
+    of the removed cell whose centroid, at the moved positions, is nearest. The solid
     volume is recomputed from that porosity and the new volume, so porosity does not
     jump. The water volume sum n V S generally changes; with ``conserve_water`` the
     defect is spread as a uniform saturation shift over the cells, clipped to
@@ -598,7 +644,8 @@ def transfer_cell_state(
     Parameters
     ----------
     old_mesh, new_mesh
-        Meshes before and after the remesh.
+        Meshes of the same points before and after the remesh (``new_mesh.points`` are
+        the moved positions).
     pressure, saturation, porosity
         Old state per old cell: water pressure [Pa], saturation [1], porosity [1].
     material
@@ -610,7 +657,20 @@ def transfer_cell_state(
     -------
     TransferredState
     """
-    nearest = cKDTree(old_mesh.centroids).query(new_mesh.centroids)[1]
+    if old_mesh.points.shape != new_mesh.points.shape:
+        raise ValueError("the meshes must be of the same points: "
+                         f"{old_mesh.points.shape} and {new_mesh.points.shape}")
+    nearest = _same_cells(old_mesh.tetrahedra, new_mesh.tetrahedra, new_mesh.points.shape[0])
+    others = np.flatnonzero(nearest < 0)
+    if others.size:
+        # the new cells fill the region the removed ones leave: take their state
+        removed = np.ones(old_mesh.n_cells, dtype=bool)
+        removed[nearest[nearest >= 0]] = False
+        candidates = np.flatnonzero(removed)
+        if candidates.size == 0:  # new cells where there were none (dropped flat ones)
+            candidates = np.arange(old_mesh.n_cells)
+        moved = new_mesh.points[old_mesh.tetrahedra[candidates]].mean(axis=1)
+        nearest[others] = candidates[cKDTree(moved).query(new_mesh.centroids[others])[1]]
     new_porosity = porosity[nearest]
     new_saturation = saturation[nearest]
     pore = new_porosity * new_mesh.volumes

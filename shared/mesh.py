@@ -50,6 +50,7 @@ __all__ = [
     "WALLS",
     "Mesh",
     "build_mesh",
+    "cell_volumes",
     "delaunay_tetrahedra",
     "mesh_from_tetrahedra",
     "update_mesh",
@@ -143,6 +144,36 @@ class Mesh:
     def n_facets(self) -> int:
         """Number of internal facets."""
         return int(self.facet_cells.shape[0])
+
+
+@njit(cache=True, parallel=True)
+def _signed_volumes(points: FloatArray, tetrahedra: IntArray) -> FloatArray:
+    signed = np.empty(tetrahedra.shape[0])
+    for c in prange(tetrahedra.shape[0]):
+        o, p, q, r = tetrahedra[c, 0], tetrahedra[c, 1], tetrahedra[c, 2], tetrahedra[c, 3]
+        ux, uy, uz = points[p, 0] - points[o, 0], points[p, 1] - points[o, 1], \
+            points[p, 2] - points[o, 2]
+        vx, vy, vz = points[q, 0] - points[o, 0], points[q, 1] - points[o, 1], \
+            points[q, 2] - points[o, 2]
+        wx, wy, wz = points[r, 0] - points[o, 0], points[r, 1] - points[o, 1], \
+            points[r, 2] - points[o, 2]
+        signed[c] = (ux * (vy * wz - vz * wy) + uy * (vz * wx - vx * wz)
+                     + uz * (vx * wy - vy * wx)) / 6.0
+    return signed
+
+
+def cell_volumes(points: npt.ArrayLike, tetrahedra: npt.ArrayLike) -> FloatArray:
+    """Signed volumes of tetrahedra [m3]: positive for positively oriented cells.
+
+    Parameters
+    ----------
+    points
+        (n_points, 3) vertex coordinates [m].
+    tetrahedra
+        (n_cells, 4) vertex indices.
+    """
+    return _signed_volumes(np.ascontiguousarray(points, dtype=np.float64),
+                           np.ascontiguousarray(tetrahedra, dtype=np.int64))
 
 
 @njit(cache=True, parallel=True)

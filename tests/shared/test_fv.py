@@ -196,6 +196,25 @@ def test_fv_remesh_transfer_conserves_water(rng: np.random.Generator) -> None:
     assert set(np.unique(state.pressure)) <= set(np.unique(pressure))
 
 
+def test_fv_remesh_transfer_keeps_the_cells_the_remesh_keeps(rng: np.random.Generator) -> None:
+    """A new cell with the vertices of an old one keeps its state; the others take the
+    state of old cells that the remesh removed (matched here with Python sets)."""
+    old = jittered_mesh(6, rng)
+    moved = old.points.copy()
+    moved[:20] += rng.normal(0.0, 2e-4, (20, 3))
+    new = build_mesh(moved)
+    old_cells = {tuple(sorted(cell)): index for index, cell in enumerate(old.tetrahedra.tolist())}
+    pressure = -rng.uniform(1e6, 1e8, old.n_cells)  # a distinct value per cell
+    state = transfer_cell_state(old, new, pressure, np.full(old.n_cells, 0.5),
+                                np.full(old.n_cells, 0.3), CLAY)
+    kept = [old_cells.get(tuple(sorted(cell)), -1) for cell in new.tetrahedra.tolist()]
+    kept = np.array(kept)
+    assert 0 < np.count_nonzero(kept < 0) < new.n_cells // 2
+    np.testing.assert_array_equal(state.pressure[kept >= 0], pressure[kept[kept >= 0]])
+    removed = np.setdiff1d(np.arange(old.n_cells), kept[kept >= 0])
+    assert set(state.pressure[kept < 0]) <= set(pressure[removed])
+
+
 def test_fv_transient_uptake_follows_slab_diffusion_series(rng: np.random.Generator) -> None:
     # Small pressure rise (1 kPa at 50 MPa suction): storage and conductance stay
     # constant, so the water uptake of the slab wetted from x- (no flux elsewhere)
