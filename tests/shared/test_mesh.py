@@ -11,6 +11,7 @@ from shared.mesh import (
     WALLS,
     boundary_cell_mask,
     build_mesh,
+    cell_volumes,
     mesh_from_tetrahedra,
     porosity_at_points,
     update_mesh,
@@ -234,3 +235,14 @@ def test_mesh_facet_normals_point_from_first_to_second_cell(rng: np.random.Gener
         mesh.boundary_normals,
     )
     assert np.all(outwards > 0.0)
+
+
+def test_cell_volumes_of_corner_tetrahedra_and_their_mirror_images() -> None:
+    """The corner tetrahedron (0, e_x, a e_y, b e_z) has volume a b / 6; swapping two
+    vertices flips its sign; the five tetrahedra of a cube's split fill it."""
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 2, 0], [0, 0, 3], [1, 2, 3]], dtype=float)
+    volumes = cell_volumes(points, np.array([[0, 1, 2, 3], [0, 2, 1, 3]]))
+    np.testing.assert_allclose(volumes, [1.0, -1.0], rtol=1e-15)
+    cube = np.array([[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)])
+    split = np.array([[0, 1, 2, 4], [3, 1, 2, 7], [5, 1, 4, 7], [6, 2, 4, 7], [1, 2, 4, 7]])
+    assert np.abs(cell_volumes(cube, split)).sum() == pytest.approx(1.0, rel=1e-14)
