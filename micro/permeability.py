@@ -278,17 +278,14 @@ def measure_permeability(
     )
     length = mesh.bounds[1, axis] - mesh.bounds[0, axis]
     solver = _measurement_solver() if solver is None else solver
-    if method == "wall_flux":
-        inlet, outlet = _wall_layers(mesh, axis)
-        dirichlet = inlet | outlet
-    else:
-        dirichlet = _dirichlet_cells(mesh, axis, method)
+    dirichlet, layers = _dirichlet_cells(mesh, axis, method)
     if pattern is None:
         pattern = _pattern(mesh, dirichlet, solver)
     elif not np.array_equal(pattern.dirichlet, dirichlet):
         raise ValueError(f"pattern: its Dirichlet cells are not those of the {method} "
                          f"method along axis {axis}")
-    if method == "wall_flux":
+    if layers is not None:
+        inlet, outlet = layers
         pressure = steady_pressure(mesh, pattern, solver, floored, departure, departure)
         entering, leaving = _wall_rates(mesh, facet_flux(mesh, floored, pressure), inlet, outlet)
         if not _balanced(entering, leaving, balance_tolerance):
@@ -320,18 +317,22 @@ def _wall_layers(mesh: Mesh, axis: int) -> tuple[npt.NDArray[np.bool_], npt.NDAr
     return inlet, boundary_cell_mask(mesh, [WALLS[2 * axis + 1]]) & ~inlet
 
 
-def _dirichlet_cells(mesh: Mesh, axis: int, method: Method) -> npt.NDArray[np.bool_]:
+def _dirichlet_cells(
+    mesh: Mesh, axis: int, method: Method
+) -> tuple[npt.NDArray[np.bool_], tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]] | None]:
+    """Dirichlet cells of a measurement, with the inlet and outlet wall layers whose rates
+    ``wall_flux`` measures (None for ``velocity``, which imposes all six walls)."""
     if method == "wall_flux":
         inlet, outlet = _wall_layers(mesh, axis)
-        return inlet | outlet
-    return boundary_cell_mask(mesh, list(WALLS))
+        return inlet | outlet, (inlet, outlet)
+    return boundary_cell_mask(mesh, list(WALLS)), None
 
 
 def measurement_pattern(mesh: Mesh, axis: int, method: Method = "wall_flux") -> FlowPattern:
     """System pattern of a measurement along ``axis`` (0, 1, 2) by ``method``: its
     Dirichlet cells are the two wall layers normal to the axis (``wall_flux``) or all
     six (``velocity``, the same for every axis)."""
-    return _pattern(mesh, _dirichlet_cells(mesh, axis, method))
+    return _pattern(mesh, _dirichlet_cells(mesh, axis, method)[0])
 
 
 def _refined_rates(
