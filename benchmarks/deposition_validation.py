@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import time
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -53,8 +54,11 @@ import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
+from imaging.packing import _settle_kernels  # noqa: E402
+from imaging.packing._bed import BedIndex  # noqa: E402
 from imaging.packing.analysis import surface_areas  # noqa: E402
-from imaging.packing.config import check_packings, population_of  # noqa: E402
+from imaging.packing.config import check_packings, parameters_of, population_of  # noqa: E402
+from imaging.packing.deposition import _entry_pose  # noqa: E402
 from imaging.packing.population import sample_semi_axes, volumes  # noqa: E402
 from imaging.packing.run import run  # noqa: E402
 from shared.config import DEFAULT_CONFIG_PATH, validate_config  # noqa: E402
@@ -702,6 +706,63 @@ def bench_deposition_validation(scale: float = 1.0, presets: Iterable[str] = PRE
 def bench_deposition_validation_scan(scale: float = 1.0) -> dict:
     """:func:`bench_deposition_validation` with the paper's contact scan (Sec. II B)."""
     return bench_deposition_validation(scale, mode="scan")
+
+
+def paired_scan_cost(name: str, n_bed: int = 150, n_test: int = 30) -> dict[str, Any]:
+    """Cost per particle of the contact scan against exact contacts on the same bed.
+
+    ``n_bed`` particles of a full-scale preset are deposited with exact contacts; each of
+    the next ``n_test`` is then settled twice from the same entry pose with the same
+    random moves, with exact contacts and with the scan (the preset's n_sp), and the
+    exact settlement joins the bed. Returns the mean wall time per particle of each mode
+    [s], their ratio, and the mean accepted moves and final tilt [deg] of each mode.
+    """
+    section = packing_section(dict(preset_section(name), contact_mode="scan"), name)
+    rng = np.random.default_rng(section["seed"])
+    semi_axes = sample_semi_axes(population_of(section), n_bed + n_test, rng)
+    params = parameters_of(section)
+    bed = BedIndex(semi_axes, params.box_width, params.contact_distance, params.scan_points)
+    scanned = bed.geometry
+    exact = scanned.copy()
+    exact[8] = 0.0
+    amplitudes = np.array([params.slide_amplitude, params.swivel_amplitude,
+                           params.rotation_amplitude])
+    steepest = np.array([params.steepest_slide, params.steepest_swivel,
+                         params.contact_line_swivel])
+    record = np.zeros((n_test, 2, 3))  # seconds, accepted moves, tilt [deg]
+    for i, axes in enumerate(semi_axes):
+        centre, rotation = _entry_pose(axes, params, bed, rng)
+        uniforms = rng.random((params.n_cycles * params.attempts_per_cycle, 4))
+        kinds = 3 if axes[0] > axes[1] * (1.0 + 1e-12) else 2
+        for mode, geometry in enumerate((exact, scanned) if i >= n_bed else (exact,)):
+            c, r = centre.copy(), rotation.copy()
+            start = time.perf_counter()
+            accepted = _settle_kernels.settle(
+                c, r, axes, uniforms, amplitudes, params.amplitude_reduction, params.n_cycles,
+                kinds, steepest, bed.centers, bed.rotations, bed.axes, bed.extents,
+                bed.fine.head, bed.coarse.head, bed.link, geometry, bed.found, bed.shifts,
+                bed.drops, bed.witness)
+            if i >= n_bed:
+                record[i - n_bed, mode] = (time.perf_counter() - start, accepted,
+                                           math.degrees(math.acos(min(abs(r[2, 2]), 1.0))))
+            if mode == 0:
+                settled = c, r
+        bed.add(i, *settled)
+    mean = record.mean(axis=0)
+    return {"preset": name, "n_bed": n_bed, "n_test": n_test,
+            "scan_points": params.scan_points,
+            "exact_s": float(mean[0, 0]), "scan_s": float(mean[1, 0]),
+            "scan_over_exact": float(mean[1, 0] / mean[0, 0]),
+            "accepted_exact": float(mean[0, 1]), "accepted_scan": float(mean[1, 1]),
+            "tilt_exact_deg": float(mean[0, 2]), "tilt_scan_deg": float(mean[1, 2])}
+
+
+def bench_deposition_scan_cost(n_test: int = 30) -> dict:
+    """Cost per particle of the contact scan against exact contacts, paired (same bed,
+    entry poses and moves), for every preset: the issue's bound is 3x."""
+    rows = [paired_scan_cost(name, n_test=n_test) for name in PRESETS]
+    return {"rows": rows, "largest_ratio": max(row["scan_over_exact"] for row in rows),
+            "load_average_1min": os.getloadavg()[0]}
 
 
 def bench_deposition_seed_spread(seed_offset: int = 1000) -> dict:

@@ -32,7 +32,13 @@ Contact scan (settling particle A over a bed particle B):
   past the coarse grid, whose error (up to 50 d_cont on two crossing rims at n_sp = 500)
   then leaves the particle inside its support: every later move of that particle is an
   overlap, and a particle that enters upright stays upright;
-- a scan point of A inside B is an overlap.
+- a scan point of A inside B is an overlap;
+- the exact vertical gap bounds every scan point's from below: the fall
+  (:func:`._settle_kernels.fall`) scans its candidates by increasing exact gap and
+  stops where that bound passes the least scanned gap plus d_cont, and a pair it scans
+  is refined to the end whatever the fall's limit, so that the gap found does not
+  depend on the order in which the bed is visited (an earlier cut, a coarse gap beyond
+  the limit plus delta_1, did).
 
 Overlap scan (the inverse procedure): scan points on both basal faces of B at B's
 delta_1, in A's frame; points outside A's envelope enlarged by delta_n are dropped, the
@@ -50,7 +56,7 @@ from numba import njit
 
 from imaging.packing._contact_kernels import INFINITE_DROP, drop_to_contact, support
 
-__all__ = ["scan_drop", "scan_overlap", "scan_spacing"]
+__all__ = ["scan_drop", "scan_drop_above", "scan_overlap", "scan_spacing"]
 
 _STEPS = 10
 """Offsets -10..10 of delta_(n+1) cover (-delta_n, +delta_n)."""
@@ -60,6 +66,9 @@ _REFINED = 8
 
 _SWEEPS = 32
 """Largest number of x-then-y sweeps of one point at one step size."""
+
+_NONE = 1 << 20
+"""An offset of no searched window."""
 
 
 @njit(cache=True)
@@ -94,7 +103,8 @@ def _to_local(center, rot, px, py, pz):  # type: ignore[no-untyped-def]
 
 @njit(cache=True)
 def _grid(a, b, c, n_sp, face, with_edge):  # type: ignore[no-untyped-def]
-    """Scan points (kind, u, v) of one basal face (and the edge) at delta_1."""
+    """Scan points (kind, u, v) of one basal face (and the edge) at delta_1, their
+    coordinates (x, y, z) in the particle frame [m], and delta_1 [m]."""
     delta = scan_spacing(a, b, n_sp)
     nx, ny = int(a / delta), int(b / delta)
     basal = 0
@@ -109,20 +119,31 @@ def _grid(a, b, c, n_sp, face, with_edge):  # type: ignore[no-untyped-def]
     kind = np.empty(total, np.int64)
     u = np.empty(total)
     v = np.empty(total)
+    x = np.empty(total)
+    y = np.empty(total)
+    z = np.empty(total)
     k = 0
     for i in range(-nx, nx + 1):
         for j in range(-ny, ny + 1):
             if (i * delta / a) ** 2 + (j * delta / b) ** 2 <= 1.0:
                 kind[k], u[k], v[k] = 0, i * delta, j * delta
+                x[k], y[k], z[k] = _local_point(0, u[k], v[k], a, b, c, face)
                 k += 1
     if with_edge:
+        # every ring has the same angles: one cos and sin per angle
+        ring_x = np.empty(n_around)
+        ring_y = np.empty(n_around)
+        for s in range(n_around):
+            ring_x[s], ring_y[s], _ = _local_point(1, 2.0 * np.pi * s / n_around, 0.0, a, b, c,
+                                                   face)
         for r in range(n_rings):
             for s in range(n_around):
                 kind[k] = 1
                 u[k] = 2.0 * np.pi * s / n_around
                 v[k] = -c + 2.0 * c * r / (n_rings - 1)
+                x[k], y[k], z[k] = ring_x[s], ring_y[s], v[k]
                 k += 1
-    return kind, u, v, delta
+    return kind, u, v, x, y, z, delta
 
 
 @njit(cache=True)
@@ -166,9 +187,9 @@ def _pair_frame(ca, ra, cb, rb):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _gap(kind, u, v, xa, face, relative, offset, down, xb):  # type: ignore[no-untyped-def]
-    """delta_z of a scan point of A over B [m]: -inf inside B, inf when B is not below."""
-    x, y, z = _local_point(kind, u, v, xa[0], xa[1], xa[2], face)
+def _gap(x, y, z, relative, offset, down, xb):  # type: ignore[no-untyped-def]
+    """delta_z of a scan point of A (A's frame, [m]) over B [m]: -inf inside B, inf when B
+    is not below."""
     ox = offset[0] + relative[0, 0] * x + relative[0, 1] * y + relative[0, 2] * z
     oy = offset[1] + relative[1, 0] * x + relative[1, 1] * y + relative[1, 2] * z
     oz = offset[2] + relative[2, 0] * x + relative[2, 1] * y + relative[2, 2] * z
@@ -184,26 +205,38 @@ def _inside_basal(kind, u, v, a, b):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine, span_u, span_v):  # type: ignore[no-untyped-def]
+def _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine, span_u, span_v,
+            seen_u, seen_v):  # type: ignore[no-untyped-def]
     """Move point k to the least gap among offsets (-span..span) x fine on (u, v), in
-    place; True if it moved."""
+    place, skipping the offsets of a window already searched around the point at
+    offsets (seen_u, seen_v) from here (none of them is lower than the point); the
+    offsets (i, j) of the move, (0, 0) if it did not move."""
     a, b, c = xa[0], xa[1], xa[2]
     step_u = fine if kind[k] == 0 else fine / np.sqrt(a * b)
     best_u, best_v, best = u[k], v[k], gap[k]
+    best_i, best_j = 0, 0
     for si in range(-span_u, span_u + 1):
         cu = u[k] + si * step_u
+        old_column = abs(si - seen_u) <= span_u
+        # the edge point's basal position depends on the angle only
+        x, y, _ = _local_point(kind[k], cu, 0.0, a, b, c, face)
         for sj in range(-span_v, span_v + 1):
+            if old_column and abs(sj - seen_v) <= span_v:
+                continue
             cv = v[k] + sj * fine
             if kind[k] == 1 and abs(cv) > c:
                 continue
             if not _inside_basal(kind[k], cu, cv, a, b):
                 continue
-            g = _gap(kind[k], cu, cv, xa, face, relative, offset, down, xb)
+            if kind[k] == 0:
+                g = _gap(cu, cv, face * c, relative, offset, down, xb)
+            else:
+                g = _gap(x, y, cv, relative, offset, down, xb)
             if g < best:
                 best_u, best_v, best = cu, cv, g
-    moved = best < gap[k]
+                best_i, best_j = si, sj
     u[k], v[k], gap[k] = best_u, best_v, best
-    return moved
+    return best_i, best_j
 
 
 @njit(cache=True)
@@ -217,18 +250,22 @@ def _refine_contact(kind, u, v, gap, xa, face, relative, offset, down, xb, d_con
         for k in order[:_REFINED]:
             if not gap[k] - lowest <= delta:
                 break
-            _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine, _STEPS, 0)
-            _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine, 0, _STEPS)
+            _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine, _STEPS, 0,
+                    _NONE, 0)
+            _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine, 0, _STEPS,
+                    0, _NONE)
             if gap[k] < 0.0:
                 return
         k = np.argmin(gap)
+        seen_u, seen_v = _NONE, _NONE
         for _ in range(_SWEEPS):
-            moved = _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine,
-                            _STEPS, _STEPS)
+            move_u, move_v = _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb,
+                                     fine, _STEPS, _STEPS, seen_u, seen_v)
             if gap[k] < 0.0:
                 return
-            if not moved:
+            if move_u == 0 and move_v == 0:
                 break
+            seen_u, seen_v = -move_u, -move_v
         delta = fine
 
 
@@ -244,31 +281,36 @@ def scan_drop(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont):  # type: ignore[n
         where A is (a scan point of A inside B, or the overlap scan), INFINITE_DROP if B
         is not below A within ``max_drop`` [m].
     """
+    exact = drop_to_contact(ca, ra, xa, cb, rb, xb, max_drop, 0.05 * d_cont)[0]
+    return scan_drop_above(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont, exact)
+
+
+@njit(cache=True)
+def scan_drop_above(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont, exact):  # type: ignore[no-untyped-def]
+    """:func:`scan_drop` given the exact vertical gap ``exact`` [m] of A above B
+    (:func:`._contact_kernels.drop_to_contact`; INFINITE_DROP beyond reach)."""
     # The exact vertical gap bounds every scan point's from below: B out of reach for it
     # is out of reach for the scan, and disjoint shapes have no point inside each other.
-    exact = drop_to_contact(ca, ra, xa, cb, rb, xb, max_drop, 0.05 * d_cont)[0]
     if exact == INFINITE_DROP:
         return INFINITE_DROP, cb[0], cb[1], cb[2]
     face = -1.0 if ra[2, 2] >= 0.0 else 1.0
-    kind, u, v, delta = _grid(xa[0], xa[1], xa[2], n_sp, face, True)
+    kind, u, v, x, y, z, delta = _grid(xa[0], xa[1], xa[2], n_sp, face, True)
     relative, offset, down = _pair_frame(ca, ra, cb, rb)
     gap = np.empty(kind.size)
     for k in range(kind.size):
-        gap[k] = _gap(kind[k], u[k], v[k], xa, face, relative, offset, down, xb)
+        gap[k] = _gap(x[k], y[k], z[k], relative, offset, down, xb)
         if gap[k] < 0.0:
             return -1.0, cb[0], cb[1], cb[2]
     if exact < 0.0 and scan_overlap(ca, ra, xa, cb, rb, xb, n_sp, d_cont):
         return -1.0, cb[0], cb[1], cb[2]
-    if gap.min() > max_drop + delta:
-        return INFINITE_DROP, cb[0], cb[1], cb[2]
     _refine_contact(kind, u, v, gap, xa, face, relative, offset, down, xb, d_cont, delta)
     k = np.argmin(gap)
     if gap[k] < 0.0:
         return -1.0, cb[0], cb[1], cb[2]
     if gap[k] > max_drop:
         return INFINITE_DROP, cb[0], cb[1], cb[2]
-    x, y, z = _local_point(kind[k], u[k], v[k], xa[0], xa[1], xa[2], face)
-    px, py, pz = _to_world(ca, ra, x, y, z)
+    lx, ly, lz = _local_point(kind[k], u[k], v[k], xa[0], xa[1], xa[2], face)
+    px, py, pz = _to_world(ca, ra, lx, ly, lz)
     return gap[k], px, py, pz - gap[k]
 
 
@@ -302,7 +344,7 @@ def scan_overlap(ca, ra, xa, cb, rb, xb, n_sp, d_cont):  # type: ignore[no-untyp
     if _apart_along_normals(ca, ra, xa, cb, rb, xb):
         return False
     for face in (-1.0, 1.0):
-        kind, u, v, delta = _grid(xb[0], xb[1], xb[2], n_sp, face, False)
+        kind, u, v, _, _, _, delta = _grid(xb[0], xb[1], xb[2], n_sp, face, False)
         level = np.empty(kind.size)
         keep = np.zeros(kind.size, np.bool_)
         for k in range(kind.size):

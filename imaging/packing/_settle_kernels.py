@@ -19,7 +19,7 @@ from imaging.packing._contact_kernels import (
     support,
 )
 from imaging.packing._grid_kernels import gather_levels
-from imaging.packing._scan_kernels import scan_drop
+from imaging.packing._scan_kernels import scan_drop_above
 
 MAX_CONTACTS = 8
 SLIDE = 0
@@ -35,7 +35,8 @@ def fall(center, rot, axes, centers, rots, all_axes, exts, fine, coarse, link, g
     ``fine``, ``coarse`` and ``link`` are the two grids of the bed and ``geometry`` their
     layout (see :func:`._grid_kernels.gather_levels`), then n_sp: 0 for exact contacts
     (:func:`._contact_kernels.drop_to_contact`), else the contact scan with n_sp points
-    (:func:`._scan_kernels.scan_drop`; the floor is a plane, met exactly either way).
+    (:func:`._scan_kernels.scan_drop_above`, bounded by the exact drop; the floor is a
+    plane, met exactly either way).
     Contacts (points [m] within d_cont after the fall) are written to ``contacts``.
 
     Returns
@@ -60,26 +61,39 @@ def fall(center, rot, axes, centers, rots, all_axes, exts, fine, coarse, link, g
         lo[2] = center[2] - ext[2] - reach
         count = gather_levels(lo, hi, centers, exts, fine, coarse, link, geometry, found, shifts)
         bottom = center[2] - ext[2]
-        # a candidate whose top is further below than the best drop so far cannot be hit
-        # first: visit candidates by increasing bounding-box gap and stop early
-        gaps = np.empty(count)
+        # Candidates by increasing lower bound of their drop, refined lazily: the
+        # bounding-box gap, then (scan mode) the exact drop, then the drop itself; stop
+        # where the least bound passes the best drop so far (+ d_cont, the contacts), so
+        # that a candidate further below is never computed and the result is the one of
+        # computing them all.
+        bound = np.empty(count)
+        stage = np.zeros(count, np.int64)
         for k in range(count):
-            gaps[k] = bottom - centers[found[k], 2] - exts[found[k], 2]
+            bound[k] = bottom - centers[found[k], 2] - exts[found[k], 2]
             drops[k] = INFINITE_DROP
-        for k in np.argsort(gaps):
+        while True:
+            k = -1
+            for m in range(count):
+                if stage[m] < 2 and (k < 0 or bound[m] < bound[k]):
+                    k = m
             limit = min(best, reach) + d_cont
-            if gaps[k] > limit:
+            if k < 0 or bound[k] > limit:
                 break
             j = found[k]
             cb = centers[j].copy()
             cb[0] += shifts[k, 0]
             cb[1] += shifts[k, 1]
-            if n_sp > 0:
-                d, qx, qy, qz = scan_drop(center, rot, axes, cb, rots[j], all_axes[j], limit, n_sp,
-                                          d_cont)
-            else:
+            if stage[k] == 0:
                 d, qx, qy, qz = drop_to_contact(center, rot, axes, cb, rots[j], all_axes[j], limit,
                                                 0.05 * d_cont)
+                if n_sp > 0 and d != INFINITE_DROP:
+                    # the exact drop bounds the scan's from below
+                    bound[k], stage[k] = d, 1
+                    continue
+            else:
+                d, qx, qy, qz = scan_drop_above(center, rot, axes, cb, rots[j], all_axes[j], limit,
+                                                n_sp, d_cont, bound[k])
+            stage[k] = 2
             if d < 0.0:
                 return -1.0, 0
             drops[k] = d

@@ -150,3 +150,43 @@ def test_scan_settles_upright_entries_as_exact_contacts_do() -> None:
     exact, scanned = accepted.mean(axis=0)
     assert scanned >= 0.8 * exact
     assert abs(np.median(tilt[:, 1]) - np.median(tilt[:, 0])) <= 5.0
+
+
+def test_fall_finds_the_least_scanned_drop_of_the_whole_bed() -> None:
+    """A fall visits only the bed particles whose exact drop (a lower bound of the scan's)
+    is within reach of the least scanned drop so far; it must end where scanning every
+    particle of the bed and its periodic images from the start, and the floor, puts the
+    first contact (n_sp = 150, 40 tilted entries from up to two diameters above the bed)."""
+    bed_packing = small_bed(seed=11, n=60)
+    d_cont = bed_packing.contact_distance
+    width = bed_packing.box_width
+    bed = BedIndex(np.vstack([bed_packing.semi_axes, bed_packing.semi_axes[:40]]), width,
+                   d_cont, 150)
+    for i in range(60):
+        bed.add(i, bed_packing.centers[i], bed_packing.rotations[i])
+    params = DepositionParameters(
+        box_width=width, contact_distance=d_cont, theta_max=np.pi / 2, theta_random=True,
+        slide_amplitude=0.0, swivel_amplitude=0.0, rotation_amplitude=0.0)
+    rng = np.random.default_rng(12)
+    contacts = np.zeros((8, 3))
+    drops = np.zeros((40, 2))
+    for k in range(40):
+        axes = bed.axes[60 + k]
+        centre, rotation = _entry_pose(axes, params, bed, rng)
+        centre[2] += 2.0 * DIAMETER * rng.random()
+        ext = np.empty(3)
+        contact.half_extents(rotation, axes, ext)
+        least = centre[2] - ext[2]
+        for i in range(60):
+            for sx in (-width, 0.0, width):
+                for sy in (-width, 0.0, width):
+                    cb = bed.centers[i] + np.array([sx, sy, 0.0])
+                    least = min(least, scan.scan_drop(centre, rotation, axes, cb, bed.rotations[i],
+                                                      bed.axes[i], 1e3 * DIAMETER, 150, d_cont)[0])
+        drops[k, 0] = max(least - 0.5 * d_cont, 0.0)
+        drops[k, 1] = settle_kernels.fall(
+            centre, rotation, axes, bed.centers, bed.rotations, bed.axes, bed.extents,
+            bed.fine.head, bed.coarse.head, bed.link, bed.geometry, bed.found, bed.shifts,
+            bed.drops, bed.witness, contacts)[0]
+    assert (drops[:, 0] > 0.0).all()
+    np.testing.assert_allclose(drops[:, 1], drops[:, 0], rtol=0.0, atol=1e-9 * DIAMETER)
