@@ -54,9 +54,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from imaging.packing._contact_kernels import INFINITE_DROP, drop_to_contact, support
+from imaging.packing._contact_kernels import INFINITE_DROP, support
 
-__all__ = ["scan_drop", "scan_drop_above", "scan_overlap", "scan_spacing"]
+__all__ = ["scan_drop", "scan_overlap", "scan_spacing"]
 
 _STEPS = 10
 """Offsets -10..10 of delta_(n+1) cover (-delta_n, +delta_n)."""
@@ -270,8 +270,12 @@ def _refine_contact(kind, u, v, gap, xa, face, relative, offset, down, xb, d_con
 
 
 @njit(cache=True)
-def scan_drop(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont):  # type: ignore[no-untyped-def]
+def scan_drop(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont, exact):  # type: ignore[no-untyped-def]
     """Vertical gap of the settling particle A above B by the contact scan.
+
+    ``exact`` is the exact vertical gap of A above B [m]
+    (:func:`._contact_kernels.drop_to_contact`; INFINITE_DROP beyond reach), which bounds
+    the scan's from below.
 
     Returns
     -------
@@ -281,14 +285,6 @@ def scan_drop(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont):  # type: ignore[n
         where A is (a scan point of A inside B, or the overlap scan), INFINITE_DROP if B
         is not below A within ``max_drop`` [m].
     """
-    exact = drop_to_contact(ca, ra, xa, cb, rb, xb, max_drop, 0.05 * d_cont)[0]
-    return scan_drop_above(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont, exact)
-
-
-@njit(cache=True)
-def scan_drop_above(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont, exact):  # type: ignore[no-untyped-def]
-    """:func:`scan_drop` given the exact vertical gap ``exact`` [m] of A above B
-    (:func:`._contact_kernels.drop_to_contact`; INFINITE_DROP beyond reach)."""
     # The exact vertical gap bounds every scan point's from below: B out of reach for it
     # is out of reach for the scan, and disjoint shapes have no point inside each other.
     if exact == INFINITE_DROP:

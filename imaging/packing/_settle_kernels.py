@@ -19,7 +19,7 @@ from imaging.packing._contact_kernels import (
     support,
 )
 from imaging.packing._grid_kernels import gather_levels
-from imaging.packing._scan_kernels import scan_drop_above
+from imaging.packing._scan_kernels import scan_drop
 
 MAX_CONTACTS = 8
 SLIDE = 0
@@ -35,7 +35,7 @@ def fall(center, rot, axes, centers, rots, all_axes, exts, fine, coarse, link, g
     ``fine``, ``coarse`` and ``link`` are the two grids of the bed and ``geometry`` their
     layout (see :func:`._grid_kernels.gather_levels`), then n_sp: 0 for exact contacts
     (:func:`._contact_kernels.drop_to_contact`), else the contact scan with n_sp points
-    (:func:`._scan_kernels.scan_drop_above`, bounded by the exact drop; the floor is a
+    (:func:`._scan_kernels.scan_drop`, bounded by the exact drop; the floor is a
     plane, met exactly either way).
     Contacts (points [m] within d_cont after the fall) are written to ``contacts``.
 
@@ -91,8 +91,8 @@ def fall(center, rot, axes, centers, rots, all_axes, exts, fine, coarse, link, g
                     bound[k], stage[k] = d, 1
                     continue
             else:
-                d, qx, qy, qz = scan_drop_above(center, rot, axes, cb, rots[j], all_axes[j], limit,
-                                                n_sp, d_cont, bound[k])
+                d, qx, qy, qz = scan_drop(center, rot, axes, cb, rots[j], all_axes[j], limit, n_sp,
+                                          d_cont, bound[k])
             stage[k] = 2
             if d < 0.0:
                 return -1.0, 0

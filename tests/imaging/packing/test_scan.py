@@ -20,9 +20,15 @@ AXES = np.array([1.0, 1.0, 0.05])
 D_CONT = 1e-3
 
 
+def scan_drop(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont):  # type: ignore[no-untyped-def]
+    """The scan's gap of A above B, bounded by the exact gap as a fall bounds it."""
+    exact = contact.drop_to_contact(ca, ra, xa, cb, rb, xb, max_drop, 0.05 * d_cont)[0]
+    return scan.scan_drop(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont, exact)
+
+
 def test_flat_disk_on_flat_disk_is_found_by_the_gap() -> None:
     """Flat on flat, offset: the vertical gap is the distance between the faces, 0.9."""
-    gap, *point = scan.scan_drop(np.array([0.3, 0.2, 1.0]), np.eye(3), AXES, np.zeros(3), np.eye(3),
+    gap, *point = scan_drop(np.array([0.3, 0.2, 1.0]), np.eye(3), AXES, np.zeros(3), np.eye(3),
                                  AXES, 10.0, 150, D_CONT)
     assert gap == pytest.approx(0.9, abs=1e-12)
     assert point[2] == pytest.approx(0.05, abs=1e-12)
@@ -42,10 +48,10 @@ def test_tilted_disk_lands_on_its_rim_within_d_cont() -> None:
     rot_a = rotation_matrices([[0.0, 0.7, 0.0]])[0]
     far = np.array([0.0, 1.5, 2.0])
     exact_far = 2 - np.sin(0.7) - 0.05 * np.cos(0.7) - 0.05
-    coarse = scan.scan_drop(far, rot_a, AXES, np.zeros(3), np.eye(3), AXES, 10.0, 150, D_CONT)[0]
+    coarse = scan_drop(far, rot_a, AXES, np.zeros(3), np.eye(3), AXES, 10.0, 150, D_CONT)[0]
     assert exact_far - 1e-12 <= coarse <= exact_far + D_CONT
     near, exact = _near(far, rot_a, AXES, np.zeros(3), np.eye(3), AXES, 0.02)
-    gap = scan.scan_drop(near, rot_a, AXES, np.zeros(3), np.eye(3), AXES, 10.0, 150, D_CONT)[0]
+    gap = scan_drop(near, rot_a, AXES, np.zeros(3), np.eye(3), AXES, 10.0, 150, D_CONT)[0]
     assert exact - 1e-12 <= gap <= exact + D_CONT
     assert gap - exact == pytest.approx(coarse - exact_far, abs=1e-9)
 
@@ -60,7 +66,7 @@ def test_edge_on_flat_and_flat_on_edge_match_the_exact_fall() -> None:
     ]
     for ca, ra, cb, rb in cases:
         near, exact = _near(ca, ra, AXES, cb, rb, AXES, 0.01)
-        gap = scan.scan_drop(near, ra, AXES, cb, rb, AXES, 10.0, 150, D_CONT)[0]
+        gap = scan_drop(near, ra, AXES, cb, rb, AXES, 10.0, 150, D_CONT)[0]
         assert exact - 1e-9 <= gap <= exact + D_CONT
 
 
@@ -78,7 +84,7 @@ def test_random_poses_are_found_within_d_cont(seed: int, height: float) -> None:
     rot = rotation_matrices(rng.uniform([0, 0, 0], [2 * np.pi, 1.4, 2 * np.pi], (2, 3)))
     ca = np.array([*rng.uniform(-0.3, 0.3, 2), 3.0])  # B under A's centre: A lands on B
     near, exact = _near(ca, rot[0], axes, np.zeros(3), rot[1], axes, height * delta)
-    gap = scan.scan_drop(near, rot[0], axes, np.zeros(3), rot[1], axes, 10.0, 150, D_CONT)[0]
+    gap = scan_drop(near, rot[0], axes, np.zeros(3), rot[1], axes, 10.0, 150, D_CONT)[0]
     assert gap >= exact - 1e-9
     assert gap - exact <= D_CONT
 
@@ -90,7 +96,7 @@ def test_overlap_is_seen_by_either_scan() -> None:
                              150, D_CONT)
     tilted = rotation_matrices([[0.0, 0.7, 0.0]])[0]
     low = np.array([0.0, 1.5, np.sin(0.7) + 0.05 * np.cos(0.7) + 0.05 - 0.01])
-    assert scan.scan_drop(low, tilted, AXES, np.zeros(3), np.eye(3), AXES, 10.0, 150, D_CONT)[0] == -1.0
+    assert scan_drop(low, tilted, AXES, np.zeros(3), np.eye(3), AXES, 10.0, 150, D_CONT)[0] == -1.0
     assert not scan.scan_overlap(np.array([0.5, 0.0, 0.2]), np.eye(3), AXES, np.zeros(3), np.eye(3),
                                  AXES, 150, D_CONT)
 
@@ -104,7 +110,7 @@ def test_a_small_disk_under_a_large_one_can_hide_between_scan_points() -> None:
     delta = scan.scan_spacing(1.0, 1.0, 150)
     small = np.array([0.03, 0.03, 0.01])
     centre = np.array([0.5 * delta, 0.5 * delta, 0.0])
-    gap = scan.scan_drop(np.array([0.0, 0.0, 1.0]), np.eye(3), AXES, centre, np.eye(3), small, 10.0,
+    gap = scan_drop(np.array([0.0, 0.0, 1.0]), np.eye(3), AXES, centre, np.eye(3), small, 10.0,
                          150, D_CONT)[0]
     assert gap == contact.INFINITE_DROP
     assert scan.scan_overlap(np.array([0.0, 0.0, 0.05]), np.eye(3), AXES, centre, np.eye(3), small, 150,
@@ -181,7 +187,7 @@ def test_fall_finds_the_least_scanned_drop_of_the_whole_bed() -> None:
             for sx in (-width, 0.0, width):
                 for sy in (-width, 0.0, width):
                     cb = bed.centers[i] + np.array([sx, sy, 0.0])
-                    least = min(least, scan.scan_drop(centre, rotation, axes, cb, bed.rotations[i],
+                    least = min(least, scan_drop(centre, rotation, axes, cb, bed.rotations[i],
                                                       bed.axes[i], 1e3 * DIAMETER, 150, d_cont)[0])
         drops[k, 0] = max(least - 0.5 * d_cont, 0.0)
         drops[k, 1] = settle_kernels.fall(
