@@ -29,7 +29,7 @@ def scan_drop(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont):  # type: ignore[n
 def test_flat_disk_on_flat_disk_is_found_by_the_gap() -> None:
     """Flat on flat, offset: the vertical gap is the distance between the faces, 0.9."""
     gap, *point = scan_drop(np.array([0.3, 0.2, 1.0]), np.eye(3), AXES, np.zeros(3), np.eye(3),
-                                 AXES, 10.0, 150, D_CONT)
+                            AXES, 10.0, 150, D_CONT)
     assert gap == pytest.approx(0.9, abs=1e-12)
     assert point[2] == pytest.approx(0.05, abs=1e-12)
 
@@ -111,7 +111,7 @@ def test_a_small_disk_under_a_large_one_can_hide_between_scan_points() -> None:
     small = np.array([0.03, 0.03, 0.01])
     centre = np.array([0.5 * delta, 0.5 * delta, 0.0])
     gap = scan_drop(np.array([0.0, 0.0, 1.0]), np.eye(3), AXES, centre, np.eye(3), small, 10.0,
-                         150, D_CONT)[0]
+                    150, D_CONT)[0]
     assert gap == contact.INFINITE_DROP
     assert scan.scan_overlap(np.array([0.0, 0.0, 0.05]), np.eye(3), AXES, centre, np.eye(3), small, 150,
                              D_CONT)
