@@ -291,18 +291,31 @@ def relax(
     body = attached
     progress = ConvergenceProgress(settings.unbalanced_force_tolerance,
                                    "relaxation: unbalanced force ratio", log)
+    load_change = external_forces - start
+    growth = final_radii - first_radii
+    load = np.empty_like(load_change)
+    smallest = float(dem.reference_radii.min())
+    attachment_changed = True
     for count in range(1, settings.max_relaxation_steps + 1):
         weight = min(count / settings.ramp_steps, 1.0)
-        load = start + weight * (external_forces - start)
-        load[~attached] = 0.0
-        if weight < 1.0 or count == settings.ramp_steps:
-            dem.radii[:] = first_radii + weight * (final_radii - first_radii)
+        ramping = weight < 1.0 or count == settings.ramp_steps
+        # the load changes only along the ramp and where points detach or reattach
+        if ramping or attachment_changed:
+            np.multiply(load_change, weight, out=load)
+            load += start
+            load[~attached] = 0.0
+            attachment_changed = False
+        if ramping:
+            np.multiply(growth, weight, out=dem.radii)
+            dem.radii += first_radii
         report = step(dem, time_step, parameters, load, walls, settings.damping)
-        limit_speed(dem, settings.max_step_fraction * float(dem.reference_radii.min()) / time_step)
+        limit_speed(dem, settings.max_step_fraction * smallest / time_step)
         if count % settings.check_interval == 0:
             if count % (10 * settings.check_interval) == settings.check_interval:
                 body = _main_body(dem, report.normal_forces)
-            attached = _in_contact(dem, report.normal_forces) & body
+            now_attached = _in_contact(dem, report.normal_forces) & body
+            attachment_changed = not np.array_equal(now_attached, attached)
+            attached = now_attached
             # Cundall damping acts on forces: a detached point would coast at its last
             # speed for ever and carry the specimen's extent away with it
             dem.velocities[~attached] = 0.0

@@ -14,6 +14,32 @@ from numba import njit, prange
 
 
 @njit(cache=True)
+def bounding_box(positions):
+    """Lower and upper corners of (n >= 1, 3) points (numpy's axis-0 reductions of an
+    (n, 3) array are strided and several times slower)."""
+    lower = positions[0].copy()
+    upper = positions[0].copy()
+    for i in range(1, positions.shape[0]):
+        for d in range(3):
+            lower[d] = min(lower[d], positions[i, d])
+            upper[d] = max(upper[d], positions[i, d])
+    return lower, upper
+
+
+@njit(cache=True)
+def cell_indices(positions, lower, spacing, dims):
+    """Flat index (x-major, z fastest) of the grid cell of each point."""
+    cells = np.empty(positions.shape[0], dtype=np.int64)
+    for i in range(positions.shape[0]):
+        flat = 0
+        for d in range(3):
+            c = min(max(int((positions[i, d] - lower[d]) / spacing[d]), 0), dims[d] - 1)
+            flat = flat * dims[d] + c
+        cells[i] = flat
+    return cells
+
+
+@njit(cache=True)
 def bin_points(cell_of_point, n_cells):
     """Counting sort of points by cell: CSR ``cell_start`` (n_cells + 1) and ``cell_points``."""
     cell_start = np.zeros(n_cells + 1, dtype=np.int64)
@@ -31,54 +57,125 @@ def bin_points(cell_of_point, n_cells):
 
 
 @njit(cache=True)
-def find_pairs(positions, radii, cutoff_factor, skin, cell_xyz, dims, cell_start,
-               cell_points, capacity):
+def find_pairs(positions, radii, cutoff_factor, skin, dims, cell_start, cell_points,
+               capacity):
     """Pairs i < j with |x_i - x_j| < cutoff_factor (r_i + r_j) + skin, sorted by (i, j).
 
+    Each unordered pair is tested once: a point against the points after it in its own
+    cell and in the 13 cells of the forward half stencil, walked in cell order so that
+    the positions are read nearly sequentially. The pairs found are then counting-sorted
+    by their first point, and each row's few second points by insertion.
+
     Returns ``(pairs, count)``; ``count > capacity`` means the buffer was too small and
-    the caller must retry with at least ``count`` rows.
+    the caller must retry with at least ``count`` rows (a buffer grown inside the search
+    loop would double its cost).
     """
     n = positions.shape[0]
-    # cell-ordered copies: the three z-adjacent cells of a stencil column are one
-    # contiguous run, read sequentially
     sorted_positions = positions[cell_points]
     sorted_radii = radii[cell_points]
-    pairs = np.empty((capacity, 2), dtype=np.int64)
-    row = np.empty(64, dtype=np.int64)
+    first = np.empty(capacity, dtype=np.int64)
+    second = np.empty(capacity, dtype=np.int64)
     count = 0
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    for c in range(nx * ny * nz):
+        cz = c % nz
+        cy = (c // nz) % ny
+        cx = c // (nz * ny)
+        for s in range(cell_start[c], cell_start[c + 1]):
+            xs, ys, zs, rs = (sorted_positions[s, 0], sorted_positions[s, 1],
+                              sorted_positions[s, 2], sorted_radii[s])
+            # runs of z-adjacent cells, contiguous in cell order: the rest of this cell
+            # and the next one up, then the three columns at x + 1 and the one at y + 1
+            for run in range(5):
+                if run == 0:
+                    lo = s + 1
+                    hi = cell_start[c + 1 + (1 if cz + 1 < nz else 0)]
+                else:
+                    ox = 1 if run < 4 else 0
+                    oy = run - 2 if run < 4 else 1
+                    if cx + ox >= nx or cy + oy < 0 or cy + oy >= ny:
+                        continue
+                    column = ((cx + ox) * ny + cy + oy) * nz
+                    lo = cell_start[column + max(cz - 1, 0)]
+                    hi = cell_start[column + min(cz + 1, nz - 1) + 1]
+                for t in range(lo, hi):
+                    cut = cutoff_factor * (rs + sorted_radii[t]) + skin
+                    ddx = sorted_positions[t, 0] - xs
+                    ddy = sorted_positions[t, 1] - ys
+                    ddz = sorted_positions[t, 2] - zs
+                    if ddx * ddx + ddy * ddy + ddz * ddz < cut * cut:
+                        if count < capacity:
+                            i, j = cell_points[s], cell_points[t]
+                            first[count] = min(i, j)
+                            second[count] = max(i, j)
+                        count += 1
+    if count > capacity:
+        return np.empty((0, 2), dtype=np.int64), count
+    row_start = np.zeros(n + 1, dtype=np.int64)
+    for k in range(count):
+        row_start[first[k] + 1] += 1
     for i in range(n):
-        n_row = 0
-        xi, yi, zi = positions[i, 0], positions[i, 1], positions[i, 2]
-        z_lo = max(cell_xyz[i, 2] - 1, 0)
-        z_hi = min(cell_xyz[i, 2] + 1, dims[2] - 1)
-        for cx in range(max(cell_xyz[i, 0] - 1, 0), min(cell_xyz[i, 0] + 2, dims[0])):
-            for cy in range(max(cell_xyz[i, 1] - 1, 0), min(cell_xyz[i, 1] + 2, dims[1])):
-                column = (cx * dims[1] + cy) * dims[2]
-                for s in range(cell_start[column + z_lo], cell_start[column + z_hi + 1]):
-                    cut = cutoff_factor * (radii[i] + sorted_radii[s]) + skin
-                    ddx = sorted_positions[s, 0] - xi
-                    ddy = sorted_positions[s, 1] - yi
-                    ddz = sorted_positions[s, 2] - zi
-                    # distance first: it is rarely below the cutoff, so this branch
-                    # predicts well, unlike a test on the index order
-                    if ddx * ddx + ddy * ddy + ddz * ddz < cut * cut and cell_points[s] > i:
-                        j = cell_points[s]
-                        if n_row == row.shape[0]:
-                            row = np.concatenate((row, np.empty_like(row)))
-                        # insertion keeps the few neighbours of i sorted; numba's
-                        # array sort costs more than the search on such short rows
-                        slot = n_row
-                        while slot > 0 and row[slot - 1] > j:
-                            row[slot] = row[slot - 1]
-                            slot -= 1
-                        row[slot] = j
-                        n_row += 1
-        for k in range(n_row):
-            if count < capacity:
-                pairs[count, 0] = i
-                pairs[count, 1] = row[k]
-            count += 1
+        row_start[i + 1] += row_start[i]
+    fill = row_start[:-1].copy()
+    pairs = np.empty((count, 2), dtype=np.int64)
+    for k in range(count):
+        i = first[k]
+        # insertion keeps each row (a few neighbours) sorted as it fills
+        slot = fill[i]
+        while slot > row_start[i] and pairs[slot - 1, 1] > second[k]:
+            pairs[slot, 1] = pairs[slot - 1, 1]
+            slot -= 1
+        pairs[slot, 1] = second[k]
+        fill[i] += 1
+    for i in range(n):
+        for slot in range(row_start[i], row_start[i + 1]):
+            pairs[slot, 0] = i
     return pairs, count
+
+
+@njit(cache=True)
+def _strictly_sorted(pairs):
+    """Whether the (n, 2) rows increase strictly in lexicographic order."""
+    for p in range(1, pairs.shape[0]):
+        if pairs[p, 0] < pairs[p - 1, 0] or (
+            pairs[p, 0] == pairs[p - 1, 0] and pairs[p, 1] <= pairs[p - 1, 1]
+        ):
+            return False
+    return True
+
+
+@njit(cache=True)
+def match_sorted_pairs(pairs, keyed_pairs):
+    """Row of each pair in ``keyed_pairs``, -1 where absent, by one merge of the two lists.
+
+    Both lists must be sorted lexicographically; a ValueError says which one is not.
+    """
+    if not _strictly_sorted(pairs):
+        raise ValueError("pairs are not sorted lexicographically without repeats")
+    if not _strictly_sorted(keyed_pairs):
+        raise ValueError("keyed pairs are not sorted lexicographically without repeats")
+    found = np.full(pairs.shape[0], -1, dtype=np.int64)
+    k = 0
+    for p in range(pairs.shape[0]):
+        i, j = pairs[p, 0], pairs[p, 1]
+        while k < keyed_pairs.shape[0] and (
+            keyed_pairs[k, 0] < i or (keyed_pairs[k, 0] == i and keyed_pairs[k, 1] < j)
+        ):
+            k += 1
+        if k < keyed_pairs.shape[0] and keyed_pairs[k, 0] == i and keyed_pairs[k, 1] == j:
+            found[p] = k
+    return found
+
+
+@njit(cache=True)
+def gather_rows(values, rows):
+    """``values[rows]`` for the (k, c) array, zero rows where ``rows`` is -1."""
+    result = np.zeros((rows.shape[0], values.shape[1]))
+    for p in range(rows.shape[0]):
+        if rows[p] >= 0:
+            for c in range(values.shape[1]):
+                result[p, c] = values[rows[p], c]
+    return result
 
 
 @njit(cache=True, parallel=True)

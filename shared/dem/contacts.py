@@ -59,23 +59,21 @@ def detect_contacts(
     if not cutoff_factor > 0.0 or skin < 0.0:
         raise ValueError("cutoff_factor must be > 0 and skin >= 0")
     cell_size = 2.0 * cutoff_factor * float(radii.max()) + skin
-    lower = positions.min(axis=0)
-    extent = positions.max(axis=0) - lower
+    lower, upper = _kernels.bounding_box(positions)
+    extent = upper - lower
     # cap the grid at about one cell per point so sparse clouds do not allocate huge grids
     cell_size = max(cell_size, float(np.prod(extent + cell_size) / n) ** (1.0 / 3.0))
     dims = np.maximum(np.floor(extent / cell_size).astype(np.int64), 1)
-    cell_xyz = np.minimum((positions - lower) / (extent / dims + 1e-300), dims - 1)
-    cell_xyz = cell_xyz.astype(np.int64)
-    cell_of_point = (cell_xyz[:, 0] * dims[1] + cell_xyz[:, 1]) * dims[2] + cell_xyz[:, 2]
+    cell_of_point = _kernels.cell_indices(positions, lower, extent / dims + 1e-300, dims)
     cell_start, cell_points = _kernels.bin_points(cell_of_point, int(np.prod(dims)))
-    capacity = 8 * n
+    capacity = 4 * n
     while True:
         pairs, count = _kernels.find_pairs(
-            positions, radii, float(cutoff_factor), float(skin), cell_xyz, dims,
-            cell_start, cell_points, capacity,
+            positions, radii, float(cutoff_factor), float(skin), dims, cell_start,
+            cell_points, capacity,
         )
         if count <= capacity:
-            return pairs[:count].copy()
+            return pairs
         capacity = count
 
 
@@ -102,32 +100,32 @@ def bond_pairs(
 
 
 def pair_values(
-    pairs: IntArray, keyed_pairs: IntArray, values: npt.ArrayLike, n_points: int
+    pairs: IntArray, keyed_pairs: IntArray, values: npt.ArrayLike
 ) -> npt.NDArray[np.float64]:
-    """``values`` of the pairs found in ``keyed_pairs`` (sorted, i < j), 0 for the others.
+    """``values`` of the pairs found in ``keyed_pairs``, 0 for the others.
 
     Parameters
     ----------
     pairs
-        (m, 2) pairs i < j to look up.
+        (m, 2) pairs i < j to look up, sorted lexicographically (as
+        :func:`detect_contacts` returns them).
     keyed_pairs
         (k, 2) pairs i < j, sorted lexicographically (e.g. ``DEMState.bonds``).
     values
         (k, ...) value of each keyed pair (a scalar or an array per pair).
-    n_points
-        Number of points (key i n + j).
+
+    Raises
+    ------
+    ValueError
+        If either list is not sorted (the lookup is one merge of the two).
     """
     values = np.asarray(values, dtype=np.float64)
-    result = np.zeros((pairs.shape[0],) + values.shape[1:])
-    if keyed_pairs.shape[0] == 0 or pairs.shape[0] == 0:
-        return result
-    n = np.int64(n_points)
-    keys = keyed_pairs[:, 0] * n + keyed_pairs[:, 1]
-    wanted = pairs[:, 0] * n + pairs[:, 1]
-    where = np.minimum(np.searchsorted(keys, wanted), keys.size - 1)
-    found = keys[where] == wanted
-    result[found] = values[where[found]]
-    return result
+    rows = _kernels.match_sorted_pairs(
+        np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2),
+        np.ascontiguousarray(keyed_pairs, dtype=np.int64).reshape(-1, 2),
+    )
+    flat = np.ascontiguousarray(values.reshape(values.shape[0], int(np.prod(values.shape[1:]))))
+    return _kernels.gather_rows(flat, rows).reshape((rows.shape[0],) + values.shape[1:])
 
 
 def contacts_need_update(state: DEMState) -> bool:
@@ -168,10 +166,10 @@ def update_contacts(
     pairs = detect_contacts(
         state.positions, state.radii, parameters.interaction_radius_factor, contacts.skin
     )
-    shear = pair_values(pairs, contacts.pairs, contacts.shear_forces, state.n_points)
+    shear = pair_values(pairs, contacts.pairs, contacts.shear_forces)
     contacts.pairs = pairs
     contacts.shear_forces = shear
-    contacts.reference_overlaps = pair_values(pairs, state.bonds, state.bond_overlaps, state.n_points)
+    contacts.reference_overlaps = pair_values(pairs, state.bonds, state.bond_overlaps)
     contacts.detection_positions = state.positions.copy()
     contacts.detection_radii = state.radii.copy()
     return True

@@ -216,9 +216,8 @@ def step(
     StepReport
     """
     rebuilt = update_contacts(state, parameters)
-    forces = np.zeros((state.n_points, 3))
-    if external_forces is not None:
-        forces += external_forces
+    # + 0.0 turns -0.0 into 0.0: the same array as zeros plus the external forces
+    forces = np.zeros((state.n_points, 3)) if external_forces is None else external_forces + 0.0
     forces, torques, normal_forces = contact_forces(state, time_step, parameters, forces)
     if state.bonds.shape[0]:
         bond_tension(state, parameters, forces)

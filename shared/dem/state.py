@@ -176,7 +176,7 @@ def new_state(
     if stress_free_bonds:
         gaps = np.linalg.norm(positions[bonds[:, 1]] - positions[bonds[:, 0]], axis=1)
         overlaps = np.maximum(radii[bonds].sum(axis=1) - gaps, 0.0)
-    contacts.reference_overlaps = pair_values(pairs, bonds, overlaps, positions.shape[0])
+    contacts.reference_overlaps = pair_values(pairs, bonds, overlaps)
     masses = parameters.density * 4.0 / 3.0 * np.pi * radii**3
     return DEMState(
         positions=positions.copy(),

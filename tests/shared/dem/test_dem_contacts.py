@@ -1,9 +1,10 @@
 """Cell-list contact detection against a brute-force O(N^2) search; Verlet list upkeep."""
 
 import numpy as np
+import pytest
 from tests._defaults import DEM
 
-from shared.dem import detect_contacts, new_state, update_contacts
+from shared.dem import detect_contacts, new_state, pair_values, update_contacts
 
 
 def _brute_force(positions, radii, factor, skin):
@@ -17,11 +18,14 @@ def test_cell_list_equals_brute_force_on_polydisperse_random_points():
     rng = np.random.default_rng(11)
     positions = rng.uniform(0.0, 1e-3, (700, 3))
     radii = rng.uniform(2e-5, 8e-5, 700)
-    for factor, skin in ((1.0, 0.0), (1.3, 1e-5)):
+    # the last cutoff finds more than four pairs per point: the search runs out of its
+    # first buffer and is repeated
+    for factor, skin in ((1.0, 0.0), (1.3, 1e-5), (2.5, 5e-5)):
         found = detect_contacts(positions, radii, factor, skin)
         expected = _brute_force(positions, radii, factor, skin)
         assert expected.shape[0] > 500
         np.testing.assert_array_equal(found, expected)
+    assert expected.shape[0] > 4 * positions.shape[0]
 
 
 def test_flat_and_tiny_clouds():
@@ -51,3 +55,20 @@ def test_bonds_are_touching_pairs_within_tolerance():
     np.testing.assert_array_equal(
         new_state(positions, radii, DEM, bond_tolerance=1e-3).bonds, [[0, 1], [0, 2]]
     )
+
+
+def test_pair_values_merge_agrees_with_a_dictionary_and_rejects_unsorted_lists():
+    rng = np.random.default_rng(5)
+    keyed = np.unique(np.sort(rng.integers(0, 60, (300, 2)), axis=1), axis=0)
+    keyed = keyed[keyed[:, 0] < keyed[:, 1]]
+    pairs = np.unique(np.sort(rng.integers(0, 60, (300, 2)), axis=1), axis=0)
+    pairs = pairs[pairs[:, 0] < pairs[:, 1]]
+    values = rng.normal(size=(keyed.shape[0], 3))
+    lookup = {tuple(pair): value for pair, value in zip(keyed.tolist(), values)}
+    expected = np.array([lookup.get(tuple(pair), np.zeros(3)) for pair in pairs.tolist()])
+    assert 0 < sum(tuple(pair) in lookup for pair in pairs.tolist()) < pairs.shape[0]
+    assert np.array_equal(pair_values(pairs, keyed, values), expected)
+    with pytest.raises(ValueError, match="keyed pairs are not sorted"):
+        pair_values(pairs, keyed[::-1], values)
+    with pytest.raises(ValueError, match="pairs are not sorted"):
+        pair_values(pairs[::-1], keyed, values)
