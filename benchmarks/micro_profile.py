@@ -17,6 +17,10 @@ their wall time and peak memory, and the wall time per phase that every micro ru
 records (``wall_time_<phase>_s`` attributes), with the exponent of a power law fitted
 per phase from 15k points up, and a log-log figure of the curve.
 
+``python -m benchmarks run measurement_threads --size N`` times one checkpoint's eight
+permeability solves on a jittered cube of N points on one thread and on two (the micro
+case's ``threads``), and checks that both give the same permeabilities bit for bit.
+
 ``python -m benchmarks run micro_ramp --size N`` runs the heterogeneous case with load
 ramps of 50 to 400 DEM steps (``micro.numerics.ramp_steps``) beside two runs that differ
 from the 200-step one only in ways that the tolerances allow (multigrid instead of the
@@ -43,8 +47,8 @@ from benchmarks.flow import _exponent, _save_cost_figure
 from benchmarks.parameters import CONFIG
 from micro.run import phase_wall_times
 
-__all__ = ["bench_micro_profile", "bench_micro_ramp", "bench_micro_relaxation",
-           "bench_micro_scaling"]
+__all__ = ["bench_measurement_threads", "bench_micro_profile", "bench_micro_ramp",
+           "bench_micro_relaxation", "bench_micro_scaling"]
 
 # The convergence study's cases from which the issue's N^1.1 target is fitted.
 SCALING_FROM_POINTS = 15_000
@@ -280,3 +284,39 @@ def _plot_micro_scaling(records: list[dict], exponents: dict[str, float], path: 
                     label="N^1.1 (target)")
     _save_cost_figure(figure, axes, "wall time [s]",
                       "Whole heterogeneous micro runs (default protocol), 2 cores", path)
+
+
+def bench_measurement_threads(points: int = 150_000) -> dict:
+    """One checkpoint's eight permeability solves (three axes and the tensor, water and
+    gas) on one thread and on two: a jittered cube of ``points`` points, random
+    saturation and porosity, 2 % of the facets 1e4 times more conductive (cracks). The
+    two runs must agree bit for bit; the wall times are measured, never asserted."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from benchmarks.parameters import CLAY
+    from micro.permeability import permeability_tensor, permeability_tensor_axes
+    from shared.dem import cube_points
+    from shared.fv import facet_conductance
+    from shared.mesh import build_mesh
+
+    rng = np.random.default_rng(0)
+    mesh = build_mesh(cube_points(points, rng, jitter=0.2)[0])
+    saturation = rng.uniform(0.4, 0.95, mesh.n_cells)
+    porosity = rng.uniform(0.25, 0.4, mesh.n_cells)
+    cracks = np.where(rng.random(mesh.n_facets) < 0.02, 1e4, 1.0)
+    phases = {phase: facet_conductance(mesh, saturation, porosity, phase, CLAY) * cracks
+              for phase in ("water", "gas")}
+    arguments = (mesh, saturation, porosity, 5e7, CLAY)
+    record: dict = {"n_points": points, "n_cells": mesh.n_cells}
+    results = {}
+    for workers in (1, 2):
+        start = time.perf_counter()
+        with ThreadPoolExecutor(workers) as pool:
+            axes = permeability_tensor_axes(*arguments, conductances=phases, executor=pool)
+            tensor = permeability_tensor(*arguments, conductances=phases, executor=pool)
+        record[f"wall_{workers}_threads_s"] = time.perf_counter() - start
+        results[workers] = (axes, tensor)
+    record["speed_up"] = record["wall_1_threads_s"] / record["wall_2_threads_s"]
+    record["identical"] = bool(results[1][0] == results[2][0]
+                               and np.array_equal(results[1][1], results[2][1]))
+    return record

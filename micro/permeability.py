@@ -63,8 +63,10 @@ rather than as a permeability. The measurements behind these choices are in
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass
+from functools import partial
 from typing import Literal
 
 import numpy as np
@@ -107,6 +109,13 @@ PHASES: tuple[Phase, ...] = ("water", "gas")
 
 # Extended-precision refinement sweeps allowed for an unbalanced wall-flux solve.
 _REFINEMENTS = 6
+
+
+def _gathered(executor: Executor | None, calls: Sequence[Callable[[], object]]) -> list:
+    """Results of independent calls, in order: on ``executor``'s workers, or here."""
+    if executor is None:
+        return [call() for call in calls]
+    return [future.result() for future in [executor.submit(call) for call in calls]]
 
 
 def _floored(conductance: FloatArray, floor: float) -> FloatArray | None:
@@ -379,6 +388,7 @@ def permeability_tensor_axes(
     conductances: Mapping[str, FloatArray] | None = None,
     method: Method = "wall_flux",
     drop_fraction: float = 0.1,
+    executor: Executor | None = None,
 ) -> dict[str, dict[str, float]]:
     """Water and gas permeability along x, y and z of a frozen state.
 
@@ -402,6 +412,10 @@ def permeability_tensor_axes(
         ``"wall_flux"`` or ``"velocity"``.
     drop_fraction
         Pressure drop as a fraction of the suction [1].
+    executor
+        Runs the six independent solves on its workers (threads gain where the solves
+        take the multigrid path, whose cycles release the GIL; CHOLMOD holds it); None
+        runs them one after the other. The results do not depend on it.
 
     Returns
     -------
@@ -417,23 +431,21 @@ def permeability_tensor_axes(
         else facet_conductance(mesh, saturation, porosity, phase, material)
         for phase in PHASES
     }
+    # one pattern per axis for both phases; the velocity method's serves every axis
+    patterns = [measurement_pattern(mesh, 0, method)]
+    if method == "wall_flux":
+        patterns += [measurement_pattern(mesh, axis, method) for axis in (1, 2)]
+    calls = [
+        partial(measure_permeability, mesh, conductance, phase_viscosity(phase, material),
+                axis, mean_pressure=-suction, pressure_drop=drop_fraction * suction,
+                method=method, pattern=patterns[min(axis, len(patterns) - 1)])
+        for axis in range(len(AXES)) for phase, conductance in phases.items()
+    ]
+    values = iter(_gathered(executor, calls))
     result: dict[str, dict[str, float]] = {phase: {} for phase in PHASES}
-    pattern = None
-    for axis, name in enumerate(AXES):
-        # one pattern per axis for both phases; the velocity method's serves every axis
-        if pattern is None or method == "wall_flux":
-            pattern = measurement_pattern(mesh, axis, method)
-        for phase, conductance in phases.items():
-            result[phase][name] = measure_permeability(
-                mesh,
-                conductance,
-                phase_viscosity(phase, material),
-                axis,
-                mean_pressure=-suction,
-                pressure_drop=drop_fraction * suction,
-                method=method,
-                pattern=pattern,
-            )
+    for name in AXES:
+        for phase in phases:
+            result[phase][name] = next(values)
     return result
 
 
@@ -644,6 +656,7 @@ def permeability_tensor(
     drop_fraction: float = 0.1,
     inner_fraction: float = 0.8,
     sealed: npt.NDArray[np.bool_] | None = None,
+    executor: Executor | None = None,
 ) -> FloatArray:
     """Water and gas permeability tensors of a frozen state (DESIGN §2, ``permeability_tensor``).
 
@@ -673,6 +686,8 @@ def permeability_tensor(
     sealed
         Cells that stay free in the wall layers (crack mouths), see
         :func:`measure_permeability_tensor`.
+    executor
+        Runs the two phases on its workers, as in :func:`permeability_tensor_axes`.
 
     Returns
     -------
@@ -683,18 +698,18 @@ def permeability_tensor(
     if not suction > 0.0:
         raise ValueError(f"suction must be > 0, got {suction}")
     given = {} if conductances is None else dict(conductances)
-    result = np.empty((len(PHASES), 3, 3))
     pattern = tensor_pattern(mesh, sealed)
-    for index, phase in enumerate(PHASES):
+    calls = []
+    for phase in PHASES:
         conductance = given.get(phase)
         if conductance is None:
             conductance = facet_conductance(mesh, saturation, porosity, phase, material)
-        result[index] = measure_permeability_tensor(
-            mesh, conductance, phase_viscosity(phase, material),
+        calls.append(partial(
+            measure_permeability_tensor, mesh, conductance, phase_viscosity(phase, material),
             pressure_drop=drop_fraction * suction, inner_fraction=inner_fraction, sealed=sealed,
             label=f"{phase} permeability tensor at {suction:.4g} Pa", pattern=pattern,
-        )
-    return result
+        ))
+    return np.stack(_gathered(executor, calls))
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numba
 import numpy as np
 import xarray as xr
 
@@ -335,7 +336,7 @@ def run(
             state.mesh = mesh_from_tetrahedra(state.dem.positions, state.mesh.tetrahedra,
                                               state.mesh.neighbours, reorient=False)
             record = measure_checkpoint(state, suction, reference_volume, material,
-                                        settings.cracks)
+                                        settings.cracks, workers=_measurement_workers())
         record.update(diagnostics)
         records.append(record)
         with clock.phase("output"):
@@ -363,6 +364,20 @@ def run(
     figures.case_figure(ds, case, figure_output)
     state_file.unlink(missing_ok=True)
     return ds
+
+
+def _measurement_workers() -> int:
+    """Threads for a checkpoint's permeability solves: numba's (the job's threads), or one
+    where numba's threading layer cannot run kernels from two threads at once
+    (workqueue) or has not started yet."""
+    threads = numba.get_num_threads()
+    if threads == 1:
+        return 1
+    try:
+        layer = numba.threading_layer()
+    except ValueError:
+        return 1
+    return threads if layer in ("omp", "tbb") else 1
 
 
 def _specimen_mean(spec: SpecimenSpec, grid: xr.DataArray, material: ClayParameters,

@@ -154,3 +154,36 @@ def test_a_pattern_of_another_axis_is_refused(mesh: Mesh) -> None:
     with pytest.raises(ValueError, match="pattern"):
         measure_permeability(mesh, conductance, MATERIAL.water_viscosity, 2, mean_pressure=-1e6,
                              pressure_drop=1e5, pattern=measurement_pattern(mesh, 0))
+
+
+@pytest.mark.parametrize("amg_unknowns", [1, 10**9])
+def test_permeabilities_measured_on_two_threads_equal_the_serial_ones(
+    amg_unknowns: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The eight solves of a checkpoint share nothing mutable: run on two threads (both
+    solver paths; 1e4-contrast cracks and a saturation field, so that every solve
+    differs), they return bit for bit what one thread returns."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from micro import permeability
+
+    monkeypatch.setattr(permeability, "_MEASUREMENT_AMG_UNKNOWNS", amg_unknowns)
+    mesh = jittered_mesh(9, seed=4)
+    rng = np.random.default_rng(4)
+    saturation = rng.uniform(0.4, 0.95, mesh.n_cells)
+    porosity = rng.uniform(0.25, 0.4, mesh.n_cells)
+    phases = {phase: facet_conductance(mesh, saturation, porosity, phase, MATERIAL)
+              * np.where(rng.random(mesh.n_facets) < 0.02, 1e4, 1.0)
+              for phase in ("water", "gas")}
+    arguments = (mesh, saturation, porosity, 5e7, MATERIAL)
+    serial = permeability.permeability_tensor_axes(*arguments, conductances=phases)
+    tensor = permeability.permeability_tensor(*arguments, conductances=phases)
+    with ThreadPoolExecutor(2) as pool:
+        threaded = permeability.permeability_tensor_axes(*arguments, conductances=phases,
+                                                         executor=pool)
+        threaded_tensor = permeability.permeability_tensor(*arguments, conductances=phases,
+                                                           executor=pool)
+    assert threaded == serial
+    assert len({value for axes in serial.values() for value in axes.values()}) == 6
+    np.testing.assert_array_equal(threaded_tensor, tensor)
+    assert np.all(np.isfinite(tensor))

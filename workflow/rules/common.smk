@@ -105,8 +105,17 @@ def _micro_with_case(name, entry):
 
 
 def get_micro_case_config(wildcards):
-    """The micro settings with this case alone."""
-    return _micro_with_case(wildcards.case, config["micro"]["cases"][wildcards.case])
+    """The micro settings with this case alone (its thread count is not a setting: the
+    results do not depend on it, and changing it reruns nothing)."""
+    entry = config["micro"]["cases"][wildcards.case]
+    return _micro_with_case(
+        wildcards.case, {k: v for k, v in entry.items() if k != "threads"}
+    )
+
+
+def get_micro_threads(wildcards):
+    """Threads of this case's job (``micro.cases.<case>.threads``)."""
+    return config["micro"]["cases"][wildcards.case].get("threads", 1)
 
 
 def get_scale_realization_config(wildcards):

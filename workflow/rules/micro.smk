@@ -11,6 +11,7 @@ rule micro_case:
         code=MICRO_CODE,
         micro=get_micro_case_config,
         materials=get_micro_materials,
+    threads: get_micro_threads
     conda:
         "../envs/claychain.yaml"
     log:
