@@ -53,7 +53,8 @@ gas-filled cracks sets) hands the system to the factor with ``method="auto"``, f
 the rest of that pattern; with ``method="amg"`` it is an error. The classical
 coarsening runs the second pass of Ruge and Stueben (every strong F-F connection gets
 a common C point): on the micro model's systems it takes the V-cycle CG from about 50
-to 7 iterations at 1e-8. The symmetric Gauss-Seidel V-cycle is a symmetric positive
+to 7 iterations at 1e-8. Its strength threshold (``amg_strength``) trades the setup and
+the cost of a cycle (operator complexity) against the number of cycles. The symmetric Gauss-Seidel V-cycle is a symmetric positive
 definite preconditioner, as CG needs.
 
 The rules only trade factorisations against iterations, deterministically (iteration
@@ -94,6 +95,11 @@ _MIN_SETUP_ITERATIONS = 4
 # Unknowns from which ``method="auto"`` preconditions with multigrid instead of a factor
 # (measured crossover of a whole run, benchmarks/reference/README.md).
 AMG_UNKNOWNS = 100_000
+
+# Strength threshold of the classical coarsening: 0.5 instead of pyamg's 0.25 halves the
+# hierarchy's operator complexity on the micro model's steady systems (5.7 -> 3.5) and
+# takes a solve to 1e-13 in fewer iterations (benchmarks/reference/README.md).
+AMG_STRENGTH = 0.5
 
 
 class SolverError(RuntimeError):
@@ -293,6 +299,9 @@ class SPDSolver:
     amg_rebuild_ratio
         A stale hierarchy may spend this many times the iterations of the first solve
         after its setup (at least 4) before it is rebuilt in the middle of the solve [1].
+    amg_strength
+        Classical strength threshold theta of the coarsening [1]: a connection is strong
+        if -a_ij >= theta max_k -a_ik.
 
     Notes
     -----
@@ -318,6 +327,7 @@ class SPDSolver:
         amg_unknowns: int = AMG_UNKNOWNS,
         amg_max_iterations: int = 100,
         amg_rebuild_ratio: float = 1.5,
+        amg_strength: float = AMG_STRENGTH,
     ) -> None:
         if method not in ("auto", "direct", "amg"):
             raise ValueError(f"method must be 'auto', 'direct' or 'amg', got {method!r}")
@@ -330,6 +340,7 @@ class SPDSolver:
         self.amg_unknowns = amg_unknowns
         self.amg_max_iterations = amg_max_iterations
         self.amg_rebuild_ratio = amg_rebuild_ratio
+        self.amg_strength = amg_strength
         self.blas_threads = blas_threads
         self.blas_threads_set = blas_threads is not None and set_cholmod_blas_threads(blas_threads)
         self.factor_blas_threads = factor_blas_threads if self.blas_threads_set else None
@@ -380,7 +391,8 @@ class SPDSolver:
         if self.uses_multigrid(matrix.shape[0]) and not self._fallback:
             self._factor = None
             hierarchy = pyamg.ruge_stuben_solver(
-                _full_matrix(matrix), CF=("RS", {"second_pass": True}), max_coarse=500)
+                _full_matrix(matrix), strength=("classical", {"theta": self.amg_strength}),
+                CF=("RS", {"second_pass": True}), max_coarse=500)
             self._cycle = hierarchy.aspreconditioner(cycle="V")
             self._setup_iterations = -1
         else:
@@ -422,7 +434,7 @@ class SPDSolver:
         Returns
         -------
         scalars : dict
-            The preconditioner choice (``method``, ``amg_unknowns``), the rent-or-buy
+            The preconditioner choice (``method``, ``amg_unknowns``, ``amg_strength``), the rent-or-buy
             counters (stale iterations and solves, last rent, solves left to buy at
             once, back-off; on the multigrid path the iterations of the first solve
             since the setup, and whether the factor took over the pattern), the
@@ -440,7 +452,7 @@ class SPDSolver:
             "backoff": self._backoff, "last_drift": self.last_drift,
             "last_residual": self.last_residual, "ordering": self._ordering,
             "method": self.method, "amg_unknowns": self.amg_unknowns,
-            "setup_iterations": self._setup_iterations, "fallback": self._fallback,
+            "amg_strength": self.amg_strength, "setup_iterations": self._setup_iterations, "fallback": self._fallback,
             "stats": dataclasses.asdict(self.stats),
         }
         arrays: dict[str, npt.NDArray[Any]] = {}
@@ -464,6 +476,8 @@ class SPDSolver:
         # states saved before the multigrid path existed are factor states
         self.method = scalars.get("method", "direct")
         self.amg_unknowns = int(scalars.get("amg_unknowns", self.amg_unknowns))
+        # states saved before the threshold was a setting used pyamg's default
+        self.amg_strength = float(scalars.get("amg_strength", 0.25))
         self._fallback = bool(scalars.get("fallback", False))
         if arrays:
             n = arrays["indptr"].shape[0] - 1
