@@ -42,6 +42,7 @@ from micro.cracks import (
     crack_network,
 )
 from micro.forces import hydromechanical_forces, point_suction
+from shared.dem.contacts import held_points
 from shared.dem.integrator import limit_speed, stable_time_step, step, unbalanced_force
 from shared.dem.parameters import DEMParameters
 from shared.dem.state import DEMState
@@ -239,12 +240,6 @@ def _holding_pairs(dem: DEMState, normal_forces: FloatArray) -> npt.NDArray[np.i
     return np.vstack([dem.contacts.pairs[normal_forces > 0.0], dem.bonds[~dem.bond_broken]])
 
 
-def _in_contact(dem: DEMState, normal_forces: FloatArray) -> npt.NDArray[np.bool_]:
-    """Points that carry a compressive contact force or hold an intact bond."""
-    pairs = _holding_pairs(dem, normal_forces)
-    return np.bincount(pairs.ravel(), minlength=dem.n_points) > 0
-
-
 def _main_body(dem: DEMState, normal_forces: FloatArray) -> npt.NDArray[np.bool_]:
     """Points of the largest group held together by contacts and bonds."""
     pairs = _holding_pairs(dem, normal_forces)
@@ -319,7 +314,7 @@ def relax(
         if count % settings.check_interval == 0:
             if count % (10 * settings.check_interval) == settings.check_interval:
                 body = _main_body(dem, report.normal_forces)
-            now_attached = _in_contact(dem, report.normal_forces) & body
+            now_attached = held_points(dem, report.normal_forces) & body
             attachment_changed = not np.array_equal(now_attached, attached)
             attached = now_attached
             # Cundall damping acts on forces: a detached point would coast at its last

@@ -14,6 +14,7 @@ from shared.dem.contacts import (
     bond_pairs,
     contacts_need_update,
     detect_contacts,
+    held_points,
     pair_values,
     update_contacts,
 )
@@ -55,6 +56,7 @@ __all__ = [
     "integrate",
     "new_state",
     "pair_values",
+    "held_points",
     "servo_walls",
     "stable_time_step",
     "step",

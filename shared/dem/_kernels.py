@@ -333,6 +333,38 @@ def gershgorin_rates(positions, radii, pairs, masses, inertia, effective_modulus
 
 
 @njit(cache=True)
+def bond_rates(bonds, broken, radii, masses, effective_modulus):
+    """Per point, the Gershgorin row sums of the intact bonds' springs k = E* r_m
+    [1/s^2], summed bond by bond (i before j), as numpy's bincount of them would."""
+    rates = np.zeros(radii.shape[0])
+    for b in range(bonds.shape[0]):
+        if broken[b]:
+            continue
+        i, j = bonds[b, 0], bonds[b, 1]
+        stiffness = effective_modulus * 0.5 * (radii[i] + radii[j])
+        root_i, root_j = np.sqrt(masses[i]), np.sqrt(masses[j])
+        coupling = stiffness * (1.0 / root_i + 1.0 / root_j)
+        rates[i] += coupling / root_i
+        rates[j] += coupling / root_j
+    return rates
+
+
+@njit(cache=True)
+def holding_points(pairs, normal_forces, bonds, broken, n_points):
+    """Points with a compressive contact (normal force > 0) or an intact bond."""
+    held = np.zeros(n_points, dtype=np.bool_)
+    for k in range(pairs.shape[0]):
+        if normal_forces[k] > 0.0:
+            held[pairs[k, 0]] = True
+            held[pairs[k, 1]] = True
+    for b in range(bonds.shape[0]):
+        if not broken[b]:
+            held[bonds[b, 0]] = True
+            held[bonds[b, 1]] = True
+    return held
+
+
+@njit(cache=True)
 def _separation(positions, i, j):
     """Vector from point i to point j and its length [m]."""
     dx = positions[j, 0] - positions[i, 0]

@@ -15,6 +15,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "detect_contacts", "bond_pairs", "pair_values", "contacts_need_update", "update_contacts",
+    "held_points",
 ]
 
 IntArray = npt.NDArray[np.int64]
@@ -173,3 +174,17 @@ def update_contacts(
     contacts.detection_positions = state.positions.copy()
     contacts.detection_radii = state.radii.copy()
     return True
+
+
+def held_points(state: DEMState, normal_forces: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
+    """Points that carry a compressive contact force or hold an intact bond.
+
+    Parameters
+    ----------
+    state
+        Assembly (its contact list as the forces were computed, bonds and broken flags).
+    normal_forces
+        (n_contacts,) normal force per candidate contact [N], as :func:`step` reports it.
+    """
+    return _kernels.holding_points(state.contacts.pairs, normal_forces, state.bonds,
+                                   state.bond_broken, state.n_points)

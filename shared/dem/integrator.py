@@ -110,14 +110,10 @@ def _bond_rates(state: DEMState, parameters: DEMParameters) -> FloatArray:
     Without tensile strength a bond breaks at its first stretch and never acts as a
     spring; otherwise every intact bond counts, stretched or not (conservative).
     """
-    intact = state.bonds[~state.bond_broken]
-    if intact.shape[0] == 0 or parameters.bond_tensile_strength == 0.0:
+    if state.bonds.shape[0] == 0 or parameters.bond_tensile_strength == 0.0:
         return np.zeros(state.n_points)
-    stiffness = parameters.effective_modulus * 0.5 * state.radii[intact].sum(axis=1)
-    root = np.sqrt(state.masses[intact])
-    coupling = stiffness * (1.0 / root[:, 0] + 1.0 / root[:, 1])
-    return np.bincount(intact.ravel(), (coupling[:, None] / root).ravel(),
-                       minlength=state.n_points)
+    return _kernels.bond_rates(state.bonds, state.bond_broken, state.radii, state.masses,
+                               parameters.effective_modulus)
 
 
 def integrate(

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from tests._defaults import DEM
 
-from shared.dem import detect_contacts, new_state, pair_values, update_contacts
+from shared.dem import detect_contacts, held_points, new_state, pair_values, update_contacts
 
 
 def _brute_force(positions, radii, factor, skin):
@@ -72,3 +72,18 @@ def test_pair_values_merge_agrees_with_a_dictionary_and_rejects_unsorted_lists()
         pair_values(pairs, keyed[::-1], values)
     with pytest.raises(ValueError, match="pairs are not sorted"):
         pair_values(pairs[::-1], keyed, values)
+
+
+def test_held_points_are_those_of_compressive_contacts_and_intact_bonds():
+    rng = np.random.default_rng(8)
+    positions = rng.uniform(0.0, 1e-3, (300, 3))
+    state = new_state(positions, np.full(300, 6e-5), DEM)
+    state.bond_broken[::3] = True
+    normal_forces = np.where(rng.random(state.contacts.pairs.shape[0]) < 0.3, 1.0, 0.0)
+    expected = np.zeros(300, dtype=bool)
+    for (i, j), force in zip(state.contacts.pairs, normal_forces):
+        expected[[i, j]] |= force > 0.0
+    for (i, j), broken in zip(state.bonds, state.bond_broken):
+        expected[[i, j]] |= not broken
+    assert 0 < expected.sum() < 300
+    np.testing.assert_array_equal(held_points(state, normal_forces), expected)

@@ -164,3 +164,23 @@ def test_contacts_need_update_once_a_point_has_moved_half_the_skin(
     assert not contacts_need_update(state)
     state.positions[7] += np.array([0.3, 0.4, 0.0]) / 0.5 * 0.02 * skin
     assert contacts_need_update(state)
+
+
+def test_bond_rates_are_the_row_sums_of_the_intact_bond_springs():
+    """Row sums of M^-1/2 K M^-1/2 for springs k = E* (r_i + r_j) / 2 on the intact
+    bonds, summed here by numpy's bincount, bit for bit."""
+    from shared.dem.integrator import _bond_rates
+
+    rng = np.random.default_rng(3)
+    positions, radii = cube_points(300, rng, jitter=0.2)
+    state = new_state(positions, radii * rng.uniform(0.9, 1.1, radii.size), DEM)
+    state.bond_broken[rng.random(state.bonds.shape[0]) < 0.3] = True
+    intact = state.bonds[~state.bond_broken]
+    stiffness = DEM.effective_modulus * 0.5 * state.radii[intact].sum(axis=1)
+    root = np.sqrt(state.masses[intact])
+    coupling = stiffness * (1.0 / root[:, 0] + 1.0 / root[:, 1])
+    expected = np.bincount(intact.ravel(), (coupling[:, None] / root).ravel(),
+                           minlength=state.n_points)
+    assert DEM.bond_tensile_strength > 0.0 and np.count_nonzero(expected) > 200
+    np.testing.assert_array_equal(_bond_rates(state, DEM), expected)
+    assert not np.any(_bond_rates(state, replace(DEM, bond_tensile_strength=0.0)))
