@@ -413,9 +413,10 @@ def permeability_tensor_axes(
     drop_fraction
         Pressure drop as a fraction of the suction [1].
     executor
-        Runs the six independent solves on its workers (threads gain where the solves
-        take the multigrid path, whose cycles release the GIL; CHOLMOD holds it); None
-        runs them one after the other. The results do not depend on it.
+        Runs the six independent solves on its workers; None runs them one after the
+        other. The results do not depend on it. Threads gain little: pyamg's cycles and
+        CHOLMOD hold the GIL, only numpy's and scipy's work overlaps (1.11x on two
+        threads at 150k points, ``benchmarks/micro_profile.py``).
 
     Returns
     -------
