@@ -420,9 +420,9 @@ class FlowSystem:
         """
         if dirichlet is None:
             dirichlet = boundary_cell_mask(mesh, WALLS)
-        solver = SPDSolver(amg_strength=FLOW_AMG_STRENGTH) if settings is None else SPDSolver(
-            method=settings.solver, amg_unknowns=settings.amg_unknowns,
-            amg_strength=FLOW_AMG_STRENGTH)
+        choice = {} if settings is None else {"method": settings.solver,
+                                              "amg_unknowns": settings.amg_unknowns}
+        solver = SPDSolver(amg_strength=FLOW_AMG_STRENGTH, **choice)
         return cls(dirichlet, solver_pattern(mesh, dirichlet, solver), solver)
 
 
