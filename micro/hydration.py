@@ -42,6 +42,7 @@ from micro.cracks import (
     crack_network,
 )
 from micro.forces import hydromechanical_forces, point_suction
+from shared.delaunay import update_delaunay
 from shared.dem.contacts import held_points
 from shared.dem.integrator import limit_speed, stable_time_step, step, unbalanced_force
 from shared.dem.parameters import DEMParameters
@@ -329,18 +330,28 @@ def relax(
 
 
 def triangulate(
-    positions: FloatArray, flat_ratio: float = 1e-9
+    positions: FloatArray, previous: Mesh | None = None, flat_ratio: float = 1e-9
 ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
     """Delaunay connectivity of the points without its flat tetrahedra.
 
     Faces of a loaded specimen flatten, and four nearly coplanar hull points give
-    slivers of no volume; they are dropped (their neighbours see a boundary there).
+    slivers of no volume (at most ``flat_ratio`` times the mean cell volume); they are
+    dropped (their neighbours see a boundary there). With the ``previous`` mesh of the
+    same points, the cells still Delaunay are kept and only the others retriangulated
+    (:func:`shared.delaunay.update_delaunay`, the same cells as from scratch); from
+    scratch (Qhull) when that cannot be certified.
 
     Returns
     -------
     tetrahedra, neighbours : ndarray of int64, shape (n_cells, 4)
         As :func:`shared.mesh.delaunay_tetrahedra`, with -1 for no neighbour.
     """
+    if previous is not None:
+        repaired = update_delaunay(positions, previous.tetrahedra, previous.neighbours,
+                                   flat_ratio * float(previous.volumes.mean()))
+        if repaired is not None:
+            return repaired
+        log.debug("Delaunay repair not certified: full triangulation")
     _, tetrahedra, neighbours = delaunay_tetrahedra(positions)
     volumes = np.abs(cell_volumes(positions, tetrahedra))
     keep = volumes > flat_ratio * volumes.mean()
@@ -384,7 +395,7 @@ def update_geometry(
     moved_volumes = np.abs(cell_volumes(positions, state.mesh.tetrahedra))
     moved_porosity = porosity_from_solid_volume(state.solid_volume, moved_volumes, *porosity_bounds)
     water = float((moved_porosity * moved_volumes * state.saturation).sum())
-    new = mesh_from_tetrahedra(positions, *triangulate(positions))
+    new = mesh_from_tetrahedra(positions, *triangulate(positions, state.mesh))
     moved = transfer_cell_state(state.mesh, new, state.pressure, state.saturation,
                                 state.porosity, material, conserve_water=False)
     state.mesh = new

@@ -33,6 +33,7 @@ import scipy.sparse as sp
 from numba import njit
 from scipy.spatial import cKDTree
 
+from shared.delaunay import same_cells
 from shared.materials import ClayParameters
 from shared.mesh import Mesh
 from shared.ordering import locality_order, nested_dissection
@@ -556,49 +557,6 @@ def porosity_from_solid_volume(
     return np.clip(1.0 - solid_volume / volumes, minimum, maximum)
 
 
-@njit(cache=True)
-def _sorted_rows(tetrahedra: IntArray) -> IntArray:
-    rows = tetrahedra.copy()
-    for c in range(rows.shape[0]):
-        for a in range(1, 4):
-            value, b = rows[c, a], a
-            while b > 0 and rows[c, b - 1] > value:
-                rows[c, b] = rows[c, b - 1]
-                b -= 1
-            rows[c, b] = value
-    return rows
-
-
-@njit(cache=True)
-def _same_cells(old: IntArray, new: IntArray, n_points: int) -> IntArray:
-    """Old cell with the same four vertices as each new cell, -1 where there is none.
-
-    The old cells are listed under their smallest vertex (a counting sort), so each new
-    cell is compared with the few old cells that share its smallest vertex.
-    """
-    old_rows, new_rows = _sorted_rows(old), _sorted_rows(new)
-    start = np.zeros(n_points + 1, dtype=np.int64)
-    for c in range(old_rows.shape[0]):
-        start[old_rows[c, 0] + 1] += 1
-    for v in range(n_points):
-        start[v + 1] += start[v]
-    listed = np.empty(old_rows.shape[0], dtype=np.int64)
-    fill = start[:-1].copy()
-    for c in range(old_rows.shape[0]):
-        listed[fill[old_rows[c, 0]]] = c
-        fill[old_rows[c, 0]] += 1
-    same = np.full(new_rows.shape[0], -1, dtype=np.int64)
-    for c in range(new_rows.shape[0]):
-        v = new_rows[c, 0]
-        for slot in range(start[v], start[v + 1]):
-            o = listed[slot]
-            if (old_rows[o, 1] == new_rows[c, 1] and old_rows[o, 2] == new_rows[c, 2]
-                    and old_rows[o, 3] == new_rows[c, 3]):
-                same[c] = o
-                break
-    return same
-
-
 @dataclass(frozen=True)
 class TransferredState:
     """Cell state carried from an old mesh to a new one (see :func:`transfer_cell_state`).
@@ -660,7 +618,7 @@ def transfer_cell_state(
     if old_mesh.points.shape != new_mesh.points.shape:
         raise ValueError("the meshes must be of the same points: "
                          f"{old_mesh.points.shape} and {new_mesh.points.shape}")
-    nearest = _same_cells(old_mesh.tetrahedra, new_mesh.tetrahedra, new_mesh.points.shape[0])
+    nearest = same_cells(old_mesh.tetrahedra, new_mesh.tetrahedra, new_mesh.points.shape[0])
     others = np.flatnonzero(nearest < 0)
     if others.size:
         # the new cells fill the region the removed ones leave: take their state

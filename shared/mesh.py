@@ -50,6 +50,7 @@ __all__ = [
     "WALLS",
     "Mesh",
     "build_mesh",
+    "cell_geometry",
     "cell_volumes",
     "delaunay_tetrahedra",
     "mesh_from_tetrahedra",
@@ -177,10 +178,12 @@ def cell_volumes(points: npt.ArrayLike, tetrahedra: npt.ArrayLike) -> FloatArray
 
 
 @njit(cache=True, parallel=True)
-def _cell_geometry(
+def cell_geometry(
     points: FloatArray, tetrahedra: IntArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Signed volumes, centroids and circumcentres (NaN for flat cells)."""
+    """Signed volumes [m3], centroids and circumcentres [m] of tetrahedra (NaN
+    circumcentres for flat cells), from (n_points, 3) coordinates [m] and (n_cells, 4)
+    vertex indices."""
     n = tetrahedra.shape[0]
     signed = np.empty(n)
     centroids = np.empty((n, 3))
@@ -429,7 +432,7 @@ def mesh_from_tetrahedra(
     tetrahedra = np.array(tetrahedra, dtype=np.int64)
     neighbours = np.array(neighbours, dtype=np.int64)
     points = np.ascontiguousarray(points, dtype=np.float64)
-    signed, centroids, circumcentres = _cell_geometry(points, tetrahedra)
+    signed, centroids, circumcentres = cell_geometry(points, tetrahedra)
     if reorient:
         # Swapping two vertices flips the orientation; neighbours are indexed by the
         # opposite vertex and must be swapped alongside.
@@ -481,7 +484,7 @@ def update_mesh(
     points = np.ascontiguousarray(points, dtype=np.float64)
     if points.shape != mesh.points.shape:
         raise ValueError(f"points must have shape {mesh.points.shape}, got {points.shape}")
-    signed, centroids, circumcentres = _cell_geometry(points, mesh.tetrahedra)
+    signed, centroids, circumcentres = cell_geometry(points, mesh.tetrahedra)
     return _mesh_geometry(
         points, mesh.tetrahedra, mesh.neighbours,
         _checked_volumes(signed, degenerate_volume_ratio), centroids, circumcentres,
