@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-from contextlib import nullcontext
+from concurrent.futures import Executor
 from dataclasses import dataclass
 
 import numpy as np
@@ -287,12 +286,12 @@ def measure_checkpoint(
     reference_volume: float,
     material: ClayParameters,
     cracks: bool = True,
-    workers: int = 1,
+    executor: Executor | None = None,
 ) -> dict[str, object]:
     """Everything recorded at a checkpoint (DESIGN §2, ``results/micro``).
 
-    ``workers`` threads share the eight independent permeability solves (the same
-    results whatever their number).
+    ``executor`` makes half of the eight independent permeability solves (the same
+    results with or without it), as in :func:`micro.permeability.permeability_tensor_axes`.
 
     Returns
     -------
@@ -309,13 +308,12 @@ def measure_checkpoint(
     mouths = np.zeros(state.mesh.n_cells, dtype=bool)
     if cracks and state.cracks is not None:
         mouths[state.mesh.facet_cells[state.cracks.patch_facets].ravel()] = True
-    with ThreadPoolExecutor(workers) if workers > 1 else nullcontext() as executor:
-        permeability = permeability_tensor_axes(state.mesh, state.saturation, state.porosity,
-                                                suction, material, conductances=phases,
-                                                executor=executor)
-        tensor = permeability_tensor(state.mesh, state.saturation, state.porosity, suction,
-                                     material, conductances=phases, sealed=mouths,
-                                     executor=executor)
+    permeability = permeability_tensor_axes(state.mesh, state.saturation, state.porosity,
+                                            suction, material, conductances=phases,
+                                            executor=executor)
+    tensor = permeability_tensor(state.mesh, state.saturation, state.porosity, suction,
+                                 material, conductances=phases, sealed=mouths,
+                                 executor=executor)
     volumes = state.mesh.volumes
     fabric = crack_fabric(state.cracks.normals, state.cracks.areas, state.cracks.apertures,
                           state.cracks.imbibed)

@@ -111,11 +111,21 @@ PHASES: tuple[Phase, ...] = ("water", "gas")
 _REFINEMENTS = 6
 
 
+def _called(calls: Sequence[Callable[[], object]]) -> list:
+    return [call() for call in calls]
+
+
 def _gathered(executor: Executor | None, calls: Sequence[Callable[[], object]]) -> list:
-    """Results of independent calls, in order: on ``executor``'s workers, or here."""
-    if executor is None:
-        return [call() for call in calls]
-    return [future.result() for future in [executor.submit(call) for call in calls]]
+    """Results of independent calls, in order: every other call on ``executor`` (one
+    task, so that a worker process receives the mesh they share once) while this thread
+    makes the others, or all of them here."""
+    if executor is None or len(calls) < 2:
+        return _called(calls)
+    remote = executor.submit(_called, calls[0::2])
+    results: list = [None] * len(calls)
+    results[1::2] = _called(calls[1::2])
+    results[0::2] = remote.result()
+    return results
 
 
 def _floored(conductance: FloatArray, floor: float) -> FloatArray | None:
@@ -413,10 +423,10 @@ def permeability_tensor_axes(
     drop_fraction
         Pressure drop as a fraction of the suction [1].
     executor
-        Runs the six independent solves on its workers; None runs them one after the
-        other. The results do not depend on it. Threads gain little: pyamg's cycles and
-        CHOLMOD hold the GIL, only numpy's and scipy's work overlaps (1.11x on two
-        threads at 150k points, ``benchmarks/micro_profile.py``).
+        Makes half of the six independent solves while this thread makes the others
+        (:func:`micro.run.measurement_executor`: a worker process, since pyamg's cycles
+        and CHOLMOD hold the GIL); None makes them one after the other. The results do
+        not depend on it.
 
     Returns
     -------

@@ -12,9 +12,12 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import multiprocessing
 import resource
 import time
 from collections.abc import Mapping
+from concurrent.futures import Executor, ProcessPoolExecutor
+from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +55,8 @@ __all__ = [
 ]
 
 MATERIAL_KEYS = (*CLAY_CONFIG_KEYS.values(), *DEM_MATERIAL_KEYS)
+# cells from which a checkpoint's solves share two processes (measurement_executor)
+MEASUREMENT_PROCESS_CELLS = 100_000
 """Keys of ``materials.pellet`` the micro model reads (its rules' params hold these)."""
 
 log = logging.getLogger("micro")
@@ -313,44 +318,45 @@ def run(
                             phase_seconds=clock.seconds)
         last_save = time.monotonic()
 
-    for index in range(len(records), checkpoints.size):
-        suction = float(checkpoints[index])
-        # flow steps and the largest relative suction misfit, down to the tolerance
-        balancing = ConvergenceProgress(
-            settings.hydraulic_tolerance,
-            f"{case}: balance at {suction:.3g} Pa (checkpoint {index + 1}/{checkpoints.size}), "
-            "suction misfit", log)
-        try:
-            system, diagnostics = advance_to_balance(state, system, suction, settings,
-                                                     material, parameters, start=balance,
-                                                     snapshot=snapshot, clock=clock)
-            balance = None
-        except DivergenceError as err:
-            raise DivergenceError(
-                f"case {case}, checkpoint {index} ({suction:.4g} Pa): {err}; "
-                f"the last good checkpoint is kept in {state_file}"
-            ) from err
-        # each checkpoint is measured on a mesh rebuilt from the moved points (not the
-        # per-step update_mesh, which rounds differently); the checkpoint file keeps it
-        with clock.phase("measurement"):
-            state.mesh = mesh_from_tetrahedra(state.dem.positions, state.mesh.tetrahedra,
-                                              state.mesh.neighbours, reorient=False)
-            record = measure_checkpoint(state, suction, reference_volume, material,
-                                        settings.cracks, workers=_measurement_workers())
-        record.update(diagnostics)
-        records.append(record)
-        with clock.phase("output"):
-            save_checkpoint(state_file, digest, state, system, records, reference_volume,
-                            wall_time=earlier + time.monotonic() - started,
-                            phase_seconds=clock.seconds)
-            if vtk_dir is not None:
-                vtk.write_checkpoint_snapshot(vtk_dir, output.stem, index, state)
-        last_save = time.monotonic()
-        log.info("%s: s = %.3g Pa, S = %.3f, eps_v = %.4f, cracks %d, k_w,x = %.3g m2, "
-                 "k_g,x = %.3g m2, balanced %d", case, suction, record["saturation"],
-                 record["eps_v"], record["crack_count"], record["permeability"][0, 0],
-                 record["permeability"][1, 0], diagnostics["balanced"])
-        progress.update(index + 1)
+    with measurement_executor(state.mesh.n_cells) as executor:
+        for index in range(len(records), checkpoints.size):
+            suction = float(checkpoints[index])
+            # flow steps and the largest relative suction misfit, down to the tolerance
+            balancing = ConvergenceProgress(
+                settings.hydraulic_tolerance,
+                f"{case}: balance at {suction:.3g} Pa (checkpoint {index + 1}/{checkpoints.size}), "
+                "suction misfit", log)
+            try:
+                system, diagnostics = advance_to_balance(state, system, suction, settings,
+                                                         material, parameters, start=balance,
+                                                         snapshot=snapshot, clock=clock)
+                balance = None
+            except DivergenceError as err:
+                raise DivergenceError(
+                    f"case {case}, checkpoint {index} ({suction:.4g} Pa): {err}; "
+                    f"the last good checkpoint is kept in {state_file}"
+                ) from err
+            # each checkpoint is measured on a mesh rebuilt from the moved points (not the
+            # per-step update_mesh, which rounds differently); the checkpoint file keeps it
+            with clock.phase("measurement"):
+                state.mesh = mesh_from_tetrahedra(state.dem.positions, state.mesh.tetrahedra,
+                                                  state.mesh.neighbours, reorient=False)
+                record = measure_checkpoint(state, suction, reference_volume, material,
+                                            settings.cracks, executor=executor)
+            record.update(diagnostics)
+            records.append(record)
+            with clock.phase("output"):
+                save_checkpoint(state_file, digest, state, system, records, reference_volume,
+                                wall_time=earlier + time.monotonic() - started,
+                                phase_seconds=clock.seconds)
+                if vtk_dir is not None:
+                    vtk.write_checkpoint_snapshot(vtk_dir, output.stem, index, state)
+            last_save = time.monotonic()
+            log.info("%s: s = %.3g Pa, S = %.3f, eps_v = %.4f, cracks %d, k_w,x = %.3g m2, "
+                     "k_g,x = %.3g m2, balanced %d", case, suction, record["saturation"],
+                     record["eps_v"], record["crack_count"], record["permeability"][0, 0],
+                     record["permeability"][1, 0], diagnostics["balanced"])
+            progress.update(index + 1)
     ds = _dataset(records, checkpoints)
     ds.attrs.update(n_points=state.dem.n_points, n_cells=state.mesh.n_cells,
                     confinement=spec.confinement, crack_model=int(settings.cracks),
@@ -366,18 +372,21 @@ def run(
     return ds
 
 
-def _measurement_workers() -> int:
-    """Threads for a checkpoint's permeability solves: numba's (the job's threads), or one
-    where numba's threading layer cannot run kernels from two threads at once
-    (workqueue) or has not started yet."""
-    threads = numba.get_num_threads()
-    if threads == 1:
-        return 1
-    try:
-        layer = numba.threading_layer()
-    except ValueError:
-        return 1
-    return threads if layer in ("omp", "tbb") else 1
+def measurement_executor(n_cells: int) -> AbstractContextManager[Executor | None]:
+    """A worker process for half of a checkpoint's permeability solves, or None.
+
+    One process beside this one when the job has two threads or more (numba's, as the
+    Snakemake job sets them) and the mesh has ``MEASUREMENT_PROCESS_CELLS`` cells or
+    more (below, the mesh's transfer and the process's start cost more than they save).
+    A process, not a thread: pyamg's cycles and CHOLMOD hold the GIL (two threads gave
+    1.11x at 150k points). The worker is spawned (forking a process whose OpenMP
+    threads run is unsafe) and runs numba on one thread; a script that runs the micro
+    stage must therefore guard its main code with ``if __name__ == "__main__":``.
+    """
+    if numba.get_num_threads() < 2 or n_cells < MEASUREMENT_PROCESS_CELLS:
+        return nullcontext(None)
+    return ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=numba.set_num_threads, initargs=(1,))
 
 
 def _specimen_mean(spec: SpecimenSpec, grid: xr.DataArray, material: ClayParameters,

@@ -156,18 +156,11 @@ def test_a_pattern_of_another_axis_is_refused(mesh: Mesh) -> None:
                              pressure_drop=1e5, pattern=measurement_pattern(mesh, 0))
 
 
-@pytest.mark.parametrize("amg_unknowns", [1, 10**9])
-def test_permeabilities_measured_on_two_threads_equal_the_serial_ones(
-    amg_unknowns: int, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """The eight solves of a checkpoint share nothing mutable: run on two threads (both
-    solver paths; 1e4-contrast cracks and a saturation field, so that every solve
-    differs), they return bit for bit what one thread returns."""
-    from concurrent.futures import ThreadPoolExecutor
-
+def _measured(executor=None) -> tuple[dict, np.ndarray]:
+    """Axis permeabilities and tensors of a state where every solve differs (1e4-contrast
+    cracks and a saturation field)."""
     from micro import permeability
 
-    monkeypatch.setattr(permeability, "_MEASUREMENT_AMG_UNKNOWNS", amg_unknowns)
     mesh = jittered_mesh(9, seed=4)
     rng = np.random.default_rng(4)
     saturation = rng.uniform(0.4, 0.95, mesh.n_cells)
@@ -176,14 +169,50 @@ def test_permeabilities_measured_on_two_threads_equal_the_serial_ones(
               * np.where(rng.random(mesh.n_facets) < 0.02, 1e4, 1.0)
               for phase in ("water", "gas")}
     arguments = (mesh, saturation, porosity, 5e7, MATERIAL)
-    serial = permeability.permeability_tensor_axes(*arguments, conductances=phases)
-    tensor = permeability.permeability_tensor(*arguments, conductances=phases)
-    with ThreadPoolExecutor(2) as pool:
-        threaded = permeability.permeability_tensor_axes(*arguments, conductances=phases,
-                                                         executor=pool)
-        threaded_tensor = permeability.permeability_tensor(*arguments, conductances=phases,
-                                                           executor=pool)
+    return (permeability.permeability_tensor_axes(*arguments, conductances=phases,
+                                                  executor=executor),
+            permeability.permeability_tensor(*arguments, conductances=phases,
+                                             executor=executor))
+
+
+@pytest.mark.parametrize("amg_unknowns", [1, 10**9])
+def test_permeabilities_measured_on_two_threads_equal_the_serial_ones(
+    amg_unknowns: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The eight solves of a checkpoint share nothing mutable: run on two threads (both
+    solver paths), they return bit for bit what one thread returns."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from micro import permeability
+
+    monkeypatch.setattr(permeability, "_MEASUREMENT_AMG_UNKNOWNS", amg_unknowns)
+    serial, tensor = _measured()
+    with ThreadPoolExecutor(1) as pool:
+        threaded, threaded_tensor = _measured(pool)
     assert threaded == serial
     assert len({value for axes in serial.values() for value in axes.values()}) == 6
     np.testing.assert_array_equal(threaded_tensor, tensor)
     assert np.all(np.isfinite(tensor))
+
+
+def test_permeabilities_measured_with_a_worker_process_equal_the_serial_ones(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The run's measurement executor (a spawned process, forced here for a small mesh
+    on two threads) returns bit for bit what this process measures alone."""
+    import numba
+
+    from micro import run
+
+    monkeypatch.setattr(run, "MEASUREMENT_PROCESS_CELLS", 0)
+    monkeypatch.setattr(numba, "get_num_threads", lambda: 2)
+    serial, tensor = _measured()
+    with run.measurement_executor(1) as executor:
+        assert executor is not None
+        shared, shared_tensor = _measured(executor)
+    assert shared == serial
+    np.testing.assert_array_equal(shared_tensor, tensor)
+    # below the size threshold this process measures alone
+    monkeypatch.setattr(run, "MEASUREMENT_PROCESS_CELLS", 2)
+    with run.measurement_executor(1) as executor:
+        assert executor is None
