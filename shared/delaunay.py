@@ -22,9 +22,14 @@ the subset's tetrahedralisation.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+from functools import partial
+
 import numpy as np
 import numpy.typing as npt
-from numba import njit, prange
+import scipy.sparse as sp
+from numba import get_num_threads, njit, prange
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, Delaunay, QhullError
 
 from shared.mesh import cell_geometry
@@ -261,9 +266,11 @@ def update_delaunay(
     hull = ConvexHull(points)
     # where the hull moved, new cells join vertices of cells that were on the hull
     # and stay Delaunay (the argument above needs the previous cells to tile the hull)
-    outer = np.any(np.asarray(neighbours) < 0, axis=1)
-    subset = np.unique(np.concatenate([previous[~kept | outer].ravel(), hull.vertices]))
-    added = _new_cells(points, subset, previous[kept], grid, min_volume)
+    neighbours = np.asarray(neighbours, dtype=np.int64)
+    redo = ~kept | np.any(neighbours < 0, axis=1)
+    subsets = _vertex_groups(points, previous, neighbours, redo, hull.vertices,
+                             get_num_threads())
+    added = _new_cells(points, subsets, previous[kept], grid, min_volume)
     if added is None:
         return None
     cells = np.concatenate([previous[kept], added])
@@ -271,25 +278,64 @@ def update_delaunay(
         return None
     renumber = np.full(previous.shape[0] + 1, -1, dtype=np.int64)
     renumber[:-1][kept] = np.arange(int(kept.sum()))
-    links = np.concatenate([renumber[np.asarray(neighbours, dtype=np.int64)[kept]],
+    links = np.concatenate([renumber[neighbours[kept]],
                             np.full((added.shape[0], 4), -1, dtype=np.int64)])
     if not _link_open_faces(cells, links, n_points):
         return None
     return cells, links
 
 
-def _new_cells(
-    points: FloatArray, subset: IntArray, kept: IntArray,
-    grid: tuple[FloatArray, float, IntArray, IntArray, IntArray], min_volume: float,
-) -> IntArray | None:
-    """Cells of the Delaunay tetrahedralisation of ``subset`` that are Delaunay among
-    all points and not in ``kept``, positively oriented; None if Qhull fails."""
+def _vertex_groups(
+    points: FloatArray, previous: IntArray, neighbours: IntArray,
+    redo: npt.NDArray[np.bool_], extra: IntArray, parts: int,
+) -> list[IntArray]:
+    """Vertex sets to triangulate, one per thread: the vertices of the cells to redo,
+    their face-connected components split into ``parts`` groups of about equal size
+    in the order of their mean x (a new cell lies within one component, so its
+    vertices are in one group); ``extra`` joins every group."""
+    cells = np.flatnonzero(redo)
+    if parts < 2 or cells.size < 2:
+        return [np.unique(np.concatenate([previous[cells].ravel(), extra]))]
+    index = np.full(previous.shape[0] + 1, -1, dtype=np.int64)
+    index[:-1][cells] = np.arange(cells.size)
+    links = index[neighbours[cells]]
+    rows, slots = np.nonzero(links >= 0)
+    graph = sp.csr_matrix((np.ones(rows.size), (rows, links[rows, slots])),
+                          shape=(cells.size, cells.size))
+    _, labels = connected_components(graph, directed=False)
+    sizes = np.bincount(labels)
+    mean_x = np.bincount(labels, points[previous[cells], 0].mean(axis=1)) / sizes
+    order = np.argsort(mean_x, kind="stable")
+    middle = np.cumsum(sizes[order]) - 0.5 * sizes[order]
+    group = np.empty(sizes.size, dtype=np.int64)
+    group[order] = np.minimum((middle * parts / cells.size).astype(np.int64), parts - 1)
+    return [np.unique(np.concatenate([previous[cells[group[labels] == g]].ravel(), extra]))
+            for g in range(parts)]
+
+
+def _triangulated(points: FloatArray, subset: IntArray) -> IntArray:
+    """Qhull's Delaunay cells of a subset of the points, as indices of all points."""
     if subset.size < 5:
         return np.empty((0, 4), dtype=np.int64)
+    return subset[Delaunay(points[subset]).simplices]
+
+
+def _new_cells(
+    points: FloatArray, subsets: list[IntArray], kept: IntArray,
+    grid: tuple[FloatArray, float, IntArray, IntArray, IntArray], min_volume: float,
+) -> IntArray | None:
+    """Cells of the Delaunay tetrahedralisations of the ``subsets`` (on threads: Qhull
+    releases the GIL) that are Delaunay among all points and not in ``kept``, once
+    each, positively oriented; None if Qhull fails."""
     try:
-        candidates = subset[Delaunay(points[subset]).simplices]
+        if len(subsets) == 1:
+            parts = [_triangulated(points, subsets[0])]
+        else:
+            with ThreadPoolExecutor(len(subsets)) as pool:
+                parts = list(pool.map(partial(_triangulated, points), subsets))
     except QhullError:
         return None
+    candidates = np.concatenate(parts).astype(np.int64)
     signed, _, centres = cell_geometry(points, candidates)
     negative = signed < 0.0
     candidates[negative] = candidates[negative][:, [0, 1, 3, 2]]
@@ -297,4 +343,7 @@ def _new_cells(
     # the circumcentre does not depend on the orientation
     certified = _empty_spheres(points, candidates, signed, centres, *grid, min_volume)
     candidates = candidates[certified]
+    if len(subsets) > 1:  # a cell whose vertices are in two groups is found twice
+        _, first = np.unique(np.sort(candidates, axis=1), axis=0, return_index=True)
+        candidates = candidates[np.sort(first)]
     return candidates[same_cells(kept, candidates, points.shape[0]) < 0]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from shared import delaunay
 from shared.delaunay import _inside_or_undecided, same_cells, update_delaunay
 from shared.mesh import build_mesh, cell_volumes, mesh_from_tetrahedra
 from tests.shared.test_mesh import jittered_grid
@@ -18,10 +19,15 @@ def facet_set(mesh) -> set[tuple[int, ...]]:
     return set(map(tuple, np.sort(mesh.facet_vertices, axis=1).tolist()))
 
 
-@pytest.mark.parametrize("move", [0.005, 0.03, 0.1])
-def test_repair_gives_qhull_tetrahedralisation(move: float) -> None:
-    """Small to large moves (the largest invert cells): the
-    repaired cells, their neighbours and hence facets are Qhull's from scratch."""
+@pytest.mark.parametrize(("move", "threads"), [(0.005, 1), (0.005, 3), (0.03, 1), (0.03, 2),
+                                                (0.1, 1), (0.1, 2)])
+def test_repair_gives_qhull_tetrahedralisation(
+    move: float, threads: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Small to large moves (the largest invert cells), the cells to redo triangulated
+    in one to three groups: the repaired cells, their neighbours and hence facets are
+    Qhull's from scratch."""
+    monkeypatch.setattr(delaunay, "get_num_threads", lambda: threads)
     rng = np.random.default_rng(3)
     before = jittered_grid(12, rng)
     mesh = build_mesh(before)
