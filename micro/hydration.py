@@ -10,7 +10,7 @@ checkpoint the model advances in staggered steps until hydraulic balance:
 3. hydro-mechanical forces and DEM relaxation to mechanical balance (unbalanced force
    below a tolerance): the mechanics is quasi-static at the flow time scale;
 4. cell geometry from the moved points with the same connectivity, porosity from the
-   conserved solid volume of each cell; a full Delaunay remesh when a cell inverts or
+   conserved solid volume of each cell; a Delaunay remesh when a cell inverts or
    degenerates, with solid and water volumes conserved across it;
 5. the crack model: bonds that have separated, their aperture, imbibed or gas-filled
    state, and their effect on the facet conductances.
@@ -180,7 +180,7 @@ class PelletState:
     time
         Simulated hydration time [s].
     n_remesh
-        Number of full Delaunay remeshes so far.
+        Number of Delaunay remeshes so far.
     """
 
     dem: DEMState
@@ -368,8 +368,8 @@ def update_geometry(
     """Recompute cell geometry and porosity from the moved points; remesh if needed.
 
     With fixed connectivity the solid volume of each cell is conserved exactly (the
-    porosity is clamped to ``porosity_bounds``). A cell that inverts triggers a full
-    Delaunay remesh; :func:`shared.fv.transfer_cell_state` carries porosity and
+    porosity is clamped to ``porosity_bounds``). A cell that inverts triggers a
+    Delaunay remesh (:func:`triangulate`); :func:`shared.fv.transfer_cell_state` carries porosity and
     saturation over (a cell the remesh kept keeps its own) and conserves the water
     volume, and the solid volumes are then scaled so that their total is conserved too:
     otherwise every remesh would reset the porosity that swelling has built up. The

@@ -55,9 +55,9 @@ __all__ = [
 ]
 
 MATERIAL_KEYS = (*CLAY_CONFIG_KEYS.values(), *DEM_MATERIAL_KEYS)
-# cells from which a checkpoint's solves share two processes (measurement_executor)
-MEASUREMENT_PROCESS_CELLS = 100_000
 """Keys of ``materials.pellet`` the micro model reads (its rules' params hold these)."""
+MEASUREMENT_PROCESS_CELLS = 100_000
+"""Cells from which a checkpoint's solves share two processes (:func:`measurement_executor`)."""
 
 log = logging.getLogger("micro")
 
@@ -73,7 +73,7 @@ _SCALARS = {
     "crack_area_gas": ("m2", "area of gas-filled cracks"),
     "crack_volume": ("m3", "total crack volume"),
     "time": ("s", "simulated hydration time"),
-    "n_remesh": ("1", "number of full remeshes so far"),
+    "n_remesh": ("1", "number of Delaunay remeshes so far"),
     "flow_steps": ("1", "flow steps taken to reach the checkpoint"),
     "dem_steps": ("1", "DEM relaxation steps taken to reach the checkpoint"),
     "unbalanced_force": ("1", "unbalanced-force ratio at the end of the checkpoint"),
