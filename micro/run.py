@@ -298,7 +298,7 @@ def run(
         clock = PhaseClock(phase_seconds)
         log.info("%s: resuming after checkpoint %d of %d%s", case, len(records), checkpoints.size,
                  "" if balance is None else f", {balance.flow_steps} flow steps into the next")
-    progress = Progress(checkpoints.size, f"micro {case}", log, interval=0.0,
+    progress = Progress(checkpoints.size, f"micro {case}", log, interval=0.0, trend=True,
                         done_before=len(records))
     interval = float(config["micro"]["snapshot_interval_s"])
     last_save = time.monotonic()

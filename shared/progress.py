@@ -9,6 +9,8 @@ import time
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 
+import numpy as np
+
 __all__ = ["ConvergenceProgress", "PhaseClock", "Progress"]
 
 
@@ -28,27 +30,45 @@ class Progress:
     done_before
         Units finished before this process started (a resumed run): the ETA extrapolates
         the rate of the units done since.
+    trend
+        For units that take longer and longer (the micro checkpoints: 1 to 7 minutes
+        each at 150k points), extrapolate the linear trend of the units' durations
+        instead of their mean rate, once three have been reported (each unit lasting at
+        least the shortest so far).
     """
 
     def __init__(self, total: float, label: str, log: logging.Logger, interval: float = 10.0,
-                 done_before: float = 0.0):
+                 done_before: float = 0.0, trend: bool = False):
         self.total = float(total)
         self.label = label
         self.log = log
         self.interval = interval
         self.done_before = float(done_before)
+        self.trend = trend
         self.start = time.monotonic()
         self._last = -float("inf")
+        self._reports: list[tuple[float, float]] = [(self.done_before, self.start)]
 
     def eta(self, done: float) -> float:
-        """Seconds left at the rate so far, once ``done`` units are finished [s]."""
-        elapsed = time.monotonic() - self.start
+        """Seconds left once ``done`` units are finished [s]: at the rate so far, or
+        along the durations' trend (see ``trend``)."""
+        now = time.monotonic()
+        if self.trend and len(self._reports) >= 4:
+            units, times = np.array(self._reports).T
+            middles = 0.5 * (units[1:] + units[:-1])
+            durations = np.diff(times) / np.diff(units)
+            slope, intercept = np.polyfit(middles, durations, 1)
+            remaining = np.arange(done, math.ceil(self.total)) + 0.5
+            return float(np.maximum(intercept + slope * remaining, durations.min()).sum())
+        elapsed = now - self.start
         rate = (done - self.done_before) / elapsed if elapsed > 0 else 0.0
         return max(self.total - done, 0.0) / rate if rate > 0 else float("nan")
 
     def update(self, done: float, force: bool = False) -> None:
         """Report ``done`` units finished; logs only when the interval has elapsed."""
         now = time.monotonic()
+        if self.trend and done > self._reports[-1][0]:
+            self._reports.append((done, now))
         if not force and now - self._last < self.interval:
             return
         self._last = now

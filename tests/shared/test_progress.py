@@ -34,6 +34,21 @@ def test_eta_of_a_resumed_loop_uses_the_rate_since_the_restart(clock):
     assert fresh.eta(7) == pytest.approx(100.0 * 7 / 7)
 
 
+def test_trend_eta_extrapolates_growing_durations(clock):
+    """Units of 10, 20, 30 s (after 2 of 7 done before a restart): the next two take 40
+    and 50 s, 90 s in all, where the mean rate would say 40 s. A fourth unit of 1 s: the
+    least-squares line through (2.5, 10), (3.5, 20), (4.5, 30), (5.5, 1) is
+    22.05 - 1.7 x: 11 s for the last unit (midpoint 6.5)."""
+    bar = Progress(7, "run", LOG, done_before=2, interval=0.0, trend=True)
+    for done, seconds in ((3, 10.0), (4, 20.0), (5, 30.0)):
+        clock["t"] += seconds
+        bar.update(done)
+    assert bar.eta(5) == pytest.approx(90.0)
+    clock["t"] += 1.0
+    bar.update(6)
+    assert bar.eta(6) == pytest.approx(11.0)
+
+
 def test_convergence_eta_extrapolates_a_geometric_decay(clock, caplog):
     """A plateau at 1, then r = exp(-(t - t1) / 10 s): from e^-2 to a target e^-4 takes
     20 s more, measured from where the decay began (below half the first residual)."""
