@@ -698,7 +698,8 @@ def permeability_tensor(
         Cells that stay free in the wall layers (crack mouths), see
         :func:`measure_permeability_tensor`.
     executor
-        Runs the two phases on its workers, as in :func:`permeability_tensor_axes`.
+        Makes one phase's solves while this thread makes the other's, as in
+        :func:`permeability_tensor_axes`.
 
     Returns
     -------

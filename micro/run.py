@@ -385,6 +385,7 @@ def measurement_executor(n_cells: int) -> AbstractContextManager[Executor | None
     """
     if numba.get_num_threads() < 2 or n_cells < MEASUREMENT_PROCESS_CELLS:
         return nullcontext(None)
+    log.info("measurements: half of each checkpoint's solves in a worker process")
     return ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
                                initializer=numba.set_num_threads, initargs=(1,))
 
