@@ -268,7 +268,10 @@ def update_delaunay(
     grid = _point_grid(points)
     signed, _, centres = cell_geometry(points, previous)
     kept = _empty_spheres(points, previous, signed, centres, *grid, min_volume)
-    hull = ConvexHull(points)
+    try:
+        hull = ConvexHull(points)
+    except QhullError:
+        return None
     # where the hull moved, new cells join vertices of cells that were on the hull
     # and stay Delaunay (the argument above needs the previous cells to tile the hull)
     neighbours = np.asarray(neighbours, dtype=np.int64)
