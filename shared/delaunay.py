@@ -37,6 +37,7 @@ from numba import get_num_threads, njit, prange
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, Delaunay, QhullError
 
+from shared.dem import point_bins
 from shared.mesh import cell_geometry
 
 __all__ = ["same_cells", "update_delaunay"]
@@ -52,20 +53,6 @@ _DETERMINANT_BOUND = 1e-12
 _VOLUME_TOLERANCE = 1e-10
 # face keys pack three vertex indices into an int64
 _MAX_POINTS = 1 << 21
-
-
-def _point_grid(points: FloatArray) -> tuple[FloatArray, float, IntArray, IntArray, IntArray]:
-    """Uniform grid of about one point per bin: origin, bin size, shape, the points
-    sorted by bin and each bin's start in that order."""
-    low = points.min(axis=0)
-    extent = points.max(axis=0) - low
-    size = float(np.cbrt(np.prod(np.maximum(extent, 1e-300)) / points.shape[0]))
-    shape = np.maximum((extent / size).astype(np.int64) + 1, 1)
-    index = np.minimum(((points - low) / size).astype(np.int64), shape - 1)
-    bins = np.ravel_multi_index(index.T, shape)
-    order = np.argsort(bins, kind="stable")
-    start = np.searchsorted(bins[order], np.arange(int(np.prod(shape)) + 1))
-    return low, size, shape, order, start
 
 
 @njit(cache=True)
@@ -98,7 +85,7 @@ def _inside_or_undecided(points: FloatArray, cell: IntArray, p: int) -> bool:
 @njit(cache=True, parallel=True)
 def _empty_spheres(
     points: FloatArray, tetrahedra: IntArray, signed: FloatArray, centres: FloatArray,
-    low: FloatArray, size: float, shape: IntArray, order: IntArray, start: IntArray,
+    low: FloatArray, spacing: FloatArray, shape: IntArray, start: IntArray, order: IntArray,
     min_volume: float,
 ) -> npt.NDArray[np.bool_]:
     """Positively oriented cells above ``min_volume`` whose circumsphere holds no point
@@ -119,8 +106,8 @@ def _empty_spheres(
         near = radius2 * (1.0 + _SPHERE_BAND)
         box = np.empty((3, 2), dtype=np.int64)
         for d, centre in enumerate((cx, cy, cz)):
-            box[d, 0] = max(int(np.floor((centre - radius - low[d]) / size)), 0)
-            box[d, 1] = min(int(np.floor((centre + radius - low[d]) / size)), shape[d] - 1)
+            box[d, 0] = max(int(np.floor((centre - radius - low[d]) / spacing[d])), 0)
+            box[d, 1] = min(int(np.floor((centre + radius - low[d]) / spacing[d])), shape[d] - 1)
         inside = False
         for i in range(box[0, 0], box[0, 1] + 1):
             for j in range(box[1, 0], box[1, 1] + 1):
@@ -265,7 +252,8 @@ def update_delaunay(
     n_points = points.shape[0]
     if n_points >= _MAX_POINTS:
         return None
-    grid = _point_grid(points)
+    # about one point per cell
+    grid = point_bins(points, 0.0)
     signed, _, centres = cell_geometry(points, previous)
     kept = _empty_spheres(points, previous, signed, centres, *grid, min_volume)
     try:
@@ -278,11 +266,13 @@ def update_delaunay(
     redo = ~kept | np.any(neighbours < 0, axis=1)
     subsets = _vertex_groups(points, previous, neighbours, redo, hull.vertices,
                              get_num_threads())
-    added = _new_cells(points, subsets, previous[kept], grid, min_volume)
-    if added is None:
+    new = _new_cells(points, subsets, previous[kept], grid, min_volume)
+    if new is None:
         return None
+    added, added_volumes = new
     cells = np.concatenate([previous[kept], added])
-    if abs(cell_geometry(points, cells)[0].sum() - hull.volume) > _VOLUME_TOLERANCE * hull.volume:
+    volume = np.concatenate([signed[kept], added_volumes]).sum()
+    if abs(volume - hull.volume) > _VOLUME_TOLERANCE * hull.volume:
         return None
     renumber = np.full(previous.shape[0] + 1, -1, dtype=np.int64)
     renumber[:-1][kept] = np.arange(int(kept.sum()))
@@ -330,11 +320,11 @@ def _triangulated(points: FloatArray, subset: IntArray) -> IntArray:
 
 def _new_cells(
     points: FloatArray, subsets: list[IntArray], kept: IntArray,
-    grid: tuple[FloatArray, float, IntArray, IntArray, IntArray], min_volume: float,
-) -> IntArray | None:
+    grid: tuple[FloatArray, FloatArray, IntArray, IntArray, IntArray], min_volume: float,
+) -> tuple[IntArray, FloatArray] | None:
     """Cells of the Delaunay tetrahedralisations of the ``subsets`` (on threads: Qhull
     releases the GIL) that are Delaunay among all points and not in ``kept``, once
-    each, positively oriented; None if Qhull fails."""
+    each, positively oriented, and their volumes [m3]; None if Qhull fails."""
     try:
         if len(subsets) == 1:
             parts = [_triangulated(points, subsets[0])]
@@ -350,8 +340,10 @@ def _new_cells(
     signed[negative] = -signed[negative]
     # the circumcentre does not depend on the orientation
     certified = _empty_spheres(points, candidates, signed, centres, *grid, min_volume)
-    candidates = candidates[certified]
+    candidates, signed = candidates[certified], signed[certified]
     if len(subsets) > 1:  # a cell whose vertices are in two groups is found twice
         _, first = np.unique(np.sort(candidates, axis=1), axis=0, return_index=True)
-        candidates = candidates[np.sort(first)]
-    return candidates[same_cells(kept, candidates, points.shape[0]) < 0]
+        first = np.sort(first)
+        candidates, signed = candidates[first], signed[first]
+    new = same_cells(kept, candidates, points.shape[0]) < 0
+    return candidates[new], signed[new]

@@ -16,6 +16,7 @@ from shared.dem.contacts import (
     detect_contacts,
     held_points,
     pair_values,
+    point_bins,
     update_contacts,
 )
 from shared.dem.hertz import bond_stretches, bond_tension, contact_forces
@@ -51,6 +52,7 @@ __all__ = [
     "bond_tension",
     "contact_forces",
     "contacts_need_update",
+    "point_bins",
     "cube_points",
     "detect_contacts",
     "integrate",

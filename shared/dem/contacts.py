@@ -15,10 +15,40 @@ if TYPE_CHECKING:
 
 __all__ = [
     "detect_contacts", "bond_pairs", "pair_values", "contacts_need_update", "update_contacts",
-    "held_points",
+    "held_points", "point_bins",
 ]
 
+FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
+
+
+def point_bins(
+    positions: FloatArray, cell_size: float
+) -> tuple[FloatArray, FloatArray, IntArray, IntArray, IntArray]:
+    """Points sorted into a grid of cells at least ``cell_size`` [m] wide (stretched to
+    fit the points' bounding box, and no more cells than about one per point).
+
+    Returns
+    -------
+    lower : ndarray, shape (3,)
+        The box's lower corner [m].
+    spacing : ndarray, shape (3,)
+        Cell widths [m].
+    dims : ndarray of int64, shape (3,)
+        Cells per axis (flat index x-major, z fastest).
+    cell_start, cell_points : ndarray of int64
+        Points of cell c: ``cell_points[cell_start[c]:cell_start[c + 1]]``.
+    """
+    lower, upper = _kernels.bounding_box(positions)
+    extent = upper - lower
+    # cap the grid at about one cell per point so sparse clouds do not allocate huge grids
+    cell_size = max(cell_size,
+                    float(np.prod(extent + cell_size) / positions.shape[0]) ** (1.0 / 3.0))
+    dims = np.maximum(np.floor(extent / cell_size).astype(np.int64), 1)
+    spacing = extent / dims + 1e-300
+    cell_of_point = _kernels.cell_indices(positions, lower, spacing, dims)
+    cell_start, cell_points = _kernels.bin_points(cell_of_point, int(np.prod(dims)))
+    return lower, spacing, dims, cell_start, cell_points
 
 
 def detect_contacts(
@@ -59,14 +89,8 @@ def detect_contacts(
         return np.empty((0, 2), dtype=np.int64)
     if not cutoff_factor > 0.0 or skin < 0.0:
         raise ValueError("cutoff_factor must be > 0 and skin >= 0")
-    cell_size = 2.0 * cutoff_factor * float(radii.max()) + skin
-    lower, upper = _kernels.bounding_box(positions)
-    extent = upper - lower
-    # cap the grid at about one cell per point so sparse clouds do not allocate huge grids
-    cell_size = max(cell_size, float(np.prod(extent + cell_size) / n) ** (1.0 / 3.0))
-    dims = np.maximum(np.floor(extent / cell_size).astype(np.int64), 1)
-    cell_of_point = _kernels.cell_indices(positions, lower, extent / dims + 1e-300, dims)
-    cell_start, cell_points = _kernels.bin_points(cell_of_point, int(np.prod(dims)))
+    _, _, dims, cell_start, cell_points = point_bins(
+        positions, 2.0 * cutoff_factor * float(radii.max()) + skin)
     capacity = 4 * n
     while True:
         pairs, count = _kernels.find_pairs(
