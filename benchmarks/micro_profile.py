@@ -15,7 +15,10 @@ never asserted.
 preset (``results/micro/points_<N>.nc``, ``config/paper/micro_convergence_full.yaml``):
 their wall time and peak memory, and the wall time per phase that every micro run
 records (``wall_time_<phase>_s`` attributes), with the exponent of a power law fitted
-per phase from 15k points up, and a log-log figure of the curve.
+per phase (relaxation, flow, measurement, remesh, the rest) from 15k points up, and a
+log-log figure of the curve. Cases run in earlier sessions (hours each, and results/
+does not outlive a machine) come from ``benchmarks/reference/micro_cases.json`` unless
+results/micro has them.
 
 ``python -m benchmarks run measurement_workers --size N`` times one checkpoint's eight
 permeability solves on a jittered cube of N points in this process alone, with a second
@@ -35,6 +38,7 @@ from __future__ import annotations
 
 import copy
 import cProfile
+import json
 import pstats
 import tempfile
 import time
@@ -53,6 +57,9 @@ __all__ = ["bench_measurement_workers", "bench_micro_profile", "bench_micro_ramp
 
 # The convergence study's cases from which the issue's N^1.1 target is fitted.
 SCALING_FROM_POINTS = 15_000
+# The phases of a run's curve; the rest of its wall time is "other".
+MAIN_PHASES = ("relaxation", "flow", "measurement", "remesh")
+RECORDED_CASES = "benchmarks/reference/micro_cases.json"
 
 PHASES = {
     "checkpoint_balance": ("micro/hydration.py", "advance_to_balance"),
@@ -235,25 +242,40 @@ def bench_micro_ramp(points: int = 8000, grid: str = "results/porosity/pellet.nc
     return result
 
 
-def bench_micro_scaling(folder: str = "results/micro") -> dict:
-    """Wall time per phase and peak memory of the convergence preset's finished cases
-    versus N, with the exponent fitted per phase from 15k points up."""
+def _scaling_record(case: str, n_points: int, wall: float, peak_mb: float,
+                    phases: dict[str, float], **extra: object) -> dict:
+    """One case of the curve: the main phases and the rest of the wall time (``other``)."""
+    main = {name: float(phases.get(name, 0.0)) for name in MAIN_PHASES}
+    return {"case": case, "n_points": n_points, "wall_s": wall, "peak_memory_mb": peak_mb,
+            "phases_s": {**main, "other": wall - sum(main.values())}, **extra}
+
+
+def bench_micro_scaling(folder: str = "results/micro", recorded: str = RECORDED_CASES) -> dict:
+    """Wall time per phase and peak memory of the convergence preset's cases versus N,
+    with the exponent fitted per phase from 15k points up: the finished cases in
+    ``folder``, and those of ``recorded`` (earlier sessions' runs) that it lacks."""
     records = []
     for path in Path(folder).glob("points_*.nc"):
         with xr.open_dataset(path) as ds:
             attrs = dict(ds.attrs)
-        phases = phase_wall_times(attrs)
-        records.append({"case": path.stem, "n_points": int(attrs["n_points"]),
-                        "n_cells": int(attrs["n_cells"]), "wall_s": float(attrs["wall_time_s"]),
-                        "peak_memory_mb": float(attrs["peak_memory_mb"]), "phases_s": phases})
+        records.append(_scaling_record(
+            path.stem, int(attrs["n_points"]), float(attrs["wall_time_s"]),
+            float(attrs["peak_memory_mb"]), phase_wall_times(attrs),
+            n_cells=int(attrs["n_cells"]), source=str(path)))
+    measured = {r["n_points"] for r in records}
+    for entry in json.loads(Path(recorded).read_text())["cases"]:
+        if entry["n_points"] not in measured:
+            records.append(_scaling_record(
+                entry["case"], entry["n_points"], entry["wall_s"], entry["peak_memory_mb"],
+                entry["phases_s"], source=f"{recorded} ({entry['commit']}, {entry['date']})"))
     records.sort(key=lambda r: r["n_points"])
     fitted = [r for r in records if r["n_points"] >= SCALING_FROM_POINTS]
     exponents: dict[str, float] = {}
     if len(fitted) >= 2:
-        exponents["wall"] = _exponent([r["n_points"] for r in fitted], [r["wall_s"] for r in fitted])
-        timed = [r for r in fitted if r["phases_s"]]
-        for name in sorted({k for r in timed for k in r["phases_s"]}):
-            rows = [r for r in timed if r["phases_s"].get(name, 0.0) > 0.0]
+        exponents["wall"] = _exponent([r["n_points"] for r in fitted],
+                                      [r["wall_s"] for r in fitted])
+        for name in (*MAIN_PHASES, "other"):
+            rows = [r for r in fitted if r["phases_s"][name] > 0.0]
             if len(rows) >= 2:
                 exponents[name] = _exponent([r["n_points"] for r in rows],
                                             [r["phases_s"][name] for r in rows])

@@ -15,8 +15,9 @@ Compared (ratio = ours / Yade's):
   ``step_ms`` + ``hydro_forces_ms`` + ``point_suction_ms``) plus the flow part of a
   coupled step (:mod:`benchmarks.flow`: ``coupled_flow_step_s``), at hydraulic balance
   as Yade's and, separately, during hydration;
-* a remesh: ours is :mod:`benchmarks.flow`'s ``remesh_step_s`` (Delaunay to first
-  solve, factorisation included) plus the transfer of the cell state to the new mesh,
+* a remesh: ours is :mod:`benchmarks.flow`'s ``remesh_step_s`` (Delaunay repair after
+  a motion that leaves 5 % of the cells non-Delaunay, more than Yade's few steps
+  between its remeshes do, to first solve, factorisation included) plus the transfer of the cell state to the new mesh,
   timed here (the sector weights of the point forces are computed in the force kernel
   at every step, so they are part of ``hydro_forces``, not of a remesh);
 * the water permeability along x of the homogeneous specimen (porosity phi_0) after

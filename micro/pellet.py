@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from concurrent.futures import Executor
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,11 +26,11 @@ from shared.dem.points import cube_points
 from shared.dem.state import new_state
 from shared.dem.walls import walls_around
 from shared.materials import ClayParameters
-from shared.mesh import mesh_from_tetrahedra, porosity_at_points
+from shared.mesh import Mesh, mesh_from_tetrahedra, porosity_at_points
 from shared.retention import saturation as retention_saturation
 
-__all__ = ["SpecimenSpec", "centred_grid", "initial_state", "settle", "measure_checkpoint",
-           "POROSITY_BINS"]
+__all__ = ["SpecimenSpec", "CheckpointMeasurement", "centred_grid", "initial_state", "settle",
+           "measure_checkpoint", "POROSITY_BINS"]
 
 FloatArray = npt.NDArray[np.float64]
 POROSITY_BINS = np.linspace(0.0, 1.0, 51)
@@ -280,6 +280,42 @@ def settle(
     return system, diagnostics
 
 
+def _permeabilities(
+    mesh: Mesh, saturation: FloatArray, porosity: FloatArray, suction: float,
+    material: ClayParameters, phases: dict[str, FloatArray], mouths: npt.NDArray[np.bool_],
+    executor: Executor | None = None,
+) -> tuple[dict[str, dict[str, float]], FloatArray]:
+    """A checkpoint's eight permeability solves: along each axis and the two tensors."""
+    axes = permeability_tensor_axes(mesh, saturation, porosity, suction, material,
+                                    conductances=phases, executor=executor)
+    tensor = permeability_tensor(mesh, saturation, porosity, suction, material,
+                                 conductances=phases, sealed=mouths, executor=executor)
+    return axes, tensor
+
+
+@dataclass
+class CheckpointMeasurement:
+    """A checkpoint's record whose permeabilities a worker process may still be solving.
+
+    Attributes
+    ----------
+    record
+        Everything but ``permeability`` and ``permeability_tensor``.
+    permeabilities
+        The axes' permeabilities and the tensors, or the worker's future of them.
+    """
+
+    record: dict[str, object]
+    permeabilities: Future | tuple[dict[str, dict[str, float]], FloatArray]
+
+    def result(self) -> dict[str, object]:
+        """The whole record (waits for the worker)."""
+        done = self.permeabilities
+        axes, tensor = done.result() if isinstance(done, Future) else done
+        return {**self.record, "permeability_tensor": tensor,
+                "permeability": np.array([[axes[p][a] for a in "xyz"] for p in ("water", "gas")])}
+
+
 def measure_checkpoint(
     state: PelletState,
     suction: float,
@@ -287,20 +323,25 @@ def measure_checkpoint(
     material: ClayParameters,
     cracks: bool = True,
     executor: Executor | None = None,
-) -> dict[str, object]:
+    background: bool = False,
+) -> CheckpointMeasurement:
     """Everything recorded at a checkpoint (DESIGN §2, ``results/micro``).
 
-    ``executor`` makes half of the eight independent permeability solves (the same
-    results with or without it), as in :func:`micro.permeability.permeability_tensor_axes`.
+    The crack network is updated here (the hydration goes on with it). ``executor`` (a
+    worker process, :func:`micro.run.measurement_executor`) makes the eight independent
+    permeability solves: with ``background``, all of them as one task on copies of the
+    cell state while the caller goes on (the next checkpoint's hydration), else half of
+    them while this process makes the others. The results do not depend on it.
 
     Returns
     -------
-    dict
-        ``saturation``, ``eps_v``, ``porosity_mean``, ``permeability`` (2, 3) [m2]
-        (water, gas x x, y, z; wall-flux method), ``permeability_tensor`` (2, 3, 3)
+    CheckpointMeasurement
+        Its record: ``saturation``, ``eps_v``, ``porosity_mean``, ``permeability`` (2, 3)
+        [m2] (water, gas x x, y, z; wall-flux method), ``permeability_tensor`` (2, 3, 3)
         [m2] (water, gas; linear pressure on all six walls, velocity averaged over the
-        inner 80 %: :func:`micro.permeability.permeability_tensor`), crack counts, areas [m2], volumes [m3], fabric tensors
-        (3, 3) for all, imbibed and gas-filled cracks, and the porosity histogram.
+        inner 80 %: :func:`micro.permeability.permeability_tensor`), crack counts, areas
+        [m2], volumes [m3], fabric tensors (3, 3) for all, imbibed and gas-filled cracks,
+        and the porosity histogram.
     """
     update_cracks(state, material)
     phases = {phase: conductances(state, phase, material, cracks) for phase in ("water", "gas")}
@@ -308,23 +349,21 @@ def measure_checkpoint(
     mouths = np.zeros(state.mesh.n_cells, dtype=bool)
     if cracks and state.cracks is not None:
         mouths[state.mesh.facet_cells[state.cracks.patch_facets].ravel()] = True
-    permeability = permeability_tensor_axes(state.mesh, state.saturation, state.porosity,
-                                            suction, material, conductances=phases,
-                                            executor=executor)
-    tensor = permeability_tensor(state.mesh, state.saturation, state.porosity, suction,
-                                 material, conductances=phases, sealed=mouths,
-                                 executor=executor)
+    # the worker's arguments are pickled later, while the hydration changes the state
+    arguments = (state.mesh, state.saturation.copy(), state.porosity.copy(), suction, material,
+                 phases, mouths)
+    permeabilities: Future | tuple = (
+        executor.submit(_permeabilities, *arguments) if executor is not None and background
+        else _permeabilities(*arguments, executor=executor))
     volumes = state.mesh.volumes
     fabric = crack_fabric(state.cracks.normals, state.cracks.areas, state.cracks.apertures,
                           state.cracks.imbibed)
     histogram, _ = np.histogram(state.porosity, bins=POROSITY_BINS, weights=volumes)
-    return {
+    return CheckpointMeasurement({
         "saturation": state.mean_saturation(),
         "eps_v": float(volumes.sum() / reference_volume - 1.0),
         "porosity_mean": float((state.porosity * volumes).sum() / volumes.sum()),
         "porosity_hist": histogram / volumes.sum(),
-        "permeability": np.array([[permeability[p][a] for a in "xyz"] for p in ("water", "gas")]),
-        "permeability_tensor": tensor,
         "crack_count": fabric.count,
         "crack_count_imbibed": fabric.count_imbibed,
         "crack_count_gas": fabric.count_gas,
@@ -337,4 +376,4 @@ def measure_checkpoint(
         "crack_fabric_gas": fabric.tensor_gas,
         "time": state.time,
         "n_remesh": state.n_remesh,
-    }
+    }, permeabilities)

@@ -34,7 +34,14 @@ from micro.hydration import (
     HydrationSettings,
     advance_to_balance,
 )
-from micro.pellet import POROSITY_BINS, SpecimenSpec, initial_state, measure_checkpoint, settle
+from micro.pellet import (
+    POROSITY_BINS,
+    CheckpointMeasurement,
+    SpecimenSpec,
+    initial_state,
+    measure_checkpoint,
+    settle,
+)
 from micro.permeability import principal_permeability
 from shared.config import ConfigError
 from shared.dem.parameters import DEM_MATERIAL_KEYS, DEMParameters, dem_parameters
@@ -57,7 +64,7 @@ __all__ = [
 MATERIAL_KEYS = (*CLAY_CONFIG_KEYS.values(), *DEM_MATERIAL_KEYS)
 """Keys of ``materials.pellet`` the micro model reads (its rules' params hold these)."""
 MEASUREMENT_PROCESS_CELLS = 100_000
-"""Cells from which a checkpoint's solves share two processes (:func:`measurement_executor`)."""
+"""Cells from which a worker process makes the permeability solves (:func:`measurement_executor`)."""
 
 log = logging.getLogger("micro")
 
@@ -304,19 +311,40 @@ def run(
     last_save = time.monotonic()
     balancing: ConvergenceProgress | None = None
 
-    def snapshot(system: FlowSystem, balance: BalanceProgress) -> None:
-        """Log the balance's progress (once a minute); save the state between two flow
-        steps when ``interval`` has passed."""
-        nonlocal last_save
-        if balancing is not None:
-            balancing.update(balance.flow_steps, balance.misfit)
-        if time.monotonic() - last_save < interval:
+    pending: CheckpointMeasurement | None = None
+
+    def record_pending() -> None:
+        """Wait for the last checkpoint's measurement and add its record."""
+        nonlocal pending
+        if pending is None:
             return
+        with clock.phase("measurement"):
+            record = pending.result()
+        pending = None
+        log.info("%s: s = %.3g Pa, S = %.3f, eps_v = %.4f, cracks %d, k_w,x = %.3g m2, "
+                 "k_g,x = %.3g m2, balanced %d", case, checkpoints[len(records)],
+                 record["saturation"], record["eps_v"], record["crack_count"],
+                 record["permeability"][0, 0], record["permeability"][1, 0],
+                 record["balanced"])
+        records.append(record)
+
+    def save(system: FlowSystem, balance: BalanceProgress | None) -> None:
+        """Save the state with every record so far (waits for a pending measurement)."""
+        nonlocal last_save
+        record_pending()
         with clock.phase("output"):
             save_checkpoint(state_file, digest, state, system, records, reference_volume,
                             wall_time=earlier + time.monotonic() - started, balance=balance,
                             phase_seconds=clock.seconds)
         last_save = time.monotonic()
+
+    def snapshot(system: FlowSystem, balance: BalanceProgress) -> None:
+        """Log the balance's progress (once a minute); save the state between two flow
+        steps when ``interval`` has passed."""
+        if balancing is not None:
+            balancing.update(balance.flow_steps, balance.misfit)
+        if time.monotonic() - last_save >= interval:
+            save(system, balance)
 
     with measurement_executor(state.mesh.n_cells) as executor:
         for index in range(len(records), checkpoints.size):
@@ -337,26 +365,26 @@ def run(
                     f"the last good checkpoint is kept in {state_file}"
                 ) from err
             # each checkpoint is measured on a mesh rebuilt from the moved points (not the
-            # per-step update_mesh, which rounds differently); the checkpoint file keeps it
+            # per-step update_mesh, which rounds differently); the checkpoint file keeps it.
+            # The worker solves the permeabilities while the next checkpoint hydrates.
+            last = index + 1 == checkpoints.size
             with clock.phase("measurement"):
                 state.mesh = mesh_from_tetrahedra(state.dem.positions, state.mesh.tetrahedra,
                                                   state.mesh.neighbours, reorient=False)
-                record = measure_checkpoint(state, suction, reference_volume, material,
-                                            settings.cracks, executor=executor)
-            record.update(diagnostics)
-            records.append(record)
-            with clock.phase("output"):
-                save_checkpoint(state_file, digest, state, system, records, reference_volume,
-                                wall_time=earlier + time.monotonic() - started,
-                                phase_seconds=clock.seconds)
-                if vtk_dir is not None:
+                measurement = measure_checkpoint(state, suction, reference_volume, material,
+                                                 settings.cracks, executor=executor,
+                                                 background=not last)
+            measurement.record.update(diagnostics)
+            record_pending()
+            pending = measurement
+            if isinstance(measurement.permeabilities, tuple) or (
+                    time.monotonic() - last_save >= interval):
+                save(system, None)
+            if vtk_dir is not None:
+                with clock.phase("output"):
                     vtk.write_checkpoint_snapshot(vtk_dir, output.stem, index, state)
-            last_save = time.monotonic()
-            log.info("%s: s = %.3g Pa, S = %.3f, eps_v = %.4f, cracks %d, k_w,x = %.3g m2, "
-                     "k_g,x = %.3g m2, balanced %d", case, suction, record["saturation"],
-                     record["eps_v"], record["crack_count"], record["permeability"][0, 0],
-                     record["permeability"][1, 0], diagnostics["balanced"])
             progress.update(index + 1)
+        record_pending()
     ds = _dataset(records, checkpoints)
     ds.attrs.update(n_points=state.dem.n_points, n_cells=state.mesh.n_cells,
                     confinement=spec.confinement, crack_model=int(settings.cracks),
@@ -373,19 +401,21 @@ def run(
 
 
 def measurement_executor(n_cells: int) -> AbstractContextManager[Executor | None]:
-    """A worker process for half of a checkpoint's permeability solves, or None.
+    """A worker process for the checkpoints' permeability solves, or None.
 
-    One process beside this one when the job has two threads or more (numba's, as the
+    It makes the eight solves of a checkpoint while this process hydrates towards the
+    next (a save of the state waits for them), and half of the last checkpoint's. One
+    process beside this one when the job has two threads or more (numba's, as the
     Snakemake job sets them) and the mesh has ``MEASUREMENT_PROCESS_CELLS`` cells or
     more (below, the mesh's transfer and the process's start cost more than they save).
-    A process, not a thread: pyamg's cycles and CHOLMOD hold the GIL (two threads gave
-    1.11x at 150k points). The worker is spawned (forking a process whose OpenMP
-    threads run is unsafe) and runs numba on one thread; a script that runs the micro
-    stage must therefore guard its main code with ``if __name__ == "__main__":``.
+    A process, not a thread: pyamg's cycles and CHOLMOD hold the GIL. The worker is
+    spawned (forking a process whose OpenMP threads run is unsafe) and runs numba on
+    one thread; a script that runs the micro stage must therefore guard its main code
+    with ``if __name__ == "__main__":``.
     """
     if numba.get_num_threads() < 2 or n_cells < MEASUREMENT_PROCESS_CELLS:
         return nullcontext(None)
-    log.info("measurements: half of each checkpoint's solves in a worker process")
+    log.info("measurements: the permeability solves in a worker process")
     return ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
                                initializer=numba.set_num_threads, initargs=(1,))
 

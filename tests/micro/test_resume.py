@@ -158,6 +158,40 @@ def test_the_saves_between_flow_steps_change_nothing(case, uninterrupted):
             np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
 
 
+@pytest.mark.parametrize("interval", [0.0, 1e9])
+def test_measurements_in_a_worker_process_change_nothing(case, uninterrupted, interval,
+                                                         monkeypatch):
+    """With the worker process forced (spawned, as from 100 000 cells on two threads), a
+    checkpoint's permeabilities are solved there while the next checkpoint hydrates:
+    saving after every flow step (each save waits for the worker) or never before the
+    end, the run writes the uninterrupted run's variables bit for bit."""
+    import numba
+
+    config, grid, tmp = case
+    configured = copy.deepcopy(config)
+    configured["micro"]["snapshot_interval_s"] = interval
+    monkeypatch.setattr(micro_run, "MEASUREMENT_PROCESS_CELLS", 0)
+    monkeypatch.setattr(numba, "get_num_threads", lambda: 2)
+    submitted = []
+    original = micro_run.measure_checkpoint
+
+    def counted(*args, **kwargs):
+        submitted.append(kwargs["executor"] is not None and kwargs["background"])
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(micro_run, "measure_checkpoint", counted)
+    output = tmp / f"worker_{interval:g}.nc"
+    micro_run.run(configured, "c", grid, output, output.with_suffix(".png"))
+    # every checkpoint but the last one measured in the background
+    assert submitted == [True] * (len(CHECKPOINTS) - 1) + [False]
+    if interval == 0.0:
+        _assert_same_file(output, uninterrupted)
+    else:
+        with xr.open_dataset(uninterrupted) as a, xr.open_dataset(output) as b:
+            for name in a.data_vars:
+                np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+
+
 def test_the_flow_numbering_of_the_last_remesh_is_kept(tmp_path):
     """The unknowns are numbered by the centroids at the last remesh: a checkpoint after
     the points moved (here a 2 % stretch, which inverts no cell) restores that
