@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import multiprocessing
+import os
 import resource
 import time
 from collections.abc import Mapping
@@ -65,6 +66,8 @@ MATERIAL_KEYS = (*CLAY_CONFIG_KEYS.values(), *DEM_MATERIAL_KEYS)
 """Keys of ``materials.pellet`` the micro model reads (its rules' params hold these)."""
 MEASUREMENT_PROCESS_CELLS = 100_000
 """Cells from which a worker process makes the permeability solves (:func:`measurement_executor`)."""
+WORKER_NICENESS = 10
+"""Niceness the measurement worker adds to its own (the hydration goes first)."""
 
 log = logging.getLogger("micro")
 
@@ -409,15 +412,22 @@ def measurement_executor(n_cells: int) -> AbstractContextManager[Executor | None
     Snakemake job sets them) and the mesh has ``MEASUREMENT_PROCESS_CELLS`` cells or
     more (below, the mesh's transfer and the process's start cost more than they save).
     A process, not a thread: pyamg's cycles and CHOLMOD hold the GIL. The worker is
-    spawned (forking a process whose OpenMP threads run is unsafe) and runs numba on
-    one thread; a script that runs the micro stage must therefore guard its main code
+    spawned (forking a process whose OpenMP threads run is unsafe), runs numba on one
+    thread at a lower priority; a script that runs the micro stage must therefore guard its main code
     with ``if __name__ == "__main__":``.
     """
     if numba.get_num_threads() < 2 or n_cells < MEASUREMENT_PROCESS_CELLS:
         return nullcontext(None)
     log.info("measurements: the permeability solves in a worker process")
     return ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=numba.set_num_threads, initargs=(1,))
+                               initializer=_measurement_worker)
+
+
+def _measurement_worker() -> None:
+    """The worker runs numba on one thread and yields the cores to the hydration, the
+    run's critical path, whenever its threads want both (niceness ``WORKER_NICENESS``)."""
+    numba.set_num_threads(1)
+    os.nice(WORKER_NICENESS)
 
 
 def _specimen_mean(spec: SpecimenSpec, grid: xr.DataArray, material: ClayParameters,

@@ -390,9 +390,11 @@ class SPDSolver:
             _check_lower(matrix)
         if self.uses_multigrid(matrix.shape[0]) and not self._fallback:
             self._factor = None
+            # the coarsest level (at most 500 unknowns, SPD) by sparse LU: pyamg's default
+            # pseudo-inverse takes an SVD at the first cycle of every new hierarchy
             hierarchy = pyamg.ruge_stuben_solver(
                 _full_matrix(matrix), strength=("classical", {"theta": self.amg_strength}),
-                CF=("RS", {"second_pass": True}), max_coarse=500)
+                CF=("RS", {"second_pass": True}), max_coarse=500, coarse_solver="splu")
             self._cycle = hierarchy.aspreconditioner(cycle="V")
             self._setup_iterations = -1
         else:

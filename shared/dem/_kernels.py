@@ -5,8 +5,8 @@ Every sum over contacts or bonds into shared per-point arrays runs serially, in 
 order: the summation order, hence the results, are the same from run to run and
 whatever the thread count. Only work without such sums runs in parallel (each contact's
 Hertz-Mindlin force or each bond's tension into its own row, per-point updates). A
-parallel gather per point in the same order (bit-identical) cost 30-40 % more on one
-thread than the serial scatter, which it could not win back on two.
+parallel gather per point in the same order would be bit-identical too, but its
+scattered reads cost more on one thread than the second thread wins back.
 """
 
 from __future__ import annotations
