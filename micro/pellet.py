@@ -308,6 +308,11 @@ class CheckpointMeasurement:
     record: dict[str, object]
     permeabilities: Future | tuple[dict[str, dict[str, float]], FloatArray]
 
+    @property
+    def in_background(self) -> bool:
+        """Whether the permeabilities come from a worker process."""
+        return isinstance(self.permeabilities, Future)
+
     def result(self) -> dict[str, object]:
         """The whole record (waits for the worker)."""
         done = self.permeabilities

@@ -380,8 +380,7 @@ def run(
             measurement.record.update(diagnostics)
             record_pending()
             pending = measurement
-            if isinstance(measurement.permeabilities, tuple) or (
-                    time.monotonic() - last_save >= interval):
+            if not measurement.in_background or time.monotonic() - last_save >= interval:
                 save(system, None)
             if vtk_dir is not None:
                 with clock.phase("output"):
@@ -412,9 +411,9 @@ def measurement_executor(n_cells: int) -> AbstractContextManager[Executor | None
     Snakemake job sets them) and the mesh has ``MEASUREMENT_PROCESS_CELLS`` cells or
     more (below, the mesh's transfer and the process's start cost more than they save).
     A process, not a thread: pyamg's cycles and CHOLMOD hold the GIL. The worker is
-    spawned (forking a process whose OpenMP threads run is unsafe), runs numba on one
-    thread at a lower priority; a script that runs the micro stage must therefore guard its main code
-    with ``if __name__ == "__main__":``.
+    spawned (forking a process whose OpenMP threads run is unsafe) and runs numba on one
+    thread at a lower priority. A script that runs the micro stage must guard its main
+    code with ``if __name__ == "__main__":``, since the spawned worker imports it.
     """
     if numba.get_num_threads() < 2 or n_cells < MEASUREMENT_PROCESS_CELLS:
         return nullcontext(None)
