@@ -318,13 +318,29 @@ def _triangulated(points: FloatArray, subset: IntArray) -> IntArray:
     return subset[Delaunay(points[subset]).simplices]
 
 
+def _canonical(cells: IntArray, volumes: FloatArray) -> tuple[IntArray, FloatArray]:
+    """Positively oriented cells in an order that does not depend on how they were found
+    (the groups, hence the thread count): each from its smallest vertex up, the last two
+    swapped where that order is an odd permutation (the orientation is kept), the cells
+    sorted; a cell found in two groups once."""
+    order = np.argsort(cells, axis=1)
+    ranked = np.take_along_axis(cells, order, axis=1)
+    inversions = sum((order[:, i] > order[:, j]).astype(np.int64)
+                     for i in range(4) for j in range(i + 1, 4))
+    odd = inversions % 2 == 1
+    ranked[odd] = ranked[odd][:, [0, 1, 3, 2]]
+    _, first = np.unique(ranked, axis=0, return_index=True)
+    return ranked[first], volumes[first]
+
+
 def _new_cells(
     points: FloatArray, subsets: list[IntArray], kept: IntArray,
     grid: tuple[FloatArray, FloatArray, IntArray, IntArray, IntArray], min_volume: float,
 ) -> tuple[IntArray, FloatArray] | None:
     """Cells of the Delaunay tetrahedralisations of the ``subsets`` (on threads: Qhull
     releases the GIL) that are Delaunay among all points and not in ``kept``, once
-    each, positively oriented, and their volumes [m3]; None if Qhull fails."""
+    each, positively oriented, in :func:`_canonical` order, and their volumes [m3]; None
+    if Qhull fails."""
     try:
         if len(subsets) == 1:
             parts = [_triangulated(points, subsets[0])]
@@ -340,10 +356,6 @@ def _new_cells(
     signed[negative] = -signed[negative]
     # the circumcentre does not depend on the orientation
     certified = _empty_spheres(points, candidates, signed, centres, *grid, min_volume)
-    candidates, signed = candidates[certified], signed[certified]
-    if len(subsets) > 1:  # a cell whose vertices are in two groups is found twice
-        _, first = np.unique(np.sort(candidates, axis=1), axis=0, return_index=True)
-        first = np.sort(first)
-        candidates, signed = candidates[first], signed[first]
+    candidates, signed = _canonical(candidates[certified], signed[certified])
     new = same_cells(kept, candidates, points.shape[0]) < 0
     return candidates[new], signed[new]

@@ -192,6 +192,26 @@ def test_measurements_in_a_worker_process_change_nothing(case, uninterrupted, in
                 np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
 
 
+def test_the_thread_count_changes_nothing(case, uninterrupted):
+    """The same case on one numba thread (the kernels, the Delaunay repair's groups)
+    writes the variables of the run on all threads bit for bit."""
+    import numba
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba has a single thread here")
+    config, grid, tmp = case
+    output = tmp / "one_thread.nc"
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        micro_run.run(config, "c", grid, output, output.with_suffix(".png"))
+    finally:
+        numba.set_num_threads(before)
+    with xr.open_dataset(uninterrupted) as a, xr.open_dataset(output) as b:
+        for name in a.data_vars:
+            np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+
+
 def test_the_flow_numbering_of_the_last_remesh_is_kept(tmp_path):
     """The unknowns are numbered by the centroids at the last remesh: a checkpoint after
     the points moved (here a 2 % stretch, which inverts no cell) restores that

@@ -51,6 +51,30 @@ def test_repair_gives_qhull_tetrahedralisation(
                 assert shared == set(cells[c]) - {cells[c, k]}
 
 
+@pytest.mark.parametrize("move", [0.03, 0.1])
+def test_repair_does_not_depend_on_the_thread_count(
+    move: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The cells to redo triangulated in one, two or three groups (one per thread): the
+    same cells with the same vertex order, in the same order, so that a run's sums
+    round alike whatever its thread count."""
+    rng = np.random.default_rng(8)
+    before = jittered_grid(12, rng)
+    mesh = build_mesh(before)
+    after = before + rng.normal(0.0, move / 12, before.shape)
+    results = []
+    for threads in (1, 2, 3):
+        monkeypatch.setattr(delaunay, "get_num_threads", lambda threads=threads: threads)
+        repaired = update_delaunay(after, mesh.tetrahedra, mesh.neighbours, 0.0)
+        assert repaired is not None
+        results.append(repaired)
+    assert results[0][0].shape[0] > mesh.n_cells // 2
+    for cells, neighbours in results[1:]:
+        np.testing.assert_array_equal(cells, results[0][0])
+        np.testing.assert_array_equal(neighbours, results[0][1])
+    assert np.all(cell_volumes(after, results[0][0]) > 0.0)
+
+
 def test_repair_keeps_the_cells_still_delaunay() -> None:
     """Points that did not move: every previous cell is kept, in its order."""
     mesh = build_mesh(jittered_grid(8, np.random.default_rng(5)))
