@@ -354,12 +354,14 @@ def measure_checkpoint(
     mouths = np.zeros(state.mesh.n_cells, dtype=bool)
     if cracks and state.cracks is not None:
         mouths[state.mesh.facet_cells[state.cracks.patch_facets].ravel()] = True
-    # the worker's arguments are pickled later, while the hydration changes the state
-    arguments = (state.mesh, state.saturation.copy(), state.porosity.copy(), suction, material,
-                 phases, mouths)
-    permeabilities: Future | tuple = (
-        executor.submit(_permeabilities, *arguments) if executor is not None and background
-        else _permeabilities(*arguments, executor=executor))
+    permeabilities: Future | tuple
+    if executor is not None and background:
+        # the arguments are pickled later, while the hydration changes the state
+        permeabilities = executor.submit(_permeabilities, state.mesh, state.saturation.copy(),
+                                         state.porosity.copy(), suction, material, phases, mouths)
+    else:
+        permeabilities = _permeabilities(state.mesh, state.saturation, state.porosity, suction,
+                                         material, phases, mouths, executor=executor)
     volumes = state.mesh.volumes
     fabric = crack_fabric(state.cracks.normals, state.cracks.areas, state.cracks.apertures,
                           state.cracks.imbibed)
