@@ -15,6 +15,7 @@ import logging
 import multiprocessing
 import os
 import resource
+import threading
 import time
 from collections.abc import Mapping
 from concurrent.futures import Executor, ProcessPoolExecutor
@@ -68,6 +69,8 @@ MEASUREMENT_PROCESS_CELLS = 100_000
 """Cells from which a worker process makes the permeability solves (:func:`measurement_executor`)."""
 WORKER_NICENESS = 10
 """Niceness the measurement worker adds to its own (the hydration goes first)."""
+WORKER_PARENT_POLL_S = 1.0
+"""Interval [s] at which the measurement worker checks that the run's process lives."""
 
 log = logging.getLogger("micro")
 
@@ -424,9 +427,19 @@ def measurement_executor(n_cells: int) -> AbstractContextManager[Executor | None
 
 def _measurement_worker() -> None:
     """The worker runs numba on one thread and yields the cores to the hydration, the
-    run's critical path, whenever its threads want both (niceness ``WORKER_NICENESS``)."""
+    run's critical path, whenever its threads want both (niceness ``WORKER_NICENESS``).
+    It exits when the run's process dies: a killed run leaves no orphan that keeps
+    solving and holding a copy of the mesh (gigabytes at 300k points)."""
     numba.set_num_threads(1)
     os.nice(WORKER_NICENESS)
+    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
+
+
+def _exit_with_parent(parent: int) -> None:
+    """Exit this process once ``parent`` is no longer its parent (it died)."""
+    while os.getppid() == parent:
+        time.sleep(WORKER_PARENT_POLL_S)
+    os._exit(1)
 
 
 def _specimen_mean(spec: SpecimenSpec, grid: xr.DataArray, material: ClayParameters,

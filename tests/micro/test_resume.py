@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import copy
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -210,6 +211,60 @@ def test_the_thread_count_changes_nothing(case, uninterrupted):
     with xr.open_dataset(uninterrupted) as a, xr.open_dataset(output) as b:
         for name in a.data_vars:
             np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+
+
+KILLED_RUN = """
+import os
+import time
+
+import numba
+
+from micro import run
+
+if __name__ == "__main__":
+    run.MEASUREMENT_PROCESS_CELLS = 0
+    numba.get_num_threads = lambda: 2
+    with run.measurement_executor(1) as executor:
+        print(executor.submit(os.getpid).result(), flush=True)
+        executor.submit(time.sleep, 600.0)
+        time.sleep(600.0)
+"""
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie does not: nothing may reap it here)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except FileNotFoundError:
+        return False
+    return "\nState:\tZ" not in status
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc (Linux)")
+def test_a_killed_run_leaves_no_measurement_worker(tmp_path):
+    """SIGKILL the run's process while its worker solves (sleeps, here): the worker
+    exits within a few of its polling intervals instead of finishing its task."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "killed_run.py"
+    script.write_text(KILLED_RUN)
+    root = Path(micro_run.__file__).parents[1]
+    run = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True,
+                           cwd=root, env={**os.environ, "PYTHONPATH": str(root)})
+    worker = int(run.stdout.readline())
+    assert _alive(worker)
+    run.send_signal(signal.SIGKILL)
+    run.wait()
+    deadline = time.monotonic() + 20 * micro_run.WORKER_PARENT_POLL_S + 10.0
+    while _alive(worker) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    alive = _alive(worker)
+    if alive:
+        os.kill(worker, signal.SIGKILL)
+    assert not alive
 
 
 def test_the_flow_numbering_of_the_last_remesh_is_kept(tmp_path):
