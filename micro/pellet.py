@@ -313,6 +313,11 @@ class CheckpointMeasurement:
         """Whether the permeabilities come from a worker process."""
         return isinstance(self.permeabilities, Future)
 
+    def done(self) -> bool:
+        """Whether the permeabilities are there (:meth:`result` would not wait)."""
+        permeabilities = self.permeabilities
+        return not isinstance(permeabilities, Future) or permeabilities.done()
+
     def result(self) -> dict[str, object]:
         """The whole record (waits for the worker)."""
         done = self.permeabilities

@@ -344,12 +344,17 @@ def run(
                             phase_seconds=clock.seconds)
         last_save = time.monotonic()
 
+    def due(intervals: float) -> bool:
+        """Whether ``intervals`` times ``interval`` have passed since the last save."""
+        return time.monotonic() - last_save >= intervals * interval
+
     def snapshot(system: FlowSystem, balance: BalanceProgress) -> None:
         """Log the balance's progress (once a minute); save the state between two flow
-        steps when ``interval`` has passed."""
+        steps when ``interval`` has passed. A save waits for the worker: while it
+        measures, the save is put off until it is done, for one more interval at most."""
         if balancing is not None:
             balancing.update(balance.flow_steps, balance.misfit)
-        if time.monotonic() - last_save >= interval:
+        if due(1.0) and (pending is None or pending.done() or due(2.0)):
             save(system, balance)
 
     with measurement_executor(state.mesh.n_cells) as executor:
@@ -372,18 +377,21 @@ def run(
                 ) from err
             # each checkpoint is measured on a mesh rebuilt from the moved points (not the
             # per-step update_mesh, which rounds differently); the checkpoint file keeps it.
-            # The worker solves the permeabilities while the next checkpoint hydrates.
-            last = index + 1 == checkpoints.size
+            # The worker solves the permeabilities while the next checkpoint hydrates,
+            # unless it still measures the one before (it lags: both processes then share
+            # this one's solves) or a save is overdue; a checkpoint measured here is saved.
+            background = index + 1 < checkpoints.size and not due(2.0) and (
+                pending is None or pending.done())
             with clock.phase("measurement"):
                 state.mesh = mesh_from_tetrahedra(state.dem.positions, state.mesh.tetrahedra,
                                                   state.mesh.neighbours, reorient=False)
                 measurement = measure_checkpoint(state, suction, reference_volume, material,
                                                  settings.cracks, executor=executor,
-                                                 background=not last)
+                                                 background=background)
             measurement.record.update(diagnostics)
             record_pending()
             pending = measurement
-            if not measurement.in_background or time.monotonic() - last_save >= interval:
+            if not measurement.in_background:
                 save(system, None)
             if vtk_dir is not None:
                 with clock.phase("output"):
@@ -409,7 +417,8 @@ def measurement_executor(n_cells: int) -> AbstractContextManager[Executor | None
     """A worker process for the checkpoints' permeability solves, or None.
 
     It makes the eight solves of a checkpoint while this process hydrates towards the
-    next (a save of the state waits for them), and half of the last checkpoint's. One
+    next (a save of the state waits for them), and half of those of the last checkpoint
+    and of a checkpoint reached while it still measures the one before. One
     process beside this one when the job has two threads or more (numba's, as the
     Snakemake job sets them) and the mesh has ``MEASUREMENT_PROCESS_CELLS`` cells or
     more (below, the mesh's transfer and the process's start cost more than they save).
