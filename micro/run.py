@@ -68,8 +68,7 @@ MATERIAL_KEYS = (*CLAY_CONFIG_KEYS.values(), *DEM_MATERIAL_KEYS)
 MEASUREMENT_PROCESS_CELLS = 100_000
 """Cells from which a worker process makes the permeability solves (:func:`measurement_executor`)."""
 WORKER_NICENESS = 10
-"""Niceness the measurement worker adds to its own where there is no idle scheduling
-class (the hydration goes first)."""
+"""Niceness the measurement worker adds to its own (the hydration goes first)."""
 WORKER_PARENT_POLL_S = 1.0
 """Interval [s] at which the measurement worker checks that the run's process lives."""
 
@@ -436,17 +435,12 @@ def measurement_executor(n_cells: int) -> AbstractContextManager[Executor | None
 
 
 def _measurement_worker() -> None:
-    """The worker runs numba on one thread, on the cores the hydration (the run's
-    critical path) leaves idle: on Linux at the idle scheduling class, which a waking
-    hydration thread preempts at once (a niceness only rations the share over time,
-    and numba's parallel loops wait for their slowest thread); elsewhere at niceness
-    ``WORKER_NICENESS``. It exits when the run's process dies: a killed run leaves no
-    orphan that keeps solving and holding a copy of the mesh (gigabytes at 300k points)."""
+    """The worker runs numba on one thread and yields the cores to the hydration, the
+    run's critical path, whenever its threads want both (niceness ``WORKER_NICENESS``).
+    It exits when the run's process dies: a killed run leaves no orphan that keeps
+    solving and holding a copy of the mesh (gigabytes at 300k points)."""
     numba.set_num_threads(1)
-    if hasattr(os, "SCHED_IDLE"):
-        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
-    else:
-        os.nice(WORKER_NICENESS)
+    os.nice(WORKER_NICENESS)
     threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
 
 
