@@ -17,9 +17,11 @@ import os
 import resource
 import threading
 import time
-from collections.abc import Mapping
+from logging.handlers import QueueHandler, QueueListener
+from collections.abc import Iterator, Mapping
 from concurrent.futures import Executor, ProcessPoolExecutor
-from contextlib import AbstractContextManager, nullcontext
+from contextlib import AbstractContextManager, contextmanager, nullcontext
+from multiprocessing.queues import Queue
 from pathlib import Path
 from typing import Any
 
@@ -431,21 +433,46 @@ def measurement_executor(n_cells: int) -> AbstractContextManager[Executor | None
     more (below, the mesh's transfer and the process's start cost more than they save).
     A process, not a thread: pyamg's cycles and CHOLMOD hold the GIL. The worker is
     spawned (forking a process whose OpenMP threads run is unsafe) and runs numba on one
-    thread at a lower priority. A script that runs the micro stage must guard its main
-    code with ``if __name__ == "__main__":``, since the spawned worker imports it.
+    thread at a lower priority; its log records go to this process's handlers (the
+    case's log). A script that runs the micro stage must guard its main code with
+    ``if __name__ == "__main__":``, since the spawned worker imports it.
     """
     if numba.get_num_threads() < 2 or n_cells < MEASUREMENT_PROCESS_CELLS:
         return nullcontext(None)
-    log.info("measurements: the permeability solves in a worker process")
-    return ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_measurement_worker)
+    if n_cells < BACKGROUND_MEASUREMENT_CELLS:
+        log.info("measurements: the permeability solves in a worker process, in the "
+                 "background while the run hydrates")
+    else:
+        log.info("measurements: each checkpoint's permeability solves shared with a worker "
+                 "process (%d cells: too many to measure in the background)", n_cells)
+    return _worker_pool()
 
 
-def _measurement_worker() -> None:
+@contextmanager
+def _worker_pool() -> Iterator[Executor]:
+    """The spawned measurement worker, its log records relayed to this process's."""
+    context = multiprocessing.get_context("spawn")
+    records = context.Queue()
+    root = logging.getLogger()
+    relay = QueueListener(records, *root.handlers, respect_handler_level=True)
+    relay.start()
+    try:
+        with ProcessPoolExecutor(1, mp_context=context, initializer=_measurement_worker,
+                                 initargs=(records, root.level)) as executor:
+            yield executor
+    finally:
+        relay.stop()
+
+
+def _measurement_worker(records: Queue, level: int) -> None:
     """The worker runs numba on one thread and yields the cores to the hydration, the
     run's critical path, whenever its threads want both (niceness ``WORKER_NICENESS``).
-    It exits when the run's process dies: a killed run leaves no orphan that keeps
-    solving and holding a copy of the mesh (gigabytes at 300k points)."""
+    Its log records go to ``records`` at the run's ``level``. It exits when the run's
+    process dies: a killed run leaves no orphan that keeps solving and holding a copy of
+    the mesh (gigabytes at 300k points)."""
+    root = logging.getLogger()
+    root.handlers[:] = [QueueHandler(records)]
+    root.setLevel(level)
     numba.set_num_threads(1)
     os.nice(WORKER_NICENESS)
     threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()

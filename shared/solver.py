@@ -54,8 +54,9 @@ the rest of that pattern; with ``method="amg"`` it is an error. The classical
 coarsening runs the second pass of Ruge and Stueben (every strong F-F connection gets
 a common C point): on the micro model's systems it takes the V-cycle CG from about 50
 to 7 iterations at 1e-8. Its strength threshold (``amg_strength``) trades the setup and
-the cost of a cycle (operator complexity) against the number of cycles. The symmetric Gauss-Seidel V-cycle is a symmetric positive
-definite preconditioner, as CG needs.
+the cost of a cycle (operator complexity) against the number of cycles. The V-cycle
+smooths by a forward Gauss-Seidel sweep before the coarse correction and its adjoint, a
+backward sweep, after it: a symmetric positive definite preconditioner, as CG needs.
 
 The rules only trade factorisations against iterations, deterministically (iteration
 counts, not timings, decide). Counters in :class:`SolverStats` serve the benchmarks;
@@ -100,6 +101,13 @@ AMG_UNKNOWNS = 100_000
 # hierarchy's operator complexity on the micro model's steady systems (5.7 -> 3.5) and
 # takes a solve to 1e-13 in fewer iterations (benchmarks/reference/README.md).
 AMG_STRENGTH = 0.5
+
+# One forward Gauss-Seidel sweep before the coarse correction and one backward after it:
+# the V-cycle stays symmetric (the post-smoother is the pre-smoother's adjoint) at half
+# the sweeps of pyamg's symmetric sweeps on both sides, for one or two more CG
+# iterations (benchmarks/reference/README.md).
+_PRESMOOTHER = ("gauss_seidel", {"sweep": "forward"})
+_POSTSMOOTHER = ("gauss_seidel", {"sweep": "backward"})
 
 
 class SolverError(RuntimeError):
@@ -394,7 +402,8 @@ class SPDSolver:
             # pseudo-inverse takes an SVD at the first cycle of every new hierarchy
             hierarchy = pyamg.ruge_stuben_solver(
                 _full_matrix(matrix), strength=("classical", {"theta": self.amg_strength}),
-                CF=("RS", {"second_pass": True}), max_coarse=500, coarse_solver="splu")
+                CF=("RS", {"second_pass": True}), max_coarse=500, coarse_solver="splu",
+                presmoother=_PRESMOOTHER, postsmoother=_POSTSMOOTHER)
             self._cycle = hierarchy.aspreconditioner(cycle="V")
             self._setup_iterations = -1
         else:

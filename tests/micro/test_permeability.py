@@ -216,3 +216,26 @@ def test_permeabilities_measured_with_a_worker_process_equal_the_serial_ones(
     monkeypatch.setattr(run, "MEASUREMENT_PROCESS_CELLS", 2)
     with run.measurement_executor(1) as executor:
         assert executor is None
+
+
+def test_the_measurement_workers_log_records_reach_this_processs_handlers(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture,
+) -> None:
+    """A record logged in the spawned worker (a solver's fallback, say) arrives at this
+    process's handlers (the case's log file) with the worker's process id."""
+    import logging
+    import os
+
+    import numba
+
+    from micro import run
+
+    monkeypatch.setattr(run, "MEASUREMENT_PROCESS_CELLS", 0)
+    monkeypatch.setattr(numba, "get_num_threads", lambda: 2)
+    caplog.set_level(logging.INFO)
+    with run.measurement_executor(1) as executor:
+        worker = executor.submit(os.getpid).result()
+        executor.submit(logging.getLogger("shared.solver").info, "from %s", "the worker").result()
+    records = [r for r in caplog.records if r.getMessage() == "from the worker"]
+    assert [r.process for r in records] == [worker]
+    assert worker != os.getpid()

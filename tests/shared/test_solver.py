@@ -336,6 +336,24 @@ def test_multigrid_and_factor_paths_meet_the_same_criterion(
     assert solver.stats.iterations > 2
 
 
+def test_the_multigrid_cycle_is_a_symmetric_positive_definite_preconditioner(
+    rng: np.random.Generator,
+) -> None:
+    """CG needs an SPD preconditioner: the V-cycle's matrix, built column by column on a
+    steady flow system of several levels, is symmetric to round-off and its
+    eigenvalues are positive (a forward sweep on both sides of the coarse correction
+    would break the symmetry by far more)."""
+    lower, rhs = flow_system(8, "steady", rng)
+    solver = SPDSolver(method="amg")
+    solver.solve(lower, rhs)
+    n = lower.shape[0]
+    cycle = np.column_stack([solver._apply(column) for column in np.eye(n)])
+    assert n > 500  # more unknowns than the coarsest level: a real V-cycle
+    asymmetry = np.abs(cycle - cycle.T).max() / np.abs(cycle).max()
+    assert asymmetry <= 1e-12
+    assert np.linalg.eigvalsh(0.5 * (cycle + cycle.T)).min() > 0.0
+
+
 def test_multigrid_reuses_its_hierarchy_on_drifted_matrices(rng: np.random.Generator) -> None:
     lower, rhs = flow_system(8, "transient", rng)
     matrix = lower + sp.tril(lower, -1).T
