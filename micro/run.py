@@ -17,10 +17,10 @@ import os
 import resource
 import threading
 import time
-from logging.handlers import QueueHandler, QueueListener
 from collections.abc import Iterator, Mapping
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import AbstractContextManager, contextmanager, nullcontext
+from logging.handlers import QueueHandler, QueueListener
 from multiprocessing.queues import Queue
 from pathlib import Path
 from typing import Any
@@ -28,6 +28,7 @@ from typing import Any
 import numba
 import numpy as np
 import xarray as xr
+from threadpoolctl import threadpool_limits
 
 from micro import figures, vtk
 from micro.checkpoint import checkpoint_wall_time, load_checkpoint, save_checkpoint
@@ -364,7 +365,10 @@ def run(
             save(system, balance)
 
     overlap = state.mesh.n_cells < BACKGROUND_MEASUREMENT_CELLS
-    with measurement_executor(state.mesh.n_cells) as executor:
+    # one BLAS thread: numba's kernels own the job's threads, and an idle OpenBLAS thread
+    # spins after every call (pyamg's norms), taking the core the worker solves on
+    with measurement_executor(state.mesh.n_cells) as executor, threadpool_limits(
+            1, user_api="blas"):
         for index in range(len(records), checkpoints.size):
             suction = float(checkpoints[index])
             # flow steps and the largest relative suction misfit, down to the tolerance
@@ -465,8 +469,9 @@ def _worker_pool() -> Iterator[Executor]:
 
 
 def _measurement_worker(records: Queue, level: int) -> None:
-    """The worker runs numba on one thread and yields the cores to the hydration, the
-    run's critical path, whenever its threads want both (niceness ``WORKER_NICENESS``).
+    """The worker runs numba and BLAS on one thread and yields the cores to the
+    hydration, the run's critical path, whenever its threads want both (niceness
+    ``WORKER_NICENESS``).
     Its log records go to ``records`` at the run's ``level``. It exits when the run's
     process dies: a killed run leaves no orphan that keeps solving and holding a copy of
     the mesh (gigabytes at 300k points)."""
@@ -474,6 +479,7 @@ def _measurement_worker(records: Queue, level: int) -> None:
     root.handlers[:] = [QueueHandler(records)]
     root.setLevel(level)
     numba.set_num_threads(1)
+    threadpool_limits(1, user_api="blas")
     os.nice(WORKER_NICENESS)
     threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
 

@@ -218,15 +218,17 @@ def test_permeabilities_measured_with_a_worker_process_equal_the_serial_ones(
         assert executor is None
 
 
-def test_the_measurement_workers_log_records_reach_this_processs_handlers(
+def test_the_measurement_worker_logs_here_and_runs_one_blas_thread(
     monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture,
 ) -> None:
     """A record logged in the spawned worker (a solver's fallback, say) arrives at this
-    process's handlers (the case's log file) with the worker's process id."""
+    process's handlers (the case's log file) with the worker's process id; the worker's
+    BLAS runs one thread (an idle one would spin on the core the run solves on)."""
     import logging
     import os
 
     import numba
+    import threadpoolctl
 
     from micro import run
 
@@ -236,6 +238,8 @@ def test_the_measurement_workers_log_records_reach_this_processs_handlers(
     with run.measurement_executor(1) as executor:
         worker = executor.submit(os.getpid).result()
         executor.submit(logging.getLogger("shared.solver").info, "from %s", "the worker").result()
+        libraries = executor.submit(threadpoolctl.threadpool_info).result()
+    assert {lib["num_threads"] for lib in libraries if lib["user_api"] == "blas"} == {1}
     records = [r for r in caplog.records if r.getMessage() == "from the worker"]
     assert [r.process for r in records] == [worker]
     assert worker != os.getpid()
