@@ -436,10 +436,10 @@ def measurement_executor(n_cells: int) -> AbstractContextManager[Executor | None
     Snakemake job sets them) and the mesh has ``MEASUREMENT_PROCESS_CELLS`` cells or
     more (below, the mesh's transfer and the process's start cost more than they save).
     A process, not a thread: pyamg's cycles and CHOLMOD hold the GIL. The worker is
-    spawned (forking a process whose OpenMP threads run is unsafe) and runs numba on one
-    thread at a lower priority; its log records go to this process's handlers (the
-    case's log). A script that runs the micro stage must guard its main code with
-    ``if __name__ == "__main__":``, since the spawned worker imports it.
+    spawned (forking a process whose OpenMP threads run is unsafe) and runs numba and
+    BLAS on one thread at a lower priority; its log records go to this process's
+    handlers (the case's log). A script that runs the micro stage must guard its main
+    code with ``if __name__ == "__main__":``, since the spawned worker imports it.
     """
     if numba.get_num_threads() < 2 or n_cells < MEASUREMENT_PROCESS_CELLS:
         return nullcontext(None)
@@ -471,10 +471,9 @@ def _worker_pool() -> Iterator[Executor]:
 def _measurement_worker(records: Queue, level: int) -> None:
     """The worker runs numba and BLAS on one thread and yields the cores to the
     hydration, the run's critical path, whenever its threads want both (niceness
-    ``WORKER_NICENESS``).
-    Its log records go to ``records`` at the run's ``level``. It exits when the run's
-    process dies: a killed run leaves no orphan that keeps solving and holding a copy of
-    the mesh (gigabytes at 300k points)."""
+    ``WORKER_NICENESS``). Its log records go to ``records`` at the run's ``level``. It
+    exits when the run's process dies: a killed run leaves no orphan that keeps solving
+    and holding a copy of the mesh (gigabytes at 300k points)."""
     root = logging.getLogger()
     root.handlers[:] = [QueueHandler(records)]
     root.setLevel(level)

@@ -105,7 +105,7 @@ AMG_STRENGTH = 0.5
 # One forward Gauss-Seidel sweep before the coarse correction and one backward after it:
 # the V-cycle stays symmetric (the post-smoother is the pre-smoother's adjoint) at half
 # the sweeps of pyamg's symmetric sweeps on both sides, for one or two more CG
-# iterations (benchmarks/reference/README.md).
+# iterations (README, "Flow solver").
 _PRESMOOTHER = ("gauss_seidel", {"sweep": "forward"})
 _POSTSMOOTHER = ("gauss_seidel", {"sweep": "backward"})
 
