@@ -65,8 +65,8 @@ the measurements behind the defaults are in ``benchmarks/reference/README.md``.
 
 from __future__ import annotations
 
-import ctypes
 import dataclasses
+import functools
 import logging
 import math
 from collections.abc import Mapping
@@ -79,6 +79,7 @@ import pyamg
 import scipy.sparse as sp
 from numba import njit
 from sksparse.cholmod import CholmodNotPositiveDefiniteError, Factor, analyze
+from threadpoolctl import ThreadpoolController
 
 __all__ = ["SolverError", "SolverStats", "SPDSolver", "set_cholmod_blas_threads",
            "AMG_UNKNOWNS"]
@@ -131,15 +132,18 @@ def set_cholmod_blas_threads(threads: int) -> bool:
         True if an OpenBLAS library was found and set; False otherwise (then the BLAS
         is left alone, e.g. with MKL or a reference BLAS).
     """
-    try:
-        library = ctypes.CDLL("libopenblas.so.0")
-    except OSError:
+    libraries = _cholmod_blas()
+    if not libraries.lib_controllers:
         return False
-    setter = getattr(library, "openblas_set_num_threads", None)
-    if setter is None:
-        return False
-    setter(int(threads))
+    libraries.limit(limits=int(threads))
     return True
+
+
+@functools.cache
+def _cholmod_blas() -> ThreadpoolController:
+    """The OpenBLAS that CHOLMOD links (``libopenblas``; numpy's wheels bring their own,
+    ``libscipy_openblas``, left alone), loaded when this module imports CHOLMOD."""
+    return ThreadpoolController().select(prefix="libopenblas")
 
 
 @njit(cache=True)

@@ -438,3 +438,23 @@ def test_auto_method_falls_back_to_the_factor_for_the_rest_of_the_pattern(
     solver.solve(other, other_rhs)
     assert solver.stats.factorisations == before.factorisations + 1
     assert solver.stats.analyses == 1 and solver.stats.iterations > before.iterations
+
+
+def test_the_cholmod_blas_thread_count_is_set_on_cholmods_library_alone() -> None:
+    """The OpenBLAS that CHOLMOD links reports the count set (it is process-wide); the
+    one numpy's wheel brings keeps its own."""
+    import threadpoolctl
+
+    from shared.solver import set_cholmod_blas_threads
+
+    def counts() -> dict[str, int]:
+        return {lib["prefix"]: lib["num_threads"] for lib in threadpoolctl.threadpool_info()
+                if lib["user_api"] == "blas"}
+
+    numpy_blas = {prefix: n for prefix, n in counts().items() if prefix != "libopenblas"}
+    try:
+        for threads in (2, 1):
+            assert set_cholmod_blas_threads(threads)
+            assert counts() == {**numpy_blas, "libopenblas": threads}
+    finally:
+        set_cholmod_blas_threads(1)
