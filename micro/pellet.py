@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from concurrent.futures import Executor, Future
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import numpy.typing as npt
@@ -20,13 +21,13 @@ from micro.hydration import (
     triangulate,
     update_cracks,
 )
-from micro.permeability import permeability_tensor, permeability_tensor_axes
+from micro.permeability import checkpoint_permeabilities
 from shared.dem.parameters import DEMParameters
 from shared.dem.points import cube_points
 from shared.dem.state import new_state
 from shared.dem.walls import walls_around
 from shared.materials import ClayParameters
-from shared.mesh import Mesh, mesh_from_tetrahedra, porosity_at_points
+from shared.mesh import mesh_from_tetrahedra, porosity_at_points
 from shared.retention import saturation as retention_saturation
 
 __all__ = ["SpecimenSpec", "CheckpointMeasurement", "centred_grid", "initial_state", "settle",
@@ -280,19 +281,6 @@ def settle(
     return system, diagnostics
 
 
-def _permeabilities(
-    mesh: Mesh, saturation: FloatArray, porosity: FloatArray, suction: float,
-    material: ClayParameters, phases: dict[str, FloatArray], mouths: npt.NDArray[np.bool_],
-    executor: Executor | None = None,
-) -> tuple[dict[str, dict[str, float]], FloatArray]:
-    """A checkpoint's eight permeability solves: along each axis and the two tensors."""
-    axes = permeability_tensor_axes(mesh, saturation, porosity, suction, material,
-                                    conductances=phases, executor=executor)
-    tensor = permeability_tensor(mesh, saturation, porosity, suction, material,
-                                 conductances=phases, sealed=mouths, executor=executor)
-    return axes, tensor
-
-
 @dataclass
 class CheckpointMeasurement:
     """A checkpoint's record whose permeabilities a worker process may still be solving.
@@ -362,11 +350,13 @@ def measure_checkpoint(
     permeabilities: Future | tuple
     if executor is not None and background:
         # the arguments are pickled later, while the hydration changes the state
-        permeabilities = executor.submit(_permeabilities, state.mesh, state.saturation.copy(),
-                                         state.porosity.copy(), suction, material, phases, mouths)
+        permeabilities = executor.submit(partial(
+            checkpoint_permeabilities, state.mesh, state.saturation.copy(),
+            state.porosity.copy(), suction, material, conductances=phases, sealed=mouths))
     else:
-        permeabilities = _permeabilities(state.mesh, state.saturation, state.porosity, suction,
-                                         material, phases, mouths, executor=executor)
+        permeabilities = checkpoint_permeabilities(
+            state.mesh, state.saturation, state.porosity, suction, material,
+            conductances=phases, sealed=mouths, executor=executor)
     volumes = state.mesh.volumes
     fabric = crack_fabric(state.cracks.normals, state.cracks.areas, state.cracks.apertures,
                           state.cracks.imbibed)

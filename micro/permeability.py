@@ -97,6 +97,7 @@ __all__ = [
     "tensor_pattern",
     "permeability_tensor",
     "permeability_tensor_axes",
+    "checkpoint_permeabilities",
     "principal_permeability",
 ]
 
@@ -105,6 +106,10 @@ log = logging.getLogger("micro.permeability")
 Method = Literal["wall_flux", "velocity"]
 AXES: tuple[str, ...] = ("x", "y", "z")
 PHASES: tuple[Phase, ...] = ("water", "gas")
+DROP_FRACTION = 0.1
+"""Default pressure drop across the specimen, as a fraction of the suction [1]."""
+INNER_FRACTION = 0.8
+"""Default central fraction of the box whose velocities are averaged [1] (thesis: 0.8)."""
 
 
 # Extended-precision refinement sweeps allowed for an unbalanced wall-flux solve.
@@ -238,7 +243,7 @@ def measure_permeability(
     mean_pressure: float,
     pressure_drop: float,
     method: Method = "wall_flux",
-    inner_fraction: float = 0.8,
+    inner_fraction: float = INNER_FRACTION,
     conductance_floor: float = 1e-16,
     balance_tolerance: float = 1e-3,
     solver: SPDSolver | None = None,
@@ -397,7 +402,7 @@ def permeability_tensor_axes(
     *,
     conductances: Mapping[str, FloatArray] | None = None,
     method: Method = "wall_flux",
-    drop_fraction: float = 0.1,
+    drop_fraction: float = DROP_FRACTION,
     executor: Executor | None = None,
 ) -> dict[str, dict[str, float]]:
     """Water and gas permeability along x, y and z of a frozen state.
@@ -434,29 +439,50 @@ def permeability_tensor_axes(
         ``{phase: {axis: permeability [m2]}}`` for phases ``water``, ``gas`` and axes
         ``x``, ``y``, ``z``.
     """
+    phases = _phase_conductances(mesh, saturation, porosity, suction, material, conductances)
+    return _axes_result(_gathered(executor, _axes_calls(mesh, phases, suction, material,
+                                                        method, drop_fraction)))
+
+
+def _phase_conductances(
+    mesh: Mesh, saturation: FloatArray, porosity: FloatArray, suction: float,
+    material: ClayParameters, conductances: Mapping[str, FloatArray] | None,
+) -> dict[str, FloatArray]:
+    """Each phase's facet conductances: the given ones, the others computed."""
     if not suction > 0.0:
         raise ValueError(f"suction must be > 0, got {suction}")
     given = {} if conductances is None else dict(conductances)
-    phases = {
+    return {
         phase: given[phase] if given.get(phase) is not None
         else facet_conductance(mesh, saturation, porosity, phase, material)
         for phase in PHASES
     }
+
+
+def _axes_calls(
+    mesh: Mesh, phases: Mapping[str, FloatArray], suction: float, material: ClayParameters,
+    method: Method, drop_fraction: float,
+) -> list[Callable[[], float]]:
+    """The six solves of :func:`permeability_tensor_axes`, by axis then phase."""
     # one pattern per axis for both phases; the velocity method's serves every axis
     patterns = [measurement_pattern(mesh, 0, method)]
     if method == "wall_flux":
         patterns += [measurement_pattern(mesh, axis, method) for axis in (1, 2)]
-    calls = [
+    return [
         partial(measure_permeability, mesh, conductance, phase_viscosity(phase, material),
                 axis, mean_pressure=-suction, pressure_drop=drop_fraction * suction,
                 method=method, pattern=patterns[min(axis, len(patterns) - 1)])
         for axis in range(len(AXES)) for phase, conductance in phases.items()
     ]
-    values = iter(_gathered(executor, calls))
+
+
+def _axes_result(values: Sequence[float]) -> dict[str, dict[str, float]]:
+    """``{phase: {axis: permeability}}`` from the results of :func:`_axes_calls`."""
+    ordered = iter(values)
     result: dict[str, dict[str, float]] = {phase: {} for phase in PHASES}
     for name in AXES:
-        for phase in phases:
-            result[phase][name] = next(values)
+        for phase in PHASES:
+            result[phase][name] = next(ordered)
     return result
 
 
@@ -490,7 +516,7 @@ def measure_permeability_tensor(
     viscosity: float,
     *,
     pressure_drop: float,
-    inner_fraction: float = 0.8,
+    inner_fraction: float = INNER_FRACTION,
     conductance_floor: float = 1e-16,
     balance_tolerance: float = 1e-3,
     sealed: npt.NDArray[np.bool_] | None = None,
@@ -664,8 +690,8 @@ def permeability_tensor(
     material: ClayParameters,
     *,
     conductances: Mapping[str, FloatArray] | None = None,
-    drop_fraction: float = 0.1,
-    inner_fraction: float = 0.8,
+    drop_fraction: float = DROP_FRACTION,
+    inner_fraction: float = INNER_FRACTION,
     sealed: npt.NDArray[np.bool_] | None = None,
     executor: Executor | None = None,
 ) -> FloatArray:
@@ -707,21 +733,66 @@ def permeability_tensor(
         K[phase, i, j] [m2] for phases (water, gas) and i, j over (x, y, z); NaN
         entries (with a warning) where a solve failed.
     """
-    if not suction > 0.0:
-        raise ValueError(f"suction must be > 0, got {suction}")
-    given = {} if conductances is None else dict(conductances)
+    phases = _phase_conductances(mesh, saturation, porosity, suction, material, conductances)
+    return np.stack(_gathered(executor, _tensor_calls(mesh, phases, suction, material,
+                                                      drop_fraction, inner_fraction, sealed)))
+
+
+def _tensor_calls(
+    mesh: Mesh, phases: Mapping[str, FloatArray], suction: float, material: ClayParameters,
+    drop_fraction: float, inner_fraction: float, sealed: npt.NDArray[np.bool_] | None,
+) -> list[Callable[[], FloatArray]]:
+    """The two tensor measurements of :func:`permeability_tensor`, water then gas."""
     pattern = tensor_pattern(mesh, sealed)
-    calls = []
-    for phase in PHASES:
-        conductance = given.get(phase)
-        if conductance is None:
-            conductance = facet_conductance(mesh, saturation, porosity, phase, material)
-        calls.append(partial(
-            measure_permeability_tensor, mesh, conductance, phase_viscosity(phase, material),
-            pressure_drop=drop_fraction * suction, inner_fraction=inner_fraction, sealed=sealed,
-            label=f"{phase} permeability tensor at {suction:.4g} Pa", pattern=pattern,
-        ))
-    return np.stack(_gathered(executor, calls))
+    return [
+        partial(measure_permeability_tensor, mesh, conductance, phase_viscosity(phase, material),
+                pressure_drop=drop_fraction * suction, inner_fraction=inner_fraction,
+                sealed=sealed, label=f"{phase} permeability tensor at {suction:.4g} Pa",
+                pattern=pattern)
+        for phase, conductance in phases.items()
+    ]
+
+
+def checkpoint_permeabilities(
+    mesh: Mesh,
+    saturation: FloatArray,
+    porosity: FloatArray,
+    suction: float,
+    material: ClayParameters,
+    *,
+    conductances: Mapping[str, FloatArray] | None = None,
+    sealed: npt.NDArray[np.bool_] | None = None,
+    executor: Executor | None = None,
+) -> tuple[dict[str, dict[str, float]], FloatArray]:
+    """A checkpoint's eight solves: :func:`permeability_tensor_axes` (wall-flux method)
+    and :func:`permeability_tensor` with their default fractions, in one gather.
+
+    With ``executor``, the worker makes one phase's four solves and this thread the
+    other's, and the mesh they share is sent to the worker once.
+
+    Parameters
+    ----------
+    mesh, saturation, porosity, suction, material, conductances
+        As for :func:`permeability_tensor_axes`: the frozen state [1, 1], the suction
+        [Pa], the clay parameters, optional facet conductances per phase [m3/(Pa s)].
+    sealed
+        Cells that stay free in the tensor's wall layers (crack mouths), as for
+        :func:`permeability_tensor`.
+    executor
+        A worker, as for :func:`permeability_tensor_axes`; the results do not depend on it.
+
+    Returns
+    -------
+    axes : dict
+        ``{phase: {axis: permeability [m2]}}``, as :func:`permeability_tensor_axes`.
+    tensor : ndarray, shape (2, 3, 3)
+        K[phase, i, j] [m2], as :func:`permeability_tensor`.
+    """
+    phases = _phase_conductances(mesh, saturation, porosity, suction, material, conductances)
+    axes = _axes_calls(mesh, phases, suction, material, "wall_flux", DROP_FRACTION)
+    values = _gathered(executor, [*axes, *_tensor_calls(mesh, phases, suction, material,
+                                                        DROP_FRACTION, INNER_FRACTION, sealed)])
+    return _axes_result(values[:len(axes)]), np.stack(values[len(axes):])
 
 
 @dataclass(frozen=True)

@@ -156,11 +156,9 @@ def test_a_pattern_of_another_axis_is_refused(mesh: Mesh) -> None:
                              pressure_drop=1e5, pattern=measurement_pattern(mesh, 0))
 
 
-def _measured(executor=None) -> tuple[dict, np.ndarray]:
-    """Axis permeabilities and tensors of a state where every solve differs (1e4-contrast
-    cracks and a saturation field)."""
-    from micro import permeability
-
+def _state() -> tuple[tuple, dict, np.ndarray]:
+    """A state where every solve differs (1e4-contrast cracks and a saturation field):
+    the arguments, conductances and crack-mouth cells of a checkpoint's measurements."""
     mesh = jittered_mesh(9, seed=4)
     rng = np.random.default_rng(4)
     saturation = rng.uniform(0.4, 0.95, mesh.n_cells)
@@ -168,11 +166,28 @@ def _measured(executor=None) -> tuple[dict, np.ndarray]:
     phases = {phase: facet_conductance(mesh, saturation, porosity, phase, MATERIAL)
               * np.where(rng.random(mesh.n_facets) < 0.02, 1e4, 1.0)
               for phase in ("water", "gas")}
-    arguments = (mesh, saturation, porosity, 5e7, MATERIAL)
-    return (permeability.permeability_tensor_axes(*arguments, conductances=phases,
-                                                  executor=executor),
-            permeability.permeability_tensor(*arguments, conductances=phases,
-                                             executor=executor))
+    return (mesh, saturation, porosity, 5e7, MATERIAL), phases, rng.random(mesh.n_cells) < 0.05
+
+
+def _measured(executor=None) -> tuple[dict, np.ndarray]:
+    """Axis permeabilities and tensors of :func:`_state`, as a checkpoint measures them."""
+    from micro import permeability
+
+    arguments, phases, mouths = _state()
+    return permeability.checkpoint_permeabilities(*arguments, conductances=phases,
+                                                  sealed=mouths, executor=executor)
+
+
+def test_a_checkpoints_eight_solves_in_one_gather_are_the_axes_and_the_tensors() -> None:
+    """Gathered in one go (the worker receives the mesh once), the eight solves come back
+    in the places that the axes' and the tensor's own functions give them."""
+    from micro import permeability
+
+    arguments, phases, mouths = _state()
+    axes, tensor = _measured()
+    assert axes == permeability.permeability_tensor_axes(*arguments, conductances=phases)
+    np.testing.assert_array_equal(
+        tensor, permeability.permeability_tensor(*arguments, conductances=phases, sealed=mouths))
 
 
 @pytest.mark.parametrize("amg_unknowns", [1, 10**9])
