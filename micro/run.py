@@ -70,10 +70,6 @@ MATERIAL_KEYS = (*CLAY_CONFIG_KEYS.values(), *DEM_MATERIAL_KEYS)
 """Keys of ``materials.pellet`` the micro model reads (its rules' params hold these)."""
 MEASUREMENT_PROCESS_CELLS = 100_000
 """Cells from which a worker process makes the permeability solves (:func:`measurement_executor`)."""
-BACKGROUND_MEASUREMENT_CELLS = 700_000
-"""Cells from which the worker no longer measures while the run hydrates, but shares each
-checkpoint's solves with this process: beside its memory traffic the hydration slows
-down by more than the measurements take (README, "Benchmarks")."""
 WORKER_NICENESS = 10
 """Niceness the measurement worker adds to its own (the hydration goes first)."""
 WORKER_PARENT_POLL_S = 1.0
@@ -364,7 +360,6 @@ def run(
         if due(1.0) and (pending is None or pending.done() or due(2.0)):
             save(system, balance)
 
-    overlap = state.mesh.n_cells < BACKGROUND_MEASUREMENT_CELLS
     # one BLAS thread: numba's kernels own the job's threads, and an idle OpenBLAS thread
     # spins after every call (pyamg's norms), taking the core the worker solves on
     with measurement_executor(state.mesh.n_cells) as executor, threadpool_limits(
@@ -389,10 +384,10 @@ def run(
             # each checkpoint is measured on a mesh rebuilt from the moved points (not the
             # per-step update_mesh, which rounds differently); the checkpoint file keeps it.
             # The worker solves the permeabilities while the next checkpoint hydrates,
-            # unless the mesh is too large for that, the worker still measures the one
-            # before (it lags) or a save is overdue: both processes then share this one's
-            # solves, and a checkpoint measured so is saved.
-            background = overlap and index + 1 < checkpoints.size and not due(2.0) and (
+            # unless the worker still measures the one before (it lags) or a save is
+            # overdue: both processes then share this one's solves, and a checkpoint
+            # measured so is saved.
+            background = index + 1 < checkpoints.size and not due(2.0) and (
                 pending is None or pending.done())
             with clock.phase("measurement"):
                 state.mesh = mesh_from_tetrahedra(state.dem.positions, state.mesh.tetrahedra,
@@ -430,8 +425,8 @@ def measurement_executor(n_cells: int) -> AbstractContextManager[Executor | None
 
     It makes the eight solves of a checkpoint while this process hydrates towards the
     next (a save of the state waits for them), and half of those of the last checkpoint,
-    of a checkpoint reached while it still measures the one before and of every
-    checkpoint of a mesh of ``BACKGROUND_MEASUREMENT_CELLS`` cells or more. One
+    of a checkpoint reached while it still measures the one before or with a save
+    overdue. One
     process beside this one when the job has two threads or more (numba's, as the
     Snakemake job sets them) and the mesh has ``MEASUREMENT_PROCESS_CELLS`` cells or
     more (below, the mesh's transfer and the process's start cost more than they save).
@@ -443,12 +438,8 @@ def measurement_executor(n_cells: int) -> AbstractContextManager[Executor | None
     """
     if numba.get_num_threads() < 2 or n_cells < MEASUREMENT_PROCESS_CELLS:
         return nullcontext(None)
-    if n_cells < BACKGROUND_MEASUREMENT_CELLS:
-        log.info("measurements: the permeability solves in a worker process, in the "
-                 "background while the run hydrates")
-    else:
-        log.info("measurements: each checkpoint's permeability solves shared with a worker "
-                 "process (%d cells: too many to measure in the background)", n_cells)
+    log.info("measurements: the permeability solves in a worker process, in the "
+             "background while the run hydrates")
     return _worker_pool()
 
 

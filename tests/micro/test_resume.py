@@ -159,18 +159,16 @@ def test_the_saves_between_flow_steps_change_nothing(case, uninterrupted):
             np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
 
 
-@pytest.mark.parametrize("interval, worker_done, overlap",
-                         [(0.0, True, True), (1e9, True, True), (1e9, False, True),
-                          (1e9, True, False)])
+@pytest.mark.parametrize("interval, worker_done", [(0.0, True), (1e9, True), (1e9, False)])
 def test_measurements_in_a_worker_process_change_nothing(case, uninterrupted, interval,
-                                                         worker_done, overlap, monkeypatch):
+                                                         worker_done, monkeypatch):
     """With the worker process forced (spawned, as from 100 000 cells on two threads),
     the run writes the uninterrupted run's variables bit for bit whichever way its
     checkpoints are measured: with a save due at every flow step, each in both processes
     at once, then saved; never saving before the end, all but the last in the worker
     while the next checkpoint hydrates; with a worker that seems to lag (still busy at
     the next checkpoint), that next one in both processes, then saved, and so on
-    alternately; on a mesh above the size for overlapping, each in both processes."""
+    alternately."""
     import numba
 
     from micro.pellet import CheckpointMeasurement
@@ -179,8 +177,6 @@ def test_measurements_in_a_worker_process_change_nothing(case, uninterrupted, in
     configured = copy.deepcopy(config)
     configured["micro"]["snapshot_interval_s"] = interval
     monkeypatch.setattr(micro_run, "MEASUREMENT_PROCESS_CELLS", 0)
-    if not overlap:
-        monkeypatch.setattr(micro_run, "BACKGROUND_MEASUREMENT_CELLS", 0)
     monkeypatch.setattr(numba, "get_num_threads", lambda: 2)
     monkeypatch.setattr(CheckpointMeasurement, "done", lambda self: worker_done)
     submitted = []
@@ -191,10 +187,10 @@ def test_measurements_in_a_worker_process_change_nothing(case, uninterrupted, in
         return original(*args, **kwargs)
 
     monkeypatch.setattr(micro_run, "measure_checkpoint", counted)
-    output = tmp / f"worker_{interval:g}_{worker_done}_{overlap}.nc"
+    output = tmp / f"worker_{interval:g}_{worker_done}.nc"
     micro_run.run(configured, "c", grid, output, output.with_suffix(".png"))
     n = len(CHECKPOINTS)
-    expected = ([False] * n if interval == 0.0 or not overlap else
+    expected = ([False] * n if interval == 0.0 else
                 [worker_done or i % 2 == 0 for i in range(n - 1)] + [False])
     assert submitted == expected
     if interval == 0.0:
