@@ -448,7 +448,13 @@ def _phase_conductances(
     mesh: Mesh, saturation: FloatArray, porosity: FloatArray, suction: float,
     material: ClayParameters, conductances: Mapping[str, FloatArray] | None,
 ) -> dict[str, FloatArray]:
-    """Each phase's facet conductances: the given ones, the others computed."""
+    """Each phase's facet conductances: the given ones, the others computed.
+
+    Raises
+    ------
+    ValueError
+        If ``suction`` is not > 0 (every measurement's drop is a fraction of it).
+    """
     if not suction > 0.0:
         raise ValueError(f"suction must be > 0, got {suction}")
     given = {} if conductances is None else dict(conductances)
