@@ -426,10 +426,10 @@ def measurement_executor(n_cells: int) -> AbstractContextManager[Executor | None
     It makes the eight solves of a checkpoint while this process hydrates towards the
     next (a save of the state waits for them), and half of those of the last checkpoint,
     of a checkpoint reached while it still measures the one before or with a save
-    overdue. One
-    process beside this one when the job has two threads or more (numba's, as the
-    Snakemake job sets them) and the mesh has ``MEASUREMENT_PROCESS_CELLS`` cells or
-    more (below, the mesh's transfer and the process's start cost more than they save).
+    overdue. One process beside this one when the job has two threads or more (numba's,
+    as the Snakemake job sets them) and the mesh has ``MEASUREMENT_PROCESS_CELLS`` cells
+    or more (below, the mesh's transfer and the process's start cost more than they
+    save).
     A process, not a thread: pyamg's cycles and CHOLMOD hold the GIL. The worker is
     spawned (forking a process whose OpenMP threads run is unsafe) and runs numba and
     BLAS on one thread at a lower priority; its log records go to this process's
