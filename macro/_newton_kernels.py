@@ -3,8 +3,10 @@
 One loop over the systems, each solved on its own (results do not depend on the order
 or the thread count). Unknowns per system: volume V [m3] and suction s = -p [Pa].
 Material constants come in one array ``law``: zeta_0 [Pa], lambda_0, a, b, phi_0 of the
-retention curve (the formulas of :mod:`shared.retention`, scalar here) and alpha [1/Pa],
-beta [1/Pa], s_0 [Pa] of the swelling law (:mod:`shared.swelling`).
+retention curve (the formulas of :mod:`shared.retention`, scalar here), alpha [1/Pa],
+beta [1/Pa], s_0 [Pa] of the swelling law (:mod:`shared.swelling`) and beta_v [Pa],
+alpha_v [m3/kg] of the consolidation line (Eq. 4.31). Per system: the confining stress
+[Pa] and the solid mass [kg] of the confined swelling (:func:`macro.laws.confined_volume`).
 
 Status per system: 0 solved by Newton-Raphson, 1 solved by the bracketed search,
 2 no feasible volume (its water does not fit below V_max), 3 no solution found, 4 drier
@@ -46,10 +48,18 @@ def _inverse_retention(saturation, porosity, law):  # type: ignore[no-untyped-de
 
 
 @njit(cache=True)
-def _target(suction, v0, law):  # type: ignore[no-untyped-def]
-    """Free-swelling volume V_0 (1 + eps(s)) [m3] (Eq. 4.28)."""
+def _target(suction, v0, stress, solid_mass, fixed, law):  # type: ignore[no-untyped-def]
+    """Swelling volume under the confining stress [m3] (:func:`macro.laws.confined_volume`):
+    the free swelling V_f = V_0 (1 + eps(s)) (Eq. 4.28) without stress, else the volume
+    whose swelling pressure S_ret(s) [p'_vc(m_s / V) - p'_vc(m_s / V_f)] meets it."""
     alpha, beta, s0 = law[5], law[6], law[7]
-    return v0 * (1.0 + beta / alpha * (np.exp(-alpha * suction) - np.exp(-alpha * s0)))
+    free = v0 * (1.0 + beta / alpha * (np.exp(-alpha * suction) - np.exp(-alpha * s0)))
+    if not stress > 0.0:
+        return free
+    beta_v, alpha_v = law[8], law[9]
+    sat = _retention(suction, fixed if fixed == fixed else law[4], law)
+    line = stress / sat + beta_v * np.exp(alpha_v * solid_mass / free)
+    return min(free, alpha_v * solid_mass / np.log(line / beta_v))
 
 
 @njit(cache=True)
@@ -58,7 +68,7 @@ def _porosity(volume, solid, fixed):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _residuals(v, s, mu, m, vs, v0, vmax, fixed, rho, smax, law):  # type: ignore[no-untyped-def]
+def _residuals(v, s, mu, m, vs, v0, st, ms, vmax, fixed, rho, smax, law):  # type: ignore[no-untyped-def]
     """(f1, f2, feasible) of Eqs. 4.39-4.40 with barrier weight mu (see macro.newton)."""
     if not (vs < v < vmax and 0.0 < s < smax):
         return 0.0, 0.0, False
@@ -66,7 +76,7 @@ def _residuals(v, s, mu, m, vs, v0, vmax, fixed, rho, smax, law):  # type: ignor
     if not 0.0 < sat < 1.0:
         return 0.0, 0.0, False
     f1 = sat - _retention(s, _porosity(v, vs, fixed), law)
-    f2 = (v - _target(s, v0, law)) / v0
+    f2 = (v - _target(s, v0, st, ms, fixed, law)) / v0
     if mu > 0.0:
         f1 -= mu * (np.log(s / smax) + np.log(1.0 - s / smax))
         f2 -= mu * (np.log(1.0 - vs / v) + np.log(vs / v) + np.log(1.0 - v / vmax)
@@ -75,14 +85,14 @@ def _residuals(v, s, mu, m, vs, v0, vmax, fixed, rho, smax, law):  # type: ignor
 
 
 @njit(cache=True)
-def _admissible(v, s, m, vs, v0, vmax, fixed, rho, smax, tol, law, suction_bounds):  # type: ignore[no-untyped-def]
+def _admissible(v, s, m, vs, v0, st, ms, vmax, fixed, rho, smax, tol, law, suction_bounds):  # type: ignore[no-untyped-def]
     """Whether (V, s) solves the problem: both equations, or one with its bound active.
 
     The suction bounds (drier than the curve allows at s_max, saturated) are accepted
     only with ``suction_bounds``: from the bracketed search, which takes them only when
     no root exists (Newton may stop on them beside a root)."""
     low = vs + m / rho
-    f1, f2, ok = _residuals(v, s, 0.0, m, vs, v0, vmax, fixed, rho, smax, law)
+    f1, f2, ok = _residuals(v, s, 0.0, m, vs, v0, st, ms, vmax, fixed, rho, smax, law)
     if not ok:
         return False
     capped = v >= vmax * (1.0 - tol) and f2 <= tol  # confined: swelling target beyond V_max
@@ -93,23 +103,23 @@ def _admissible(v, s, m, vs, v0, vmax, fixed, rho, smax, tol, law, suction_bound
 
 
 @njit(cache=True)
-def _newton(m, vs, v0, vmax, fixed, rho, smax, v, s, tol, max_iter, mu0, decay, relax0, h, law):  # type: ignore[no-untyped-def]
+def _newton(m, vs, v0, st, ms, vmax, fixed, rho, smax, v, s, tol, max_iter, mu0, decay, relax0, h, law):  # type: ignore[no-untyped-def]
     """Barrier Newton-Raphson of one system from (v, s); returns (v, s, iterations)."""
     low = vs + m / rho
     mu = mu0
     damping = 1.0 - relax0
     mu_done = 1e-3 * tol
     for it in range(1, max_iter + 1):
-        f1, f2, _ = _residuals(v, s, mu, m, vs, v0, vmax, fixed, rho, smax, law)
+        f1, f2, _ = _residuals(v, s, mu, m, vs, v0, st, ms, vmax, fixed, rho, smax, law)
         # central differences (Eq. 4.46), one-sided near a bound, never outside
         hv_up = min(h * v, 0.5 * (vmax - v))
         hv_dn = min(h * v, 0.5 * (v - low))
         hs_up = min(h * s, 0.5 * (smax - s))
         hs_dn = min(h * s, 0.5 * s)
-        a1, a2, _ = _residuals(v + hv_up, s, mu, m, vs, v0, vmax, fixed, rho, smax, law)
-        b1, b2, _ = _residuals(v - hv_dn, s, mu, m, vs, v0, vmax, fixed, rho, smax, law)
-        c1, c2, _ = _residuals(v, s + hs_up, mu, m, vs, v0, vmax, fixed, rho, smax, law)
-        d1, d2, _ = _residuals(v, s - hs_dn, mu, m, vs, v0, vmax, fixed, rho, smax, law)
+        a1, a2, _ = _residuals(v + hv_up, s, mu, m, vs, v0, st, ms, vmax, fixed, rho, smax, law)
+        b1, b2, _ = _residuals(v - hv_dn, s, mu, m, vs, v0, st, ms, vmax, fixed, rho, smax, law)
+        c1, c2, _ = _residuals(v, s + hs_up, mu, m, vs, v0, st, ms, vmax, fixed, rho, smax, law)
+        d1, d2, _ = _residuals(v, s - hs_dn, mu, m, vs, v0, st, ms, vmax, fixed, rho, smax, law)
         j11, j21 = (a1 - b1) / (hv_up + hv_dn), (a2 - b2) / (hv_up + hv_dn)
         j12, j22 = (c1 - d1) / (hs_up + hs_dn), (c2 - d2) / (hs_up + hs_dn)
         det = j11 * j22 - j12 * j21
@@ -122,7 +132,7 @@ def _newton(m, vs, v0, vmax, fixed, rho, smax, v, s, tol, max_iter, mu0, decay, 
         norm = f1 * f1 + f2 * f2
         accepted = False
         for _ in range(60):
-            g1, g2, ok = _residuals(v + step * dv, s + step * ds, mu, m, vs, v0, vmax, fixed, rho, smax, law)
+            g1, g2, ok = _residuals(v + step * dv, s + step * ds, mu, m, vs, v0, st, ms, vmax, fixed, rho, smax, law)
             if ok and g1 * g1 + g2 * g2 <= (1.0 - 1e-4 * step) * norm:
                 accepted = True
                 break
@@ -140,21 +150,21 @@ def _newton(m, vs, v0, vmax, fixed, rho, smax, v, s, tol, max_iter, mu0, decay, 
 
 
 @njit(cache=True)
-def _clipped_volume(s, m, vs, v0, vmax, rho, law):  # type: ignore[no-untyped-def]
+def _clipped_volume(s, m, vs, v0, st, ms, vmax, fixed, rho, law):  # type: ignore[no-untyped-def]
     """V(s): the swelling target within [saturated volume, V_max] (complementarity)."""
     low = vs + m / rho
-    return min(max(_target(s, v0, law), low * (1.0 + 1e-12)), vmax * (1.0 - 1e-12))
+    return min(max(_target(s, v0, st, ms, fixed, law), low * (1.0 + 1e-12)), vmax * (1.0 - 1e-12))
 
 
 @njit(cache=True)
-def _gap(s, m, vs, v0, vmax, fixed, rho, law):  # type: ignore[no-untyped-def]
+def _gap(s, m, vs, v0, st, ms, vmax, fixed, rho, law):  # type: ignore[no-untyped-def]
     """g(s) = S(V(s)) - S_ret(s, phi(V(s))): p eliminated, V on its constraints."""
-    v = _clipped_volume(s, m, vs, v0, vmax, rho, law)
+    v = _clipped_volume(s, m, vs, v0, st, ms, vmax, fixed, rho, law)
     return min(m / (rho * (v - vs)), 1.0) - _retention(s, _porosity(v, vs, fixed), law)
 
 
 @njit(cache=True)
-def _bracketed(m, vs, v0, vmax, fixed, rho, smax, previous, law):  # type: ignore[no-untyped-def]
+def _bracketed(m, vs, v0, st, ms, vmax, fixed, rho, smax, previous, law):  # type: ignore[no-untyped-def]
     """Root of g: with a fixed retention porosity g is monotone and bisected over the
     whole log-suction range; otherwise the sign change on a log-suction grid nearest the
     previous suction (roots with V inside its bounds first) is bisected. Without a root,
@@ -163,18 +173,18 @@ def _bracketed(m, vs, v0, vmax, fixed, rho, smax, previous, law):  # type: ignor
     if fixed == fixed:
         # fixed retention porosity: g increases with s (V(s) shrinks, S_ret falls), one
         # root at most, bisected over the whole range
-        return _bisected(lo_log, hi_log, m, vs, v0, vmax, fixed, rho, law)
+        return _bisected(lo_log, hi_log, m, vs, v0, st, ms, vmax, fixed, rho, law)
     best, best_dist = -1, np.inf
     prev_log = np.log(min(max(previous, 1e-9 * smax), smax))
-    g_prev = _gap(np.exp(lo_log), m, vs, v0, vmax, fixed, rho, law)
+    g_prev = _gap(np.exp(lo_log), m, vs, v0, st, ms, vmax, fixed, rho, law)
     g_first = g_prev
     for k in range(1, GRID):
         x = lo_log + (hi_log - lo_log) * k / (GRID - 1)
-        g = _gap(np.exp(x), m, vs, v0, vmax, fixed, rho, law)
+        g = _gap(np.exp(x), m, vs, v0, st, ms, vmax, fixed, rho, law)
         if g_prev * g <= 0.0:
             mid = x - 0.5 * (hi_log - lo_log) / (GRID - 1)
             # a root where both equations hold wins over one on a volume bound
-            target = _target(np.exp(mid), v0, law)
+            target = _target(np.exp(mid), v0, st, ms, fixed, law)
             clipped = target >= vmax or target <= vs + m / rho
             dist = abs(mid - prev_log) + (1e3 if clipped else 0.0)
             if dist < best_dist:
@@ -184,35 +194,35 @@ def _bracketed(m, vs, v0, vmax, fixed, rho, smax, previous, law):  # type: ignor
         # no sign change: g > 0 everywhere is a saturated system (S = 1 > S_ret),
         # g < 0 everywhere one drier than the retention curve allows (s_max)
         s = 1e-9 * smax if g_first > 0.0 else smax * (1.0 - 1e-9)
-        return _clipped_volume(s, m, vs, v0, vmax, rho, law), s
+        return _clipped_volume(s, m, vs, v0, st, ms, vmax, fixed, rho, law), s
     a = lo_log + (hi_log - lo_log) * (best - 1) / (GRID - 1)
     b = lo_log + (hi_log - lo_log) * best / (GRID - 1)
-    return _bisected(a, b, m, vs, v0, vmax, fixed, rho, law)
+    return _bisected(a, b, m, vs, v0, st, ms, vmax, fixed, rho, law)
 
 
 @njit(cache=True)
-def _bisected(a, b, m, vs, v0, vmax, fixed, rho, law):  # type: ignore[no-untyped-def]
+def _bisected(a, b, m, vs, v0, st, ms, vmax, fixed, rho, law):  # type: ignore[no-untyped-def]
     """(V, s) at the sign change of g in log-suction [a, b]; the end of the interval
     that g approaches zero from when it does not change sign (a suction bound)."""
-    ga = _gap(np.exp(a), m, vs, v0, vmax, fixed, rho, law)
-    gb = _gap(np.exp(b), m, vs, v0, vmax, fixed, rho, law)
+    ga = _gap(np.exp(a), m, vs, v0, st, ms, vmax, fixed, rho, law)
+    gb = _gap(np.exp(b), m, vs, v0, st, ms, vmax, fixed, rho, law)
     if ga > 0.0 and gb > 0.0:  # saturated: S = 1 > S_ret everywhere
-        return _clipped_volume(np.exp(a), m, vs, v0, vmax, rho, law), np.exp(a)
+        return _clipped_volume(np.exp(a), m, vs, v0, st, ms, vmax, fixed, rho, law), np.exp(a)
     if ga < 0.0 and gb < 0.0:  # drier than the curve allows at s_max
-        return _clipped_volume(np.exp(b), m, vs, v0, vmax, rho, law), np.exp(b)
+        return _clipped_volume(np.exp(b), m, vs, v0, st, ms, vmax, fixed, rho, law), np.exp(b)
     for _ in range(60):
         c = 0.5 * (a + b)
-        gc = _gap(np.exp(c), m, vs, v0, vmax, fixed, rho, law)
+        gc = _gap(np.exp(c), m, vs, v0, st, ms, vmax, fixed, rho, law)
         if (gc <= 0.0) == (ga <= 0.0):
             a, ga = c, gc
         else:
             b = c
     s = np.exp(0.5 * (a + b))
-    return _clipped_volume(s, m, vs, v0, vmax, rho, law), s
+    return _clipped_volume(s, m, vs, v0, st, ms, vmax, fixed, rho, law), s
 
 
 @njit(cache=True)
-def solve_systems(water, solid, v0, vmax, fixed, previous_volume, previous_suction,
+def solve_systems(water, solid, v0, stress, msolid, vmax, fixed, previous_volume, previous_suction,
                   rho, smax, tol, max_iter, mu0, decay, relax0, h, law):  # type: ignore[no-untyped-def]
     """Volume [m3], suction [Pa], iterations and status of every system.
 
@@ -241,25 +251,25 @@ def solve_systems(water, solid, v0, vmax, fixed, previous_volume, previous_sucti
         sat = min(m / (rho * (v - vs)), 1.0)
         s = min(max(_inverse_retention(sat, _porosity(v, vs, fixed[i]), law), 1e-6 * smax),
                 (1.0 - 1e-6) * smax)
-        if fixed[i] == fixed[i] and _gap(smax * (1.0 - 1e-9), m, vs, v0[i], vm, fixed[i], rho, law) < 0.0:
+        if fixed[i] == fixed[i] and _gap(smax * (1.0 - 1e-9), m, vs, v0[i], stress[i], msolid[i], vm, fixed[i], rho, law) < 0.0:
             s = smax * (1.0 - 1e-9)
-            volume[i], suction[i] = _clipped_volume(s, m, vs, v0[i], vm, rho, law), s
+            volume[i], suction[i] = _clipped_volume(s, m, vs, v0[i], stress[i], msolid[i], vm, fixed[i], rho, law), s
             status[i] = DRIEST
             continue
         if fixed[i] == fixed[i]:
             top = vm * (1.0 - 1e-12)
             s_top = _inverse_retention(min(m / (rho * (top - vs)), 1.0), fixed[i], law)
-            if 0.0 < s_top < smax and _target(s_top, v0[i], law) >= top:
+            if 0.0 < s_top < smax and _target(s_top, v0[i], stress[i], msolid[i], fixed[i], law) >= top:
                 volume[i], suction[i] = top, s_top
                 status[i] = CONFINED
                 continue
         # Eq. 4.48
-        v = min(max(_target(s, v0[i], law), low + 1e-3 * gap), vm - 1e-3 * gap)
-        v, s, iterations[i] = _newton(m, vs, v0[i], vm, fixed[i], rho, smax, v, s, tol,
+        v = min(max(_target(s, v0[i], stress[i], msolid[i], fixed[i], law), low + 1e-3 * gap), vm - 1e-3 * gap)
+        v, s, iterations[i] = _newton(m, vs, v0[i], stress[i], msolid[i], vm, fixed[i], rho, smax, v, s, tol,
                                       max_iter, mu0, decay, relax0, h, law)
-        if not _admissible(v, s, m, vs, v0[i], vm, fixed[i], rho, smax, tol, law, False):
-            v, s = _bracketed(m, vs, v0[i], vm, fixed[i], rho, smax, previous_suction[i], law)
-            status[i] = BRACKETED if _admissible(v, s, m, vs, v0[i], vm, fixed[i], rho, smax,
+        if not _admissible(v, s, m, vs, v0[i], stress[i], msolid[i], vm, fixed[i], rho, smax, tol, law, False):
+            v, s = _bracketed(m, vs, v0[i], stress[i], msolid[i], vm, fixed[i], rho, smax, previous_suction[i], law)
+            status[i] = BRACKETED if _admissible(v, s, m, vs, v0[i], stress[i], msolid[i], vm, fixed[i], rho, smax,
                                                  tol, law, True) else UNSOLVED
         volume[i], suction[i] = v, s
     return volume, suction, iterations, status

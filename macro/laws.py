@@ -10,9 +10,12 @@ Units are SI and per Pa: suction s = -p > 0 [Pa], alpha and beta [1/Pa].
 - Swelling (Eq. 4.28 with the sign of DESIGN section 3):
   eps(s) = (beta/alpha) [exp(-alpha s) - exp(-alpha s_0)] > 0 for s < s_0.
 - Pellet Young's modulus (Eq. 4.3): E(s) = 3 (1 - 2 nu) exp(alpha s) / beta, capped.
-- Powder swelling pressure on its contour (Eqs. 4.31-4.33, our reading): the
-  consolidation line p'_vc = beta_v exp(alpha_v rho_d), rho_d = m_s / V (Eq. 4.32), acts
-  only once the powder fills its cell (V = V_cell), scaled by the saturation S_w.
+- Swelling under confinement (Eqs. 4.31-4.33, our reading, for pellets and powder alike):
+  clay held below its free swelling volume V_f(s) = V_0 (1 + eps(s)) presses with
+  P = S_ret(s) [p'_vc(m_s / V) - p'_vc(m_s / V_f)], the consolidation line
+  p'_vc = beta_v exp(alpha_v rho_d), rho_d = m_s / V (Eq. 4.32); zero at V_f (the free
+  limit, Eq. 4.28), the line's stress at saturation. Under a stress sigma it swells to
+  the volume where P = sigma (:func:`confined_volume`). See docs/macro.md.
 """
 
 from __future__ import annotations
@@ -38,6 +41,8 @@ __all__ = [
     "swelling_strain",
     "young_modulus",
     "consolidation_pressure",
+    "confined_volume",
+    "swelling_pressure",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -208,3 +213,51 @@ def yield_pressure(suction: npt.ArrayLike, radius: npt.ArrayLike, m: MixturePara
 def consolidation_pressure(dry_density: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
     """Swelling pressure of the consolidation line p'_vc = beta_v exp(alpha_v rho_d) [Pa] (Eq. 4.31)."""
     return m.beta_v * np.exp(m.alpha_v * np.asarray(dry_density, dtype=np.float64))
+
+
+def _free_volume(suction: FloatArray, reference_volume: FloatArray, m: MixtureParameters) -> FloatArray:
+    return reference_volume * (1.0 + swelling_strain(suction, m))
+
+
+def swelling_pressure(volume: npt.ArrayLike, suction: npt.ArrayLike, solid_mass: npt.ArrayLike,
+                      reference_volume: npt.ArrayLike, porosity: npt.ArrayLike,
+                      m: MixtureParameters) -> FloatArray:
+    """Pressure of clay held at ``volume`` below its free swelling volume [Pa]:
+    S_ret(s) [p'_vc(m_s / V) - p'_vc(m_s / V_f(s))], 0 at or above V_f (Eqs. 4.28, 4.31-4.33).
+
+    Parameters
+    ----------
+    volume
+        Volume V of the clay (solid and pores) [m3].
+    suction
+        Suction s [Pa].
+    solid_mass
+        Dry mass m_s [kg].
+    reference_volume
+        V_0, the volume at the initial suction [m3].
+    porosity
+        Porosity of the retention curve S_ret [1].
+    """
+    s = np.asarray(suction, dtype=np.float64)
+    mass = np.asarray(solid_mass, dtype=np.float64)
+    free = _free_volume(s, np.asarray(reference_volume, dtype=np.float64), m)
+    held = consolidation_pressure(mass / np.asarray(volume, dtype=np.float64), m)
+    excess = held - consolidation_pressure(mass / free, m)
+    return saturation(s, porosity, m) * np.maximum(excess, 0.0)
+
+
+def confined_volume(suction: npt.ArrayLike, stress: npt.ArrayLike, solid_mass: npt.ArrayLike,
+                    reference_volume: npt.ArrayLike, porosity: npt.ArrayLike,
+                    m: MixtureParameters) -> FloatArray:
+    """Volume to which clay swells under a confining ``stress`` [m3]: the inverse of
+    :func:`swelling_pressure` in V, V_f(s) (Eq. 4.28) when the stress is 0.
+
+    Parameters are those of :func:`swelling_pressure`; ``stress`` >= 0 [Pa].
+    """
+    s = np.asarray(suction, dtype=np.float64)
+    mass = np.asarray(solid_mass, dtype=np.float64)
+    free = _free_volume(s, np.asarray(reference_volume, dtype=np.float64), m)
+    line = np.maximum(stress, 0.0) / saturation(s, porosity, m) + consolidation_pressure(mass / free, m)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        held = m.alpha_v * mass / np.log(line / m.beta_v)
+    return np.where(np.asarray(stress) > 0.0, np.minimum(free, held), free)

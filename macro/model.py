@@ -29,10 +29,12 @@ from macro import _kernels
 from macro.field import cell_porosity
 from macro.laws import (
     MixtureParameters,
+    confined_volume,
     consolidation_pressure,
     powder_permeability,
     saturation,
     suction_derivative,
+    swelling_pressure,
     swelling_strain,
     yield_force,
     yield_pressure,
@@ -58,7 +60,7 @@ from shared.dem import detect_contacts
 from shared.mesh import Mesh, build_mesh, mesh_from_tetrahedra
 from shared.upscaling import PermeabilityTable
 
-__all__ = ["MacroSettings", "MacroModel", "macro_settings", "Readings"]
+__all__ = ["MacroSettings", "MacroModel", "macro_settings", "mixture_fractions", "Readings"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -72,6 +74,10 @@ PICARD_ITERATIONS = 3
 """Modified Picard iterations of an implicit step."""
 IMPLICIT_LOSS = 0.99
 """Largest fraction of its water a system may lose in one implicit step (positivity)."""
+POWDER_REFRESH = 20
+"""DEM substeps between two updates of the powder's push to the pellets' positions."""
+MAX_OVERLAP_LOSS = 0.3
+"""Largest fraction of a pellet's sphere that its overlaps may cut off."""
 MIN_AREA_FRACTION = 1e-2
 """Smallest powder path through a cell-cell triangle covered by pellets, fraction of it."""
 
@@ -85,6 +91,7 @@ class MacroSettings:
     pellet_radius: float
     pellet_radius_spread: float
     packing_fraction: float
+    dry_density: float
     pellet_porosity: float
     powder: Mapping[str, Any]
     table_condition: str
@@ -118,6 +125,7 @@ class MacroSettings:
     dem_substeps: int
     dem_damping: float
     dem_balance_tolerance: float
+    stress_relaxation: float
 
 
 def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
@@ -135,12 +143,16 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
     powder = dict(macro["powder"])
     if "heterogeneity" in over:
         powder["heterogeneity"] = over["heterogeneity"]
+    mixture = {**macro["mixture"], **over.get("mixture", {})}
+    fraction, dry_density = mixture_fractions(mixture, float(macro["pellet_porosity"]),
+                                              float(powder["grain_density_kg_m3"]))
     return MacroSettings(
         height=float(macro["cylinder_height_m"]),
         radius=float(macro["cylinder_radius_m"]),
         pellet_radius=float(over.get("pellet_radius_m", macro["pellet_radius_m"])),
         pellet_radius_spread=float(over.get("pellet_radius_spread", macro["pellet_radius_spread"])),
-        packing_fraction=float(over.get("packing_fraction", macro["packing_fraction"])),
+        packing_fraction=fraction,
+        dry_density=dry_density,
         pellet_porosity=float(macro["pellet_porosity"]),
         powder=powder,
         table_condition=str(over.get("table_condition", macro["table_condition"])),
@@ -181,7 +193,44 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         dem_substeps=int(num["dem_substeps"]),
         dem_damping=float(num["dem_damping"]),
         dem_balance_tolerance=float(num["dem_balance_tolerance"]),
+        stress_relaxation=float(num["stress_relaxation"]),
     )
+
+
+def mixture_fractions(mixture: Mapping[str, Any], pellet_porosity: float,
+                      grain_density: float) -> tuple[float, float]:
+    """Pellet packing fraction [1] and the mixture's dry density [kg/m3] from the
+    validated ``macro.mixture`` section.
+
+    The dry density is the target; the pellets' share of the dry mass is set by the
+    pellet/powder dry-mass ratio when given (pellet fraction
+    rho_d ratio / ((1 + ratio) rho_d,pellet)), else by ``packing_fraction``; the powder
+    holds the rest of the dry mass.
+
+    Raises
+    ------
+    ValueError
+        Naming ``macro.mixture`` when the pellets alone are denser than the target or
+        the fraction cannot be packed.
+    """
+    dry_density = float(mixture["dry_density_kg_m3"])
+    pellet_density = grain_density * (1.0 - pellet_porosity)
+    ratio = mixture.get("pellet_powder_dry_mass_ratio")
+    if ratio is None:
+        fraction = float(mixture["packing_fraction"])
+    else:
+        fraction = dry_density * float(ratio) / ((1.0 + float(ratio)) * pellet_density)
+    if not 0.0 < fraction <= 0.6:
+        raise ValueError(
+            f"macro.mixture: a pellet packing fraction of {fraction:.3g} (dry density "
+            f"{dry_density:g} kg/m3, pellet/powder dry-mass ratio {ratio}, pellet dry density "
+            f"{pellet_density:.4g} kg/m3) cannot be packed at random (at most 0.6)")
+    if fraction * pellet_density > dry_density:
+        raise ValueError(
+            f"macro.mixture: the pellets alone (packing fraction {fraction:.3g}, dry density "
+            f"{pellet_density:.4g} kg/m3) are denser than macro.mixture.dry_density_kg_m3 = "
+            f"{dry_density:g}")
+    return fraction, dry_density
 
 
 @dataclass
@@ -249,6 +298,10 @@ class MacroModel:
     _edges: npt.NDArray[np.int64] | None = None
     _edges_of: npt.NDArray[np.int64] | None = None
     pellet_frames: FloatArray | None = None
+    stress: FloatArray | None = None
+    powder_porosity: float = 0.0
+    initial_interior_water: float = 0.0
+    _occupied_loss: FloatArray | None = None
 
     @property
     def n_pellets(self) -> int:
@@ -271,6 +324,14 @@ class MacroModel:
         """(n_p + n_w,) pellet radii, 0 on the container [m]."""
         return np.concatenate([self.radii, np.zeros(self.container.shape[0])])
 
+    def clay_radii(self) -> FloatArray:
+        """(n_p + n_w,) radii of spheres of the pellets' clay volumes, 0 on the container [m]:
+        a cell's void is its tetrahedron less the pellets' clay volumes shared by solid
+        angle, so that the voids and the pellets fill the container whatever the
+        spheres' overlaps."""
+        return np.concatenate([np.cbrt(3.0 * self.volume[:self.n_pellets] / (4.0 * np.pi)),
+                               np.zeros(self.container.shape[0])])
+
     # ------------------------------------------------------------------ set-up
     @classmethod
     def create(cls, settings: MacroSettings, material: MixtureParameters,
@@ -288,16 +349,22 @@ class MacroModel:
         omega = solid_angles(mesh.points, mesh.tetrahedra)
         voids = cell_voids(mesh, vertex_radii, omega, VOID_FLOOR)
         n_cell = cell_porosity(mesh.centroids, settings.powder, rng, settings.seed)
-        phi_powder = float(settings.powder["initial_porosity"])
-        v0 = np.concatenate([4.0 / 3.0 * np.pi * packing.radii**3, (1.0 - n_cell) * voids])
+        inert, held = _cell_roles(mesh, voids, on_plate, n_p, settings)
+        pellet_v0 = 4.0 / 3.0 * np.pi * packing.radii**3
+        pellet_dry_mass = material.grain_density * (1.0 - settings.pellet_porosity) * pellet_v0.sum()
+        container_volume = np.pi * settings.radius**2 * settings.height
+        powder_v0 = (1.0 - n_cell) * voids
+        phi_powder = powder_porosity(settings.dry_density * container_volume - pellet_dry_mass,
+                                     material.grain_density * powder_v0[~inert[n_p:]].sum())
+        v0 = np.concatenate([pellet_v0, powder_v0])
         phi0 = np.concatenate([np.full(n_p, settings.pellet_porosity), np.full(n_c, phi_powder)])
         solid = (1.0 - phi0) * v0
         s0 = material.initial_suction
-        sat0 = saturation(s0, phi0, material)
+        retention = phi0 if settings.retention_follows_porosity else material.reference_porosity
+        sat0 = saturation(s0, retention, material)
         water = settings.density * sat0 * (v0 - solid)
         # a pellet swells at most to its free swelling at zero suction
         v_max = np.concatenate([v0[:n_p] * (1.0 + swelling_strain(0.0, material)) * (1.0 + 1e-6), voids])
-        inert, held = _cell_roles(mesh, voids, on_plate, n_p, settings)
         model = cls(
             settings=settings, material=material, table=table, mesh=mesh,
             positions=packing.positions.copy(), velocities=np.zeros_like(packing.positions),
@@ -307,6 +374,9 @@ class MacroModel:
             container=container, on_plate=on_plate,
         )
         model._omega = omega
+        model.powder_porosity = phi_powder
+        model.stress = np.zeros(n_p + n_c)
+        model._occupied_loss = np.zeros(n_p)
         model.spins = np.zeros_like(packing.positions)
         model._wall_plastic = np.zeros((n_p, 3))
         if settings.pellet_permeability == "tensor":
@@ -314,6 +384,7 @@ class MacroModel:
         model._hold_boundary()
         model._update_geometry()
         model._readings = model.relax(0)
+        model.initial_interior_water = model.interior_water()
         return model
 
     def _hold_boundary(self) -> None:
@@ -339,7 +410,7 @@ class MacroModel:
             self._omega = solid_angles(self.mesh.points, self.mesh.tetrahedra)
         assert self._omega is not None
         radii = self.vertex_radii()
-        voids = cell_voids(self.mesh, radii, self._omega, VOID_FLOOR)
+        voids = cell_voids(self.mesh, self.clay_radii(), self._omega, VOID_FLOOR)
         cells = slice(n_p, None)
         self.max_volume[cells] = voids
         self._void = voids
@@ -371,7 +442,7 @@ class MacroModel:
         triangulation = Delaunay(vertices)
         mesh = mesh_from_tetrahedra(triangulation.points, triangulation.simplices, triangulation.neighbors)
         omega = solid_angles(mesh.points, mesh.tetrahedra)
-        voids = cell_voids(mesh, self.vertex_radii(), omega, VOID_FLOOR)
+        voids = cell_voids(mesh, self.clay_radii(), omega, VOID_FLOOR)
         inert, held = _cell_roles(mesh, voids, self.on_plate, n_p, self.settings)
         # sample points of every old cell and the new cell holding each
         corners = vertices[self.mesh.tetrahedra]  # (n_old, 4, 3)
@@ -404,7 +475,7 @@ class MacroModel:
         empty = solid <= 0.0
         inert = inert | np.concatenate([np.zeros(n_p, dtype=np.bool_), empty])
         held &= ~inert
-        phi_powder = float(self.settings.powder["initial_porosity"])
+        phi_powder = self.powder_porosity
         v0 = np.where(empty, voids * (1.0 - phi_powder), solid / (1.0 - phi_powder))
         solid = np.where(empty, (1.0 - phi_powder) * v0, solid)
         low = solid + water / self.settings.density
@@ -419,6 +490,8 @@ class MacroModel:
         self.max_volume = np.concatenate([self.max_volume[:n_p], np.maximum(voids, volume * (1.0 + 1e-6))])
         self.pressure = np.concatenate([self.pressure[:n_p],
                                         -np.where(empty, self.material.initial_suction, suction)])
+        assert self.stress is not None
+        self.stress = np.concatenate([self.stress[:n_p], np.zeros(n_new)])
         self._hold_boundary()
         self.boundary_inflow += self.interior_water() - interior_before
         self.remeshes += 1
@@ -430,10 +503,12 @@ class MacroModel:
 
     def retention_porosity(self) -> FloatArray:
         """(n,) porosity of the retention curve: current (Eqs. 4.25-4.26, 4.42-4.43) or, with
-        ``macro.retention_follows_porosity`` off, each system's initial 1 - V_s/V_0."""
+        ``macro.retention_follows_porosity`` off, Table 4.2's reference porosity phi_0 (the
+        curve as measured: pellets start at it; the loose powder would be much drier on the
+        curve extrapolated to its porosity)."""
         if self.settings.retention_follows_porosity:
             return self.porosities()
-        return 1.0 - self.solid_volume / self.reference_volume
+        return np.full(self.volume.size, self.material.reference_porosity)
 
     def porosities(self) -> FloatArray:
         """(n,) porosity 1 - V_s / V [1]."""
@@ -520,24 +595,36 @@ class MacroModel:
         free = ~self.held
         self.water_mass[free] += dt * rate[free]
 
+    def solid_mass(self) -> FloatArray:
+        """(n,) dry mass of every system [kg] (pellets and powder of one grain density)."""
+        return self.material.grain_density * self.solid_volume
+
+    def swelling_volume(self, suction: FloatArray) -> FloatArray:
+        """(n,) volume each system swells to at ``suction`` [Pa] under its confining
+        stress (:func:`macro.laws.confined_volume`), capped by V_max [m3]."""
+        assert self.stress is not None
+        volume = confined_volume(suction, self.stress, self.solid_mass(), self.reference_volume,
+                                 self.retention_porosity(), self.material)
+        return np.minimum(volume, self.max_volume)
+
     def capacities(self) -> FloatArray:
         """(n,) dm/dp of every system at its current state [kg/Pa]: the retention
-        curve's storage rho (V - V_s) dS/dp plus, where the system is not confined, the
-        swelling's rho S dV/dp = rho S V_0 beta exp(-alpha s) (Eq. 4.28)."""
+        curve's storage rho (V - V_s) dS/dp plus, where the system is not at V_max, the
+        swelling's rho S dV/dp of the confined swelling target (central differences)."""
         m = self.material
         sat = np.clip(self.saturations(), 1e-12, 1.0 - 1e-12)
         slope = suction_derivative(sat, self.retention_porosity(), m)
         pore = self.volume - self.solid_volume
-        swelling = self.reference_volume * m.beta * np.exp(-m.alpha * -self.pressure)
+        suction = np.maximum(-self.pressure, 1.0)
+        swelling = (self.swelling_volume(0.99 * suction) - self.swelling_volume(1.01 * suction)) / (0.02 * suction)
         confined = self.volume >= self.max_volume * (1.0 - 1e-3)
-        return self.settings.density * (pore / slope + np.where(confined, 0.0, sat * swelling))
+        return self.settings.density * (pore / slope + np.where(confined, 0.0, sat * np.maximum(swelling, 0.0)))
 
     def water_at(self, pressure: FloatArray) -> FloatArray:
         """(n,) water each system would hold at ``pressure`` [kg]: the local problem with p
-        given, rho S_ret(s) (V(s) - V_s), V(s) its swelling volume capped by V_max."""
+        given, rho S_ret(s) (V(s) - V_s), V(s) its swelling volume (:meth:`swelling_volume`)."""
         suction = np.clip(-pressure, 0.0, self.settings.max_suction)
-        volume = np.minimum(self.reference_volume * (1.0 + swelling_strain(suction, self.material)),
-                            self.max_volume)
+        volume = self.swelling_volume(suction)
         sat = saturation(suction, self.retention_porosity(), self.material)
         return self.settings.density * sat * np.maximum(volume - self.solid_volume, 0.0)
 
@@ -611,10 +698,12 @@ class MacroModel:
             i = int(free[k])
             return f"pellet {i}" if i < n_p else f"cell {i - n_p}"
 
+        assert self.stress is not None
         problem = PVProblem(
             self.water_mass[free], self.solid_volume[free], self.reference_volume[free],
             self.max_volume[free], self.settings.density, self.settings.max_suction, names,
             None if self.settings.retention_follows_porosity else self.retention_porosity()[free],
+            self.stress[free], self.solid_mass()[free],
         )
         volume, pressure, iterations, fallbacks = solve_pressure_volume(
             problem, self.material, self.settings.newton, self.volume[free], -self.pressure[free])
@@ -627,47 +716,37 @@ class MacroModel:
         """Effective pressure of the powder on its cell contour [Pa] (Eqs. 4.31-4.35) and
         its derivative with respect to the cell's void [Pa/m3], both (n_c,).
 
-        Our reading of Eq. 4.33 and Fig. 4.4: the powder swells freely (no pressure) until
-        it fills its cell's void V_c; held there while its swelling target
-        V_f = V_0 (1 + eps(s)) keeps growing, it presses with the consolidation-line
-        stress between the dry density it is held at and the one it would reach free,
-        S_w [p'_vc(m_s / V_c) - p'_vc(m_s / V_f)] (Eqs. 4.31-4.32), which is zero at the
-        moment of confinement and tends to S_w p'_vc(m_s / V_c) (the thesis's cap) as
-        V_f grows; scaled by the powder's share of the tetrahedron V / V_t (Eq. 4.35); at
-        most the yield pressure of the cell's weakest pellet (:func:`macro.laws.yield_pressure`:
-        the pellets' surface gives way first). Continuous in the state, so that a cell's
-        push does not switch on and off as the pellets move. Zero everywhere when
+        The powder swells freely until it fills its cell's void V_c; held there, it
+        presses with the swelling pressure of the confined clay
+        (:func:`macro.laws.swelling_pressure`, zero at the moment of confinement), scaled
+        by the powder's share of the tetrahedron V / V_t (Eq. 4.35). A cell squeezed below
+        the powder's densest state (its solid at the smallest porosity, or solid and
+        water) presses as at that state. With the pellets' yield (Eq. 4.4) on, at most
+        the yield pressure of the cell's weakest pellet. Zero everywhere when
         ``macro.powder_swelling_pressure`` is off.
         """
         cells = slice(self.n_pellets, None)
-        void = np.maximum(self.max_volume[cells], self.solid_volume[cells])
         if not self.settings.powder_pressure:
             return np.zeros(self.n_cells), np.zeros(self.n_cells)
-        grain = float(self.settings.powder["grain_density_kg_m3"])
-        solid_mass = grain * self.solid_volume[cells]
-        free = self.reference_volume[cells] * (1.0 + swelling_strain(-self.pressure[cells], self.material))
-        volume = np.minimum(free, void)
-        held = consolidation_pressure(solid_mass / void, self.material)
-        relaxed = consolidation_pressure(solid_mass / np.maximum(free, void), self.material)
-        pore = np.maximum(volume - self.solid_volume[cells], 1e-300)
-        sat = np.clip(self.water_mass[cells] / (self.settings.density * pore), 0.0, 1.0)
-        share = volume / self.mesh.volumes
-        # a cell whose powder no longer fits its void (squeezed past the smallest porosity
-        # by pellets protruding through it, or handed more than it holds by a remesh)
-        # presses with the yield pressure of its pellets; without the yield nothing bounds
-        # Eq. 4.31 there, and such a cell does not push
         assert self._void is not None
+        solid, water = self.solid_volume[cells], self.water_mass[cells]
         phi_min = float(self.settings.powder["porosity_clamp"][0])
-        needed = np.maximum(self.solid_volume[cells] / (1.0 - phi_min),
-                            self.solid_volume[cells] + self.water_mass[cells] / self.settings.density)
+        densest = np.maximum(solid / (1.0 - phi_min), solid + water / self.settings.density)
+        held = np.maximum(self._void, densest)
+        suction = -self.pressure[cells]
+        solid_mass = self.solid_mass()[cells]
+        porosity = self.retention_porosity()[cells]
+        free = self.reference_volume[cells] * (1.0 + swelling_strain(suction, self.material))
+        share = np.minimum(free, held) / self.mesh.volumes
+        active = ~self.inert[cells] & (free > held)
+        pressure = np.where(active, swelling_pressure(held, suction, solid_mass, self.reference_volume[cells],
+                                                      porosity, self.material) * share, 0.0)
         bound = self._pressure_bound()
-        fits = (needed <= self._void) | np.isfinite(bound)
-        active = ~self.inert[cells] & (free > void) & fits
-        pressure = np.where(active, sat * (held - relaxed) * share, 0.0)
         capped = pressure > bound
         pressure = np.where(capped, bound, pressure)
-        # d/dV_c of S_w p'_vc(m_s / V_c) V_c / V_t at fixed water (S_w = m_w / rho (V_c - V_s))
-        slope = held * self.material.alpha_v * solid_mass / void**2 * sat * share
+        # d/dV_c of S p'_vc(m_s / V_c) V_c / V_t
+        line = saturation(suction, porosity, self.material) * consolidation_pressure(solid_mass / held, self.material)
+        slope = line * self.material.alpha_v * solid_mass / held**2 * share
         return pressure, np.where(active & ~capped, slope, 0.0)
 
     def _pressure_bound(self) -> FloatArray:
@@ -729,16 +808,16 @@ class MacroModel:
         # fictitious mass floor: the stiffness of a contact overlapping by 1e-3 r
         floor = 2.0 * young / (1.0 - nu * nu) * self.radii * np.sqrt(1e-3)
         cap = 1e-3 * self.radii
-        tet = self.mesh.tetrahedra
-        assert self._omega is not None
-        self._cell_pressure, slope = self.powder_pressure()
-        external = self.hydro_forces(self._cell_pressure)
-        area = self._omega * self.vertex_radii()[tet] ** 2
-        powder_stiffness = np.bincount(tet.ravel(), (slope[:, None] * area**2).ravel(),
-                                       minlength=self.n_vertices)[:n_p]
+        external, powder_stiffness = self._powder_load()
+        refresh = substeps > 0
         # displacement and rotation of the last substep (none before the first)
         moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))
         for k in range(substeps + 1):
+            if refresh and k > 0 and k % POWDER_REFRESH == 0:
+                # the powder's push follows the pellets: voids reopen as they move apart
+                refresh = self._moved_geometry()
+                if refresh:
+                    external, powder_stiffness = self._powder_load()
             if 2.0 * np.sqrt(((self.positions - reference) ** 2).sum(axis=1)).max() > skin:
                 pairs, shear, plastic = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin),
                                                        pairs, shear, plastic)
@@ -766,6 +845,7 @@ class MacroModel:
             self.positions += self.velocities
         self._contact_pairs, self._shear, self._plastic = pairs, shear, plastic
         self.dem_substeps_used += k
+        self._confine(pairs, normal, np.maximum(radial, 0.0) + np.maximum(lower, 0.0) + np.maximum(upper, 0.0))
         sensors = self._band_pressures(radial)
         area = np.pi * s.radius**2
         upper_force, lower_force = float(upper.sum()), float(lower.sum())
@@ -775,6 +855,64 @@ class MacroModel:
             upper_force += extra_upper
             lower_force += extra_lower
         return Readings(sensors, upper_force / area, lower_force / area, unbalanced)
+
+    def _powder_load(self) -> tuple[FloatArray, FloatArray]:
+        """The powder's push on the pellets (n_p, 3) [N] (Eqs. 4.34-4.38) and its stiffness
+        per pellet, dP/dV_c A^2 over the pellet's cells [N/m], at the current geometry."""
+        assert self._omega is not None
+        tet = self.mesh.tetrahedra
+        self._cell_pressure, slope = self.powder_pressure()
+        area = self._omega * self.vertex_radii()[tet] ** 2
+        stiffness = np.bincount(tet.ravel(), (slope[:, None] * area**2).ravel(),
+                                minlength=self.n_vertices)[:self.n_pellets]
+        return self.hydro_forces(self._cell_pressure), stiffness
+
+    def _moved_geometry(self) -> bool:
+        """The cells' geometry and voids at the pellets' current positions (same
+        connectivity); False, and nothing changed, when an active cell has inverted."""
+        mesh, inverted = moved_mesh(self.mesh, self.vertex_positions())
+        if np.any(inverted & ~self.inert[self.n_pellets:]):
+            return False
+        self.mesh = mesh
+        self._omega = solid_angles(mesh.points, mesh.tetrahedra)
+        self._void = cell_voids(mesh, self.clay_radii(), self._omega, VOID_FLOOR)
+        return True
+
+    def _confine(self, pairs: npt.NDArray[np.int64], normal: FloatArray, walls: FloatArray) -> None:
+        """Confining stress of every pellet from the relaxed state, and the volume its
+        sphere loses to overlaps.
+
+        The mean stress on a sphere is the normal load over its surface,
+        (sum of contact forces + sum_c P_c Omega_c r^2) / (4 pi r^2) (contacts, walls
+        and the powder's push over the sphere's sectors in its cells); it enters the
+        pellet's swelling target under-relaxed by ``stress_relaxation`` (the pellets'
+        volumes and contacts are coupled explicitly, step by step). The overlaps' caps
+        (with other pellets and the container) are the volume the sphere of a pellet
+        loses, so that its radius keeps its clay volume (:meth:`step`).
+        """
+        assert self.stress is not None and self._omega is not None and self._cell_pressure is not None
+        n_p, s = self.n_pellets, self.settings
+        radii = self.radii
+        load = walls + np.bincount(pairs[:, 0], normal, minlength=n_p) \
+            + np.bincount(pairs[:, 1], normal, minlength=n_p)
+        tet = self.mesh.tetrahedra
+        surface = self._cell_pressure[:, None] * self._omega * self.vertex_radii()[tet] ** 2
+        load += np.bincount(tet.ravel(), surface.ravel(), minlength=self.n_vertices)[:n_p]
+        measured = load / (4.0 * np.pi * radii**2)
+        self.stress[:n_p] += s.stress_relaxation * (measured - self.stress[:n_p])
+        # caps cut off each sphere by its overlaps: pellets (plane of the lens) and container
+        i, j = pairs[:, 0], pairs[:, 1]
+        distance = np.linalg.norm(self.positions[j] - self.positions[i], axis=1)
+        touching = radii[i] + radii[j] > distance
+        i, j, distance = i[touching], j[touching], distance[touching]
+        plane = (distance**2 + radii[i] ** 2 - radii[j] ** 2) / (2.0 * distance)
+        lost = np.bincount(i, _cap_volume(radii[i], radii[i] - plane), minlength=n_p) \
+            + np.bincount(j, _cap_volume(radii[j], radii[j] - (distance - plane)), minlength=n_p)
+        axis = np.hypot(self.positions[:, 0], self.positions[:, 1])
+        for depth in (radii + axis - s.radius, radii - self.positions[:, 2] - 0.5 * s.height,
+                      radii + self.positions[:, 2] - 0.5 * s.height):
+            lost += _cap_volume(radii, np.maximum(depth, 0.0))
+        self._occupied_loss = np.minimum(lost / (4.0 / 3.0 * np.pi * radii**3), MAX_OVERLAP_LOSS)
 
     def _contacts(self, pairs: npt.NDArray[np.int64], old_pairs: npt.NDArray[np.int64] | None = None,
                   old_shear: FloatArray | None = None, old_plastic: FloatArray | None = None,
@@ -856,7 +994,8 @@ class MacroModel:
         self.phase_seconds["newton"] += now - clock
         clock = now
         n_p = self.n_pellets
-        self.radii = np.cbrt(3.0 * self.volume[:n_p] / (4.0 * np.pi))
+        assert self._occupied_loss is not None
+        self.radii = np.cbrt(3.0 * self.volume[:n_p] / (4.0 * np.pi * (1.0 - self._occupied_loss)))
         self._readings = self.relax(self.settings.dem_substeps)
         self.phase_seconds["dem"] += time.perf_counter() - clock
         self.time += dt
@@ -872,6 +1011,39 @@ class MacroModel:
         """Fraction of the cells' initial void in cells without powder [1]."""
         cells = slice(self.n_pellets, None)
         return float(self.initial_void[self.inert[cells]].sum() / self.initial_void.sum())
+
+    def invariants(self) -> dict[str, float]:
+        """What the model must conserve, now: water mass of the pellets, of the free
+        powder and in the held end cells [kg]; the balance residual, interior water less
+        the initial interior water and the boundary inflow [kg]; the solids and water of
+        pellets and active cells over the container's volume, and the pellets' clay with
+        the powder's solid and water over it [1]; the largest overfill of a cell, its
+        powder's solid and water over its void less 1 [1]; the dry density of the
+        pellets and active cells over the container [kg/m3]."""
+        n_p, rho = self.n_pellets, self.settings.density
+        cells = n_p + np.flatnonzero(~self.inert[n_p:])
+        free_cells = cells[~self.held[cells]]
+        container = np.pi * self.settings.radius**2 * self.settings.height
+        solid = self.solid_volume[:n_p].sum() + self.solid_volume[cells].sum()
+        water = self.water_mass[:n_p].sum() + self.water_mass[cells].sum()
+        powder = self.solid_volume[cells] + self.water_mass[cells] / rho
+        assert self._void is not None
+        return {
+            "water_pellets": float(self.water_mass[:n_p].sum()),
+            "water_powder": float(self.water_mass[free_cells].sum()),
+            "water_held": float(self.water_mass[self.held].sum()),
+            "water_residual": self.interior_water() - self.initial_interior_water - self.boundary_inflow,
+            "solid_water_fraction": float((solid + water / rho) / container),
+            "occupied_fraction": float((self.volume[:n_p].sum() + powder.sum()) / container),
+            "largest_overfill": float(np.max(powder / self._void[cells - n_p]) - 1.0),
+            "dry_density": float(self.material.grain_density * solid / container),
+        }
+
+    def dry_mass_ratio(self) -> float:
+        """Dry mass of the pellets over that of the powder in the active cells [1]."""
+        n_p = self.n_pellets
+        cells = n_p + np.flatnonzero(~self.inert[n_p:])
+        return float(self.solid_volume[:n_p].sum() / self.solid_volume[cells].sum())
 
     def interior_water(self) -> float:
         """Water mass of the systems not held [kg]."""
@@ -908,6 +1080,31 @@ class MacroModel:
         del n_p
         with np.errstate(invalid="ignore", divide="ignore"):
             return swell / weight, suction / weight
+
+
+def _cap_volume(radius: FloatArray, height: FloatArray) -> FloatArray:
+    """Volume of spherical caps pi h^2 (3 r - h) / 3 [m3]."""
+    return np.pi * height**2 * (3.0 * radius - height) / 3.0
+
+
+def powder_porosity(dry_mass: float, grain_mass: float) -> float:
+    """Initial porosity of the powder [1]: its ``dry_mass`` [kg] (the mixture's target
+    minus the pellets') over ``grain_mass`` [kg], the mass of grains that would fill its
+    volume (the cells' powder volumes, set by the heterogeneity field).
+
+    Raises
+    ------
+    ValueError
+        Naming ``macro.mixture`` when the powder's mass does not fit in its volume or is
+        not positive.
+    """
+    porosity = 1.0 - dry_mass / grain_mass
+    if not 0.0 < porosity < 1.0:
+        raise ValueError(
+            f"macro.mixture: the powder's dry mass ({dry_mass:.4g} kg: the target dry density "
+            f"minus the pellets') gives a powder porosity of {porosity:.3g} in the volume the "
+            "powder fills (macro.powder); change macro.mixture.dry_density_kg_m3 or the pellets' share")
+    return float(porosity)
 
 
 def _cell_roles(mesh: Mesh, voids: FloatArray, on_plate: npt.NDArray[np.bool_], n_pellets: int,

@@ -4,9 +4,11 @@ Given a system's water mass m_w, solid volume V_s, reference volume V_0 and larg
 volume V_max (its cell's void for powder), find its volume V and water pressure p with
 
     f1 = S(V) - S_ret(p, phi(V)) - mu sum_p log c = 0   (retention, Eqs. 4.39, 4.41-4.43)
-    f2 = V - V_0 (1 + eps(-p)) - mu sum_V log c = 0   (swelling, Eq. 4.40)
+    f2 = V - V_t(-p, sigma) - mu sum_V log c = 0   (swelling, Eq. 4.40)
 
-where S_ret is the retention curve (Eq. 4.24 read as S(s)), S(V) = m_w / (rho (V - V_s)), phi(V) = 1 - V_s / V,
+where S_ret is the retention curve (Eq. 4.24 read as S(s)), S(V) = m_w / (rho (V - V_s)),
+phi(V) = 1 - V_s / V, V_t the swelling target under the system's confining stress sigma
+(:func:`macro.laws.confined_volume`; Eq. 4.28's V_0 (1 + eps(s)) when free),
 and the log-barriers keep the constraints of Sec. 4.3 strictly positive:
 c1 = 1 - V_s/V (phi >= 0), c2 = V_s/V (phi <= 1), c3 = 1 - V/V_max, c4 = 1 - S, c5 = S
 (volume constraints, in f2) and c6 = -p/s_max (p <= 0), c7 = 1 + p/s_max (p >= -s_max)
@@ -75,7 +77,9 @@ class PVProblem:
     water_mass [kg], solid_volume [m3], reference_volume V_0 [m3], max_volume [m3],
     density rho_w [kg/m3], max_suction s_max [Pa]; ``names`` a list or a function of the
     index (built only when an error needs it); ``retention_porosity`` the porosity of the
-    retention curve's zeta and lambda, or None for the current 1 - V_s/V (Eqs. 4.42-4.43).
+    retention curve's zeta and lambda, or None for the current 1 - V_s/V (Eqs. 4.42-4.43);
+    ``stress`` the confining stress [Pa] and ``solid_mass`` [kg] of the confined swelling
+    target (:func:`macro.laws.confined_volume`), None: free swelling (Eq. 4.28).
     """
 
     water_mass: FloatArray
@@ -86,6 +90,8 @@ class PVProblem:
     max_suction: float
     names: list[str] | Callable[[int], str] | None = None
     retention_porosity: FloatArray | None = None
+    stress: FloatArray | None = None
+    solid_mass: FloatArray | None = None
 
     def porosity(self, volume: FloatArray, index: npt.NDArray[np.int64] | slice = slice(None)) -> FloatArray:
         """Porosity entering the retention curve: current (Eqs. 4.42-4.43) or fixed."""
@@ -161,11 +167,15 @@ def solve_pressure_volume(
                                    1e-6 * pb.max_suction, pb.max_suction)
     m = material
     law = np.array([m.zeta0, m.lambda0, m.retention_a, m.retention_b, m.reference_porosity,
-                    m.alpha, m.beta, m.initial_suction])
+                    m.alpha, m.beta, m.initial_suction, m.beta_v, m.alpha_v])
+    n = previous_volume.size
+    stress = np.zeros(n) if pb.stress is None else pb.stress
+    solid_mass = np.zeros(n) if pb.solid_mass is None else pb.solid_mass
     volume, suction_, iterations, status = _newton_kernels.solve_systems(
         np.ascontiguousarray(pb.water_mass, dtype=np.float64),
         np.ascontiguousarray(pb.solid_volume, dtype=np.float64),
         np.ascontiguousarray(pb.reference_volume, dtype=np.float64),
+        np.ascontiguousarray(stress, dtype=np.float64), np.ascontiguousarray(solid_mass, dtype=np.float64),
         np.ascontiguousarray(pb.max_volume, dtype=np.float64), fixed, previous_volume,
         np.asarray(previous_suction, dtype=np.float64), float(pb.density), float(pb.max_suction),
         settings.tolerance, settings.max_iterations, settings.barrier_start,

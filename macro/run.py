@@ -43,6 +43,17 @@ PACKING_TOLERANCE = 0.05
 """Largest overlap left by the packing, as a fraction of the pellet radius."""
 THIN_ABOVE = 4000
 """Records kept in memory before every other one is dropped (see ``simulate``)."""
+INVARIANTS = {
+    "water_pellets": ("kg", "water mass in the pellets"),
+    "water_powder": ("kg", "water mass in the powder of the free cells"),
+    "water_held": ("kg", "water mass in the held end cells (the boundary's reservoir)"),
+    "water_residual": ("kg", "interior water less the initial interior water and the boundary inflow (0: water conserved)"),
+    "solid_water_fraction": ("1", "solids and water of pellets and powder over the container's volume (at most 1)"),
+    "occupied_fraction": ("1", "pellets' clay volume with the powder's solids and water over the container's volume"),
+    "largest_overfill": ("1", "largest powder solid and water volume over its cell's void, less 1 (> 0: a cell holds more than its void)"),
+    "dry_density": ("kg m-3", "dry mass of pellets and powder over the container's volume"),
+}
+"""Invariants recorded at every record (:meth:`macro.model.MacroModel.invariants`): units, long name."""
 STOP_CHECK_STEPS = 20
 """Steps between two checks of the near-equilibrium criterion."""
 
@@ -72,7 +83,7 @@ def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) 
                             settings.packing_sweeps, settings.pellet_radius_spread)
     if packing.largest_overlap > PACKING_TOLERANCE * settings.pellet_radius:
         raise ValueError(
-            f"macro.packing_fraction = {settings.packing_fraction}: the packing left pellets overlapping "
+            f"macro.mixture: a pellet packing fraction of {settings.packing_fraction:.3g}: the packing left pellets overlapping "
             f"each other or the container by {packing.largest_overlap / settings.pellet_radius:.2g} of a "
             f"radius after {settings.packing_sweeps} sweeps (macro.numerics.packing_iterations); lower the "
             "packing fraction or raise the sweeps")
@@ -102,7 +113,8 @@ def simulate(
     if rows is None:
         rows = {k: [] for k in (
             "time", "sensors", "axial_upper", "axial_lower", "suction", "saturation",
-            "swelling", "suction_profile", "pellet_suction", "unbalanced", "dt", "step")}
+            "swelling", "suction_profile", "pellet_suction", "unbalanced", "dt", "step",
+            *INVARIANTS)}
 
     def record(dt: float) -> None:
         r = model.readings
@@ -119,6 +131,8 @@ def simulate(
         rows["unbalanced"].append(r.unbalanced)
         rows["dt"].append(dt)
         rows["step"].append(model.steps)
+        for name, value in model.invariants().items():
+            rows[name].append(value)
 
     def thin() -> None:
         """Every other record (the first and last kept) once there are more than
@@ -198,6 +212,10 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
         "pellet_suction": (("time", "pellet"), pick["pellet_suction"], {"units": "Pa", "long_name": "suction of each pellet (field snapshots)"}),
         "unbalanced_force": (("time",), pick["unbalanced"], {"units": "1", "long_name": "mean resultant over mean contact force"}),
         "time_step": (("time",), pick["dt"], {"units": "s", "long_name": "time step that ended at this record"}),
+        "balanced": (("time",), (pick["unbalanced"] < s.dem_balance_tolerance).astype(np.int8),
+                     {"units": "1", "long_name": "1 if the reading is from a balanced state (unbalanced force ratio below numerics.dem_balance_tolerance)"}),
+        **{name: (("time",), pick[name], {"units": units, "long_name": long})
+           for name, (units, long) in INVARIANTS.items()},
         "pellet_position": (("pellet", "xyz"), packing.positions, {"units": "m", "long_name": "initial pellet centre (origin at the container's centre)"}),
         "pellet_radius_final": (("pellet",), model.radii, {"units": "m", "long_name": "pellet radius at the end"}),
     }
@@ -218,6 +236,12 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
         "steps": model.steps,
         "inert_void_fraction": model.neglected_void_fraction(),
         "boundary_inflow_kg": model.boundary_inflow,
+        "dry_density_target_kg_m3": s.dry_density,
+        "dry_density_initial_kg_m3": float(pick["dry_density"][0]),
+        "dry_density_final_kg_m3": float(pick["dry_density"][-1]),
+        "pellet_powder_dry_mass_ratio": model.dry_mass_ratio(),
+        "powder_initial_porosity": model.powder_porosity,
+        "balanced_fraction": float(np.mean(pick["unbalanced"] < s.dem_balance_tolerance)),
         "powder_heterogeneity": str(s.powder["heterogeneity"]),
         "powder_swelling_pressure": int(s.powder_pressure),
         "powder_pressure_on_walls": int(s.powder_on_walls),

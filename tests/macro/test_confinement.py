@@ -1,0 +1,119 @@
+"""Confinement-limited swelling and the invariants of the macro model.
+
+The confined swelling law (macro.laws) against its inverse and its free limit (Eq. 4.28),
+the pressure-volume kernel against the law, and a small column's water and volume
+balances and dry density against their definitions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from tests._macro_cases import small_config, swelling
+
+from macro.laws import confined_volume, mixture_parameters, swelling_pressure
+from macro.newton import NewtonSettings, PVProblem, solve_pressure_volume
+from macro.run import build_model, run
+from shared.upscaling import PermeabilityTable
+
+CONFIG = small_config()
+MATERIAL = mixture_parameters(CONFIG["materials"], CONFIG["macro"]["powder"])
+PHI0 = MATERIAL.reference_porosity
+NEWTON = NewtonSettings(tolerance=1e-8, max_iterations=80, barrier_start=0.1, barrier_decay=0.3,
+                        relaxation_start=0.5, derivative_step=1e-7)
+
+
+def _pellet(suction: float) -> tuple[float, float, float]:
+    """A 6 mm pellet of porosity 0.25: V_0 [m3], V_s [m3], m_s [kg]."""
+    v0 = 4.0 / 3.0 * np.pi * 6e-3**3
+    vs = 0.75 * v0
+    return v0, vs, MATERIAL.grain_density * vs
+
+
+@pytest.mark.parametrize("suction", [1e6, 1e7, 5e7])
+def test_confined_volume_inverts_the_swelling_pressure_and_is_free_without_stress(suction):
+    v0, _, ms = _pellet(suction)
+    stresses = np.array([0.0, 1e4, 1e5, 1e6, 4e6, 2e7])
+    volume = confined_volume(suction, stresses, ms, v0, PHI0, MATERIAL)
+    free = v0 * (1.0 + swelling(suction))
+    assert volume[0] == pytest.approx(free, rel=1e-12)
+    assert np.all(np.diff(volume) < 0.0)
+    pressure = swelling_pressure(volume[1:], suction, ms, v0, PHI0, MATERIAL)
+    np.testing.assert_allclose(pressure, stresses[1:], rtol=1e-9)
+
+
+def _solve(suction: float, stress: float) -> tuple[float, float, float, float]:
+    """The kernel's (V, s) of a pellet whose water is that of the law's state at
+    ``suction`` under ``stress``; also the law's volume."""
+    v0, vs, ms = _pellet(suction)
+    volume = float(confined_volume(suction, stress, ms, v0, PHI0, MATERIAL))
+    sat = (1.0 + (suction / MATERIAL.zeta0) ** (1.0 / (1.0 - MATERIAL.lambda0))) ** -MATERIAL.lambda0
+    water = 1000.0 * sat * (volume - vs)
+    problem = PVProblem(np.array([water]), np.array([vs]), np.array([v0]), np.array([10.0 * v0]),
+                        1000.0, 1.38e8, None, np.array([PHI0]), np.array([stress]), np.array([ms]))
+    v, p, _, _ = solve_pressure_volume(problem, MATERIAL, NEWTON, np.array([v0]), np.array([1.3e8]))
+    return float(v[0]), float(-p[0]), volume, v0
+
+
+@pytest.mark.parametrize("suction", [1e6, 3e7])
+def test_free_pellet_reaches_the_free_swelling_of_eq_4_28(suction):
+    volume, found, _, v0 = _solve(suction, 0.0)
+    assert found == pytest.approx(suction, rel=1e-3)
+    assert volume / v0 - 1.0 == pytest.approx(swelling(suction), rel=1e-2)
+
+
+@pytest.mark.parametrize("stress", [5e5, 4e6])
+def test_pressure_volume_kernel_balances_the_swelling_pressure_against_the_stress(stress):
+    """The numba kernel's confined target and macro.laws' are two implementations."""
+    volume, found, law_volume, v0 = _solve(2e6, stress)
+    _, _, ms = _pellet(2e6)
+    assert volume == pytest.approx(law_volume, rel=1e-4)
+    assert swelling_pressure(volume, found, ms, v0, PHI0, MATERIAL) == pytest.approx(stress, rel=1e-2)
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    table = tmp_path_factory.mktemp("table") / "table.nc"
+    from tests._macro_cases import write_table
+
+    write_table(table)
+    config = small_config()
+    config["macro"]["numerics"].update(max_steps=60, stop_tolerance=0.0)
+    return run(config, "small", table, tmp_path_factory.mktemp("run") / "small.nc"), table
+
+
+def test_water_is_conserved_at_every_record(small_run):
+    ds, _ = small_run
+    total = ds["water_pellets"] + ds["water_powder"] + ds["water_held"]
+    assert float(ds.attrs["boundary_inflow_kg"]) > 0.0
+    assert np.all(np.abs(ds["water_residual"].values) <= 1e-9 * total.values)
+
+
+def test_solids_and_water_fit_the_container_at_every_record(small_run):
+    ds, _ = small_run
+    assert np.all(ds["solid_water_fraction"].values < 1.0)
+    assert np.all(ds["occupied_fraction"].values < 1.0)
+
+
+def test_mixture_holds_its_target_dry_density(small_run):
+    ds, _ = small_run
+    target = CONFIG["macro"]["mixture"]["dry_density_kg_m3"]
+    assert ds.attrs["dry_density_initial_kg_m3"] == pytest.approx(target, rel=1e-9)
+    # the dry mass stays (remeshes move powder between cells, conserving it)
+    np.testing.assert_allclose(ds["dry_density"].values, target, rtol=1e-9)
+
+
+def test_closed_column_keeps_its_water(small_run, monkeypatch):
+    """No held cells: nothing enters, the water stays to round-off."""
+    import macro.model
+
+    _, table = small_run
+    monkeypatch.setattr(macro.model, "end_cells", lambda mesh, on_plate: np.zeros(mesh.n_cells, dtype=bool))
+    config = small_config()
+    model = build_model(config, "small", PermeabilityTable.from_file(table, "free"))
+    assert not model.held.any()
+    before = model.water_mass.sum()
+    for _ in range(10):
+        model.step()
+    assert model.boundary_inflow == 0.0
+    assert model.water_mass.sum() == pytest.approx(before, rel=1e-12)
