@@ -74,7 +74,7 @@ PICARD_ITERATIONS = 3
 """Modified Picard iterations of an implicit step."""
 IMPLICIT_LOSS = 0.99
 """Largest fraction of its water a system may lose in one implicit step (positivity)."""
-POWDER_REFRESH = 20
+POWDER_REFRESH = 50
 """DEM substeps between two updates of the powder's push to the pellets' positions."""
 MAX_OVERLAP_LOSS = 0.3
 """Largest fraction of a pellet's sphere that its overlaps may cut off."""
@@ -812,17 +812,21 @@ class MacroModel:
         refresh = substeps > 0
         # displacement and rotation of the last substep (none before the first)
         moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))
+        anchor = self.positions.copy()
         for k in range(substeps + 1):
             if refresh and k > 0 and k % POWDER_REFRESH == 0:
                 # the powder's push follows the pellets: voids reopen as they move apart
                 refresh = self._moved_geometry()
                 if refresh:
                     external, powder_stiffness = self._powder_load()
+                    anchor = self.positions.copy()
             if 2.0 * np.sqrt(((self.positions - reference) ** 2).sum(axis=1)).max() > skin:
                 pairs, shear, plastic = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin),
                                                        pairs, shear, plastic)
                 reference = self.positions.copy()
-            forces = external.copy()
+            # between two updates, the push linearised about them (isotropic mean of the
+            # cells' stiffness: moving into a cell squeezes it and opens the opposite one)
+            forces = external - powder_stiffness[:, None] / 3.0 * (self.positions - anchor)
             torques = np.zeros((n_p, 3))
             stiffness = powder_stiffness.copy()
             normal = _kernels.hertz_mindlin_pairs(self.positions, moved, turned, self.radii, young, nu,
