@@ -23,6 +23,7 @@ CASE_MODULES = (
     "benchmarks.dem",
     "benchmarks.yade_compare",
     "benchmarks.macro",
+    "benchmarks.macro_kill_resume",
     "benchmarks.micro_profile",
 )
 OUT = Path("results/benchmarks")

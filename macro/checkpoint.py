@@ -15,6 +15,8 @@ import pickle
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from macro.model import MacroModel
 from shared.io import OutputError, atomic_write
 
@@ -39,8 +41,9 @@ def load_snapshot(path: Path, digest: str) -> tuple[MacroModel, dict[str, list[A
     Raises
     ------
     shared.io.OutputError
-        Naming the file when it exists but cannot be read (truncated, not a snapshot):
-        delete it to start the case afresh.
+        Naming the file when it exists but cannot be read (truncated, not a snapshot) or
+        when its records differ in shape from one to another (profiles on other bins
+        cannot make one result): delete it to start the case afresh.
     """
     if not path.is_file():
         return None
@@ -53,4 +56,9 @@ def load_snapshot(path: Path, digest: str) -> tuple[MacroModel, dict[str, list[A
                           "delete it to start the case afresh") from error
     if digest_saved != digest:
         return None
-    return payload["model"], payload["rows"], float(payload["wall_time"])
+    rows = payload["rows"]
+    uneven = sorted(k for k, values in rows.items() if len({np.shape(v) for v in values}) > 1)
+    if uneven:
+        raise OutputError(f"{path}: macro snapshot whose records of {', '.join(uneven)} differ in "
+                          "shape; delete it to start the case afresh")
+    return payload["model"], rows, float(payload["wall_time"])

@@ -101,13 +101,18 @@ def simulate(
 ) -> tuple[xr.Dataset, str]:
     """Hydrate until near equilibrium or a guard; returns the records and the stop reason.
 
+    ``model`` is :func:`build_model`'s (it carries its ``packing``), new or resumed;
     ``rows`` are the records of a resumed run (None: a new run); ``snapshot(model, rows)``
     is called every ``snapshot_every`` seconds of wall time, after a whole step;
-    ``series`` writes the ParaView snapshots when due and at the end.
+    ``series`` writes the ParaView snapshots when due and at the end. The profiles' bins
+    follow from the packing, not from the current state, so that a resumed run records
+    as the uninterrupted one.
     """
     s: MacroSettings = model.settings
-    # bins of about one pellet diameter: finer bins alternate between pellets and powder
-    bins = max(2, int(round(s.height / (2.0 * float(model.radii.mean())))))
+    # bins of about one initial pellet diameter (finer bins alternate between pellets and
+    # powder): the packing's radii, not the current ones, which grow as the pellets swell
+    packing = model.packing  # type: ignore[attr-defined]
+    bins = max(2, int(round(s.height / (2.0 * float(packing.radii.mean())))))
     edges = np.linspace(-0.5 * s.height, 0.5 * s.height, bins + 1)
     new = rows is None
     if rows is None:
@@ -143,9 +148,14 @@ def simulate(
 
     if new:
         record(0.0)
-    # progress towards the first guard to stop the run (simulated time or steps)
+
+    def done() -> float:
+        """Progress towards the first guard to stop the run (simulated time or steps) [1]."""
+        return max(model.time / s.max_time, model.steps / s.max_steps)
+
+    # a resumed run's ETA extrapolates the rate of its own steps
     progress = Progress(1.0, f"macro ({model.n_pellets} pellets, {model.n_cells} cells), "
-                        "fraction of the max_time_s/max_steps guard", LOG)
+                        "fraction of the max_time_s/max_steps guard", LOG, done_before=done())
     reason = "max_steps"
     last_snapshot = time.monotonic()
     while model.steps < s.max_steps:
@@ -154,7 +164,7 @@ def simulate(
         thin()
         if series is not None and series.due(model):
             series.write(model)
-        progress.update(max(model.time / s.max_time, model.steps / s.max_steps))
+        progress.update(done())
         if model.time >= s.max_time * (1.0 - 1e-12):
             reason = "max_time"
             break
@@ -168,7 +178,7 @@ def simulate(
         if snapshot is not None and time.monotonic() - last_snapshot >= snapshot_every:
             snapshot(model, rows)
             last_snapshot = time.monotonic()
-    progress.update(max(model.time / s.max_time, model.steps / s.max_steps), force=True)
+    progress.update(done(), force=True)
     if series is not None:
         series.write(model)
     LOG.info("stopped (%s) at t = %.4g s after %d steps", reason, model.time, model.steps)

@@ -1,9 +1,17 @@
-"""A killed macro run resumes from its last snapshot and ends bit for bit as an
-uninterrupted one; a snapshot of another configuration is ignored, a broken one named."""
+"""A macro run SIGKILLed in its own process resumes from its last snapshot and ends bit
+for bit as an uninterrupted one, across remeshes; a snapshot of another configuration is
+ignored, a broken or inconsistent one named."""
 
 from __future__ import annotations
 
-import numpy as np
+import json
+import os
+import pickle
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
 import pytest
 import xarray as xr
 from tests._macro_cases import small_config
@@ -11,6 +19,8 @@ from tests._macro_cases import small_config
 from macro.model import MacroModel
 from macro.run import run
 from shared.io import OutputError
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _config(steps):
@@ -32,23 +42,106 @@ def _kill_at(monkeypatch, step):
     return original
 
 
-def test_resume_after_a_kill_is_bit_identical(table_path, tmp_path, monkeypatch):
-    steps = 10
-    whole = run(_config(steps), "small", table_path, tmp_path / "whole.nc")
-    original = _kill_at(monkeypatch, 6)
+CHILD = """\
+import json, os, signal, sys
+import macro.run
+from macro.model import MacroModel
+
+config, table, output, kill_at, thin_above = sys.argv[1:]
+macro.run.THIN_ABOVE = int(thin_above)
+step = MacroModel.step
+
+
+def killed(self, max_dt=float("inf")):
+    if self.steps == int(kill_at):
+        os.kill(os.getpid(), signal.SIGKILL)
+    return step(self, max_dt)
+
+
+MacroModel.step = killed
+macro.run.run(json.loads(open(config).read()), "small", table, output)
+"""
+"""A user's run in a process of its own, SIGKILLed when it is about to take step
+``kill_at`` + 1 (after ``kill_at`` steps; -1: never), its records thinned above
+``thin_above``."""
+THIN_ABOVE = 16
+"""Records in memory before thinning in the test runs: thinned before and after kills."""
+VARYING = ("runtime_s", "resumed", "created", "history")
+"""Attributes of a result that tell when and how fast it was made, not what."""
+
+
+def _swelling_config(steps):
+    """The small column with a fast and coarse hydration: the pellets swell by a fifth
+    of their radius (and the profile's bin count changes) within 20 steps, then remesh."""
+    config = small_config(cases={"small": {"conductivity_factor": 1000.0}})
+    config["macro"]["numerics"].update(max_steps=steps, stop_tolerance=0.0, snapshot_interval_s=1e-9,
+                                       max_saturation_change=1.0)
+    return config
+
+
+def _remesh_steps(monkeypatch, table_path, config, output):
+    """Run uninterrupted in this process; the result and the steps that remeshed."""
+    remesh = MacroModel._remesh
+    steps = []
+
+    def counted(self):
+        steps.append(self.steps + 1)
+        remesh(self)
+
+    monkeypatch.setattr(MacroModel, "_remesh", counted)
+    run(config, "small", table_path, output)
+    monkeypatch.setattr(MacroModel, "_remesh", remesh)
+    return xr.load_dataset(output), steps
+
+
+def _snapshot_model(path):
+    with open(path, "rb") as handle:
+        return pickle.load(handle)["model"]
+
+
+def test_a_run_killed_three_times_resumes_to_the_uninterrupted_result(table_path, tmp_path,
+                                                                     monkeypatch):
+    """SIGKILLed in a process of its own before the first remesh, after it and after the
+    second, resumed each time: the result, its counters and its ParaView series are those
+    of the uninterrupted run, bit for bit (records thinned in between)."""
+    steps = 36
+    config = _swelling_config(steps)
+    monkeypatch.setattr("macro.run.THIN_ABOVE", THIN_ABOVE)
+    whole, remeshed = _remesh_steps(monkeypatch, table_path, config, tmp_path / "whole.nc")
+    assert len(remeshed) >= 2 and remeshed[1] + 3 < steps, remeshed
+    kills = (remeshed[0] // 2, remeshed[0] + 2, remeshed[1] + 2)
+    config_path = tmp_path / "config.json"
+    config_path.write_text(json.dumps(config))
+    script = tmp_path / "user.py"
+    script.write_text(CHILD)
     out = tmp_path / "resumed.nc"
-    with pytest.raises(KeyboardInterrupt):
-        run(_config(steps), "small", table_path, out)
     snapshot = tmp_path / ".resumed.snapshot.pkl"
-    assert snapshot.is_file() and not out.exists()
-    monkeypatch.setattr(MacroModel, "step", original)
-    resumed = run(_config(steps), "small", table_path, out)
-    assert resumed.attrs["resumed"] == 1 and not snapshot.exists()
-    for name, variable in whole.data_vars.items():
-        np.testing.assert_array_equal(resumed[name].values, variable.values, err_msg=name)
-    for key in ("remeshes", "newton_iterations", "newton_fallbacks", "steps", "boundary_inflow_kg"):
-        assert resumed.attrs[key] == whole.attrs[key], key
-    assert xr.load_dataset(out).sizes["time"] == whole.sizes["time"]
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    remeshes = []
+    for kill_at in (*kills, -1):
+        arguments = (config_path, table_path, out, kill_at, THIN_ABOVE)
+        done = subprocess.run([sys.executable, str(script), *map(str, arguments)], env=env, cwd=tmp_path,
+                              capture_output=True, text=True, timeout=300)
+        if kill_at < 0:
+            assert done.returncode == 0, done.stderr
+            break
+        assert done.returncode == -signal.SIGKILL, done.stderr
+        assert not out.exists()
+        model = _snapshot_model(snapshot)
+        assert model.steps == kill_at
+        remeshes.append(model.remeshes)
+    assert remeshes[0] == 0 < remeshes[1] < remeshes[2] <= whole.attrs["remeshes"], remeshes
+    assert not snapshot.exists()
+    resumed = xr.load_dataset(out)
+    assert resumed.attrs["resumed"] == 1 and whole.attrs["resumed"] == 0
+    assert resumed.attrs["steps"] == steps
+    for ds in (whole, resumed):
+        for key in [k for k in ds.attrs if k in VARYING or k.startswith("seconds_")]:
+            del ds.attrs[key]
+    xr.testing.assert_identical(resumed, whole)
+    series = {name: {p.name.replace(name, "case"): p.read_bytes()
+                     for p in (tmp_path / f"{name}_vtk").iterdir()} for name in ("whole", "resumed")}
+    assert len(series["whole"]) > 2 and series["resumed"] == series["whole"]
 
 
 def test_snapshot_of_another_configuration_is_ignored_and_a_broken_one_named(table_path, tmp_path,
@@ -67,3 +160,18 @@ def test_snapshot_of_another_configuration_is_ignored_and_a_broken_one_named(tab
     monkeypatch.setattr(MacroModel, "step", original)
     assert snapshot.is_file()
     assert run(_config(3), "small", table_path, out).attrs["resumed"] == 0
+
+
+def test_a_snapshot_whose_records_differ_in_shape_is_named(table_path, tmp_path, monkeypatch):
+    out = tmp_path / "case.nc"
+    snapshot = tmp_path / ".case.snapshot.pkl"
+    original = _kill_at(monkeypatch, 2)
+    with pytest.raises(KeyboardInterrupt):
+        run(_config(3), "small", table_path, out)
+    monkeypatch.setattr(MacroModel, "step", original)
+    payload = pickle.loads(snapshot.read_bytes())
+    payload["rows"]["swelling"][-1] = payload["rows"]["swelling"][-1][:-1]
+    snapshot.write_bytes(pickle.dumps(payload))
+    with pytest.raises(OutputError, match=r"\.case\.snapshot\.pkl: .*swelling differ in shape.*afresh"):
+        run(_config(3), "small", table_path, out)
+    assert snapshot.is_file() and not out.exists()

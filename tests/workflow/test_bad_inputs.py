@@ -19,6 +19,7 @@ import shutil
 import subprocess
 import sys
 import textwrap
+import types
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -575,6 +576,9 @@ RAISES = {
         "(_ for _ in ()).throw(PermissionError(13, 'Permission denied', tmp)))",
         "cannot write results/p.nc: Permission denied"),
     "a_bug": ("import numpy; numpy.zeros(3).reshape(5)", None),
+    "a_numpy_value_error_on_our_line": (
+        "import types; exec(compile('import numpy; numpy.asarray([numpy.zeros(6), numpy.zeros(5)])', "
+        "'macro/_probe.py', 'exec'), vars(types.ModuleType('macro._probe')))", None),
 }
 
 
@@ -599,6 +603,32 @@ def test_an_expected_failure_prints_one_line_and_logs_the_traceback(case, tmp_pa
         return
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("claychain: ") and words in lines[0]
+
+
+OUR_VALUE_ERRORS = {
+    # (code of a module of ours, the one line; None: a bug, not expected)
+    "numpy_on_our_line": ("import numpy\nnumpy.asarray([numpy.zeros(6), numpy.zeros(5)])", None),
+    "numpy_reraised": ("import numpy\ntry:\n    numpy.asarray([[0.0], [0.0, 1.0]])\n"
+                       "except ValueError:\n    raise", None),
+    "raise": ("raise ValueError('macro.x = -1: must be > 0')", "macro.x = -1: must be > 0"),
+    "multi_line_raise": ("x = -1\nraise ValueError(\n    f'macro.x = {x}: '\n    'must be > 0')",
+                         "macro.x = -1: must be > 0"),
+    "raise_from": ("try:\n    int('one')\nexcept ValueError as error:\n"
+                   "    raise ValueError('macro.n = one: not an integer') from error",
+                   "macro.n = one: not an integer"),
+    "raise_in_a_function": ("def check(x):\n    if x < 0:\n        raise ValueError(f'macro.x = {x}: "
+                            "must be > 0')\ncheck(-1)", "macro.x = -1: must be > 0"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(OUR_VALUE_ERRORS))
+def test_a_value_error_is_expected_only_from_a_raise_statement_of_ours(case):
+    """A library's ValueError on a line of ours (numpy's inhomogeneous array of a bug) is
+    not a user error: only our own ``raise`` statements make one line."""
+    source, line = OUR_VALUE_ERRORS[case]
+    with pytest.raises(ValueError) as err:
+        exec(compile(source, "macro/_probe.py", "exec"), vars(types.ModuleType("macro._probe")))
+    assert _logging_module().expected_message(err.value) == line
 
 
 def test_an_unwritable_log_is_one_line(tmp_path):

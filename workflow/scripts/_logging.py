@@ -5,13 +5,16 @@ that cannot be written) reaches the user as one line ``claychain: <message>`` on
 its traceback goes to the job's log file only, for debugging. Expected are the
 project's own error types (``ConfigError``, ``OutputError``, ``ImageError``,
 ``DivergenceError``: any exception class defined in our packages), a ``ValueError``
-raised by our own validation code, and an ``OSError`` that says a file cannot be
+raised by a ``raise`` statement of our own code (validation naming the key or file at
+fault; not a library's ValueError on one of our lines, such as numpy's "setting an
+array element with a sequence" of a bug), and an ``OSError`` that says a file cannot be
 written (permission, read-only or full file system). Any other exception is a bug: it
 keeps its traceback on stderr, and in the log file.
 """
 
 from __future__ import annotations
 
+import dis
 import errno
 import logging
 import os
@@ -22,6 +25,7 @@ from types import TracebackType
 _PACKAGES = ("imaging", "micro", "macro", "shared")
 _WRITE_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOSPC, errno.EDQUOT}
 _TRACEBACK_LOGGER = "claychain.traceback"
+_RAISE = dis.opmap["RAISE_VARARGS"]
 
 
 def _ours(module: str | None) -> bool:
@@ -29,11 +33,17 @@ def _ours(module: str | None) -> bool:
 
 
 def _raised_by_us(traceback: TracebackType | None) -> bool:
-    """Whether the innermost frame of a traceback runs code of our packages."""
-    frame = None
+    """Whether a ``raise`` statement of our packages raised the error: the innermost
+    frame of the traceback runs our code and stopped on a RAISE_VARARGS instruction (a
+    library call, C-level or not, leaves it on the call; multi-line statements and
+    missing sources do not matter)."""
+    last = None
     while traceback is not None:
-        frame, traceback = traceback.tb_frame, traceback.tb_next
-    return frame is not None and _ours(frame.f_globals.get("__name__"))
+        last, traceback = traceback, traceback.tb_next
+    if last is None or not _ours(last.tb_frame.f_globals.get("__name__")):
+        return False
+    code = last.tb_frame.f_code.co_code
+    return 0 <= last.tb_lasti < len(code) and code[last.tb_lasti] == _RAISE
 
 
 def _atomic_write_target(traceback: TracebackType | None) -> str | None:
