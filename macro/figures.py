@@ -1,5 +1,6 @@
-"""Figure of a macro case: wall pressures against time (Fig. 4.11 analogue) and suction and
-swelling along the axis at several times (Fig. 4.10 analogue)."""
+"""Figure of a macro case: wall pressures against time (Fig. 4.11 analogue), suction and
+swelling along the axis at several times (Fig. 4.10 analogue) and the column's permeability
+against time."""
 
 from __future__ import annotations
 
@@ -14,8 +15,9 @@ __all__ = ["case_figure", "comparison_figure"]
 
 
 def case_figure(ds: xr.Dataset, path: str | Path) -> Path:
-    """Three panels: sensor and axial pressures vs time; suction and swelling profiles."""
-    fig, grid = new_figure(1, 3, width=4.2, height=3.4)
+    """Four panels: sensor and axial pressures vs time; suction and swelling profiles;
+    the column's permeability vs time."""
+    fig, grid = new_figure(1, 4, width=4.2, height=3.4)
     axes = grid[0]  # type: ignore[index]
     ax = axes[0]
     days = ds["time"].values / 86400.0
@@ -42,6 +44,10 @@ def case_figure(ds: xr.Dataset, path: str | Path) -> Path:
     axes[2].set_xlabel("height [cm]")
     axes[2].set_ylabel("swelling strain V/V0 - 1 [1]")
     axes[2].set_title("swelling along the axis")
+    axes[3].semilogy(ds["permeability_time"].values / 86400.0, ds["column_permeability"].values, "o-")
+    axes[3].set_xlabel("time [d]")
+    axes[3].set_ylabel("permeability [m2]")
+    axes[3].set_title("column along its axis")
     return save_figure(fig, path)
 
 

@@ -106,6 +106,7 @@ class MacroSettings:
     powder_on_walls: bool
     sensor_bands: int
     vtk_snapshots: int
+    column_permeability_times: tuple[float, ...]
     seed: int
     chi: float
     max_saturation_change: float
@@ -167,6 +168,7 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         powder_on_walls=bool(over.get("powder_pressure_on_walls", macro["powder_pressure_on_walls"])),
         sensor_bands=int(macro["sensor_bands"]),
         vtk_snapshots=int(macro["vtk_snapshots"]),
+        column_permeability_times=tuple(sorted(float(t) for t in macro["column_permeability_times_s"])),
         seed=int(over.get("seed", macro["seed"])),
         chi=float(num["stability_factor"]),
         max_saturation_change=float(num["max_saturation_change"]),

@@ -25,6 +25,7 @@ import numpy.typing as npt
 import xarray as xr
 
 from macro.checkpoint import load_snapshot, save_snapshot
+from macro.column_permeability import column_permeability
 from macro.laws import mixture_parameters
 from macro.model import MacroModel, MacroSettings, macro_settings
 from macro.newton import NewtonError
@@ -56,6 +57,8 @@ INVARIANTS = {
 """Invariants recorded at every record (:meth:`macro.model.MacroModel.invariants`): units, long name."""
 STOP_CHECK_STEPS = 20
 """Steps between two checks of the near-equilibrium criterion."""
+MEASUREMENT_ROWS = ("permeability_time", "column_permeability")
+"""Records of the column permeability, on their own time coordinate (neither thinned nor picked)."""
 
 
 def near_equilibrium(times: FloatArray, series: FloatArray, window: float, tolerance: float) -> bool:
@@ -106,7 +109,9 @@ def simulate(
     is called every ``snapshot_every`` seconds of wall time, after a whole step;
     ``series`` writes the ParaView snapshots when due and at the end. The profiles' bins
     follow from the packing, not from the current state, so that a resumed run records
-    as the uninterrupted one.
+    as the uninterrupted one. The column's permeability
+    (:func:`macro.column_permeability.column_permeability`) is measured at the start,
+    when the run first passes each of ``column_permeability_times_s`` and at the end.
     """
     s: MacroSettings = model.settings
     # bins of about one initial pellet diameter (finer bins alternate between pellets and
@@ -119,7 +124,7 @@ def simulate(
         rows = {k: [] for k in (
             "time", "sensors", "axial_upper", "axial_lower", "suction", "saturation",
             "swelling", "suction_profile", "pellet_suction", "unbalanced", "dt", "step",
-            *INVARIANTS)}
+            *INVARIANTS, *MEASUREMENT_ROWS)}
 
     def record(dt: float) -> None:
         r = model.readings
@@ -139,15 +144,28 @@ def simulate(
         for name, value in model.invariants().items():
             rows[name].append(value)
 
+    def measure() -> None:
+        k = column_permeability(model).permeability
+        rows["permeability_time"].append(model.time)
+        rows["column_permeability"].append(k)
+        LOG.info("column permeability along the axis %.4g m2 at t = %.4g s", k, model.time)
+
+    def measure_due() -> bool:
+        """Whether the run passed a measurement time since the last measurement."""
+        times = np.asarray(s.column_permeability_times)
+        return bool(np.any((times > rows["permeability_time"][-1]) & (times <= model.time)))
+
     def thin() -> None:
         """Every other record (the first and last kept) once there are more than
         ``THIN_ABOVE``: memory and snapshots stay bounded over long runs."""
         if len(rows["time"]) > THIN_ABOVE:
-            for values in rows.values():
-                values[:] = values[:-1:2] + values[-1:]
+            for key, values in rows.items():
+                if key not in MEASUREMENT_ROWS:
+                    values[:] = values[:-1:2] + values[-1:]
 
     if new:
         record(0.0)
+        measure()
 
     def done() -> float:
         """Progress towards the first guard to stop the run (simulated time or steps) [1]."""
@@ -162,6 +180,8 @@ def simulate(
         dt = model.step(max_dt=s.max_time - model.time)
         record(dt)
         thin()
+        if measure_due():
+            measure()
         if series is not None and series.due(model):
             series.write(model)
         progress.update(done())
@@ -181,6 +201,8 @@ def simulate(
     progress.update(done(), force=True)
     if series is not None:
         series.write(model)
+    if rows["permeability_time"][-1] != model.time:
+        measure()
     LOG.info("stopped (%s) at t = %.4g s after %d steps", reason, model.time, model.steps)
     return _dataset(model, rows, edges), reason
 
@@ -197,7 +219,7 @@ def _keep(steps: npt.NDArray[np.int64], wanted: int) -> npt.NDArray[np.int64]:
 def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray) -> xr.Dataset:
     s = model.settings
     keep = _keep(np.asarray(rows["step"]), s.records)
-    pick = {k: np.asarray(v)[keep] for k, v in rows.items()}
+    pick = {k: np.asarray(v)[keep] for k, v in rows.items() if k not in MEASUREMENT_ROWS}
     bands = np.linspace(-0.5 * s.height, 0.5 * s.height, s.sensor_bands + 1)
     sensor_z = 0.5 * (bands[:-1] + bands[1:]) + 0.5 * s.height
     z = 0.5 * (edges[:-1] + edges[1:]) + 0.5 * s.height
@@ -210,6 +232,8 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
         "z": ("z", z, {"units": "m", "long_name": "height above the lower plate"}),
         "pellet": ("pellet", np.arange(model.n_pellets), {"units": "1", "long_name": "pellet index"}),
         "xyz": ("xyz", ["x", "y", "z"], {"units": "1", "long_name": "axis"}),
+        "permeability_time": ("permeability_time", np.asarray(rows["permeability_time"]),
+                              {"units": "s", "long_name": "simulated time of a column permeability measurement"}),
     }
     data = {
         "sensor_pressure": (("time", "sensor"), pick["sensors"], {"units": "Pa", "long_name": "radial pressure on the curved wall per height band (swelling pressure sensors)"}),
@@ -227,6 +251,7 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
         **{name: (("time",), pick[name], {"units": units, "long_name": long})
            for name, (units, long) in INVARIANTS.items()},
         "pellet_position": (("pellet", "xyz"), packing.positions, {"units": "m", "long_name": "initial pellet centre (origin at the container's centre)"}),
+        "column_permeability": (("permeability_time",), np.asarray(rows["column_permeability"]), {"units": "m2", "long_name": "permeability of the whole column along its axis (steady flow between the plates, Appendix .1 emulatePermeability)"}),
         "pellet_radius_final": (("pellet",), model.radii, {"units": "m", "long_name": "pellet radius at the end"}),
     }
     table = model.table

@@ -1,0 +1,189 @@
+"""Permeability of the whole mixture column along its axis (Appendix .1 ``emulatePermeability``).
+
+The thesis's script freezes the state, imposes on the boundary cells a pressure linear
+along the axis around the current suction s (a drop dp of 10 % of s between the ends:
+-s - dp/2 at the lower plate, -s + dp/2 at the upper one), solves the steady flow with
+the current conductances and reads k = mu |<u>| / |grad p| from the velocity averaged
+over the inner 80 % of the specimen. Here, on the pellet-powder network of
+:mod:`macro.transport`:
+
+- unknowns: the pressures of the active systems (pellets and cells holding powder);
+  systems that no exchange of positive conductance links to an end are left out (NaN);
+- Dirichlet: the active systems whose centre (pellet centre, cell centroid) lies within
+  one mean pellet radius of a plate, at the linear profile's value at that centre. The
+  layer holds the pellets resting on the plates (their centres about one radius from
+  it) with the cells beside and below them, pellets and cells alike, and is as thick
+  everywhere; the hydration's held cells (a vertex on a plate) reach up to 1.9 radii
+  into the column and leave the pellets resting on the plates free. The plates' wall
+  layer conducts more than the bulk (more powder beside the plates): at t = 0 a layer
+  of half a radius gives k 6 % higher (4 % on the default mock-up), of two radii 13 %
+  lower (8 %), the held cells 9 % lower (5 %); the pellets whose centres lie within 1 %
+  of one radius move k by less than 1 %;
+- no flux through the curved wall (it is not a system);
+- the mass conductances of the exchanges, :meth:`macro.model.MacroModel.conductances`
+  divided by ``macro.conductivity_factor`` (a time scaling), so that k is the
+  material's;
+- k = mu Q / (rho A dp / L), Q the mass flux through the column [kg/s] (the mean of the
+  flux leaving the upper layer and the flux entering the lower one, which agree to
+  round-off), A = pi R^2 and L the container's cross-section and height. The network has
+  no velocities of its own (pellet-cell exchanges are not faces of a partition), but with
+  a no-flux side wall every cross-section of the column carries the same Q, so Q / (rho A)
+  is the mean axial Darcy velocity over any slab between two cross-sections, the inner
+  80 % of the height included: the thesis's estimator without a velocity reconstruction.
+
+The steady problem without storage is linear with frozen conductances: k depends on
+neither s nor dp (they set the pressure field only). The network's two-point fluxes on
+the Delaunay cells are not a consistent discretisation (centroids rather than
+circumcentres; the pellets conduct through their overlap disks and their spherical
+triangles beside the powder): with every system at one permeability k, the column's k
+comes back 14 to 19 % above it (tests/macro/test_column_permeability.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+from sksparse.cholmod import cholesky
+
+from macro.model import MacroModel
+
+__all__ = ["DROP_FRACTION", "ColumnFlow", "column_permeability", "network_permeability"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+DROP_FRACTION = 0.1
+"""Pressure drop between the plates, as a fraction of the mean suction [1] (Appendix .1)."""
+
+
+@dataclass(frozen=True)
+class ColumnFlow:
+    """Steady flow along the column's axis.
+
+    Attributes
+    ----------
+    permeability
+        k = mu Q L / (rho A dp) [m2].
+    inflow
+        Mass flux from the upper layer into the column [kg/s].
+    outflow
+        Mass flux from the column into the lower layer [kg/s].
+    drop
+        Pressure drop dp between the plates [Pa].
+    pressure
+        (n,) steady pressure of every system [Pa], NaN where left out (inert, or
+        linked to no end).
+    """
+
+    permeability: float
+    inflow: float
+    outflow: float
+    drop: float
+    pressure: FloatArray
+
+
+def network_permeability(
+    pairs: IntArray, conductance: FloatArray, position: FloatArray, active: BoolArray,
+    height: float, area: float, layer: float, mean_pressure: float, drop: float,
+    density: float, viscosity: float,
+) -> ColumnFlow:
+    """Steady flow through a network between two Dirichlet layers, and its permeability.
+
+    Parameters
+    ----------
+    pairs
+        (m, 2) exchanges between systems.
+    conductance
+        (m,) their mass conductances G [kg/(Pa s)].
+    position
+        (n,) coordinate of each system's centre along the axis, 0 at mid-height [m].
+    active
+        (n,) systems that take part (the others are left out).
+    height, area
+        Length L of the column between the plates and its cross-section A [m], [m2].
+    layer
+        Systems within this distance of a plate are Dirichlet [m].
+    mean_pressure
+        Pressure at mid-height [Pa].
+    drop
+        Pressure drop dp between the plates, lower pressure at the lower plate [Pa].
+    density, viscosity
+        rho [kg/m3] and mu [Pa s] of the water.
+
+    Returns
+    -------
+    ColumnFlow
+        With the mean of the inflow and the outflow as Q.
+    """
+    n = position.size
+    keep = (conductance > 0.0) & active[pairs].all(axis=1)
+    pairs, conductance = pairs[keep], conductance[keep]
+    upper = active & (position > 0.5 * height - layer)
+    lower = active & (position < -0.5 * height + layer)
+    fixed = upper | lower
+    # systems linked to no end have no steady pressure (and carry no flux)
+    graph = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    count, label = connected_components(graph, directed=False)
+    anchored = np.bincount(label, fixed, minlength=count) > 0
+    free = active & ~fixed & anchored[label]
+    # solved for the departure from the mean pressure: the fluxes are differences of it
+    departure = np.where(fixed, drop * position / height, np.nan)
+    unknown = np.flatnonzero(free)
+    m = unknown.size
+    index = np.full(n, -1, dtype=np.int64)
+    index[unknown] = np.arange(m)
+    first, second = pairs[:, 0], pairs[:, 1]
+    a, b = index[first], index[second]
+    diagonal = (np.bincount(a[a >= 0], conductance[a >= 0], minlength=m)
+                + np.bincount(b[b >= 0], conductance[b >= 0], minlength=m))
+    # exchanges with a Dirichlet system move its pressure to the right-hand side
+    to_a, to_b = (a >= 0) & fixed[second], (b >= 0) & fixed[first]
+    rhs = (np.bincount(a[to_a], (conductance * departure[second])[to_a], minlength=m)
+           + np.bincount(b[to_b], (conductance * departure[first])[to_b], minlength=m))
+    both = (a >= 0) & (b >= 0)
+    rows = np.concatenate([np.arange(m), a[both], b[both]])
+    columns = np.concatenate([np.arange(m), b[both], a[both]])
+    values = np.concatenate([diagonal, -conductance[both], -conductance[both]])
+    departure[unknown] = cholesky(sp.csc_matrix((values, (rows, columns)), shape=(m, m)))(rhs)
+    flux = conductance * (departure[first] - departure[second])  # from first to second
+    inflow = float(flux[upper[first] & free[second]].sum() - flux[free[first] & upper[second]].sum())
+    outflow = float(flux[free[first] & lower[second]].sum() - flux[lower[first] & free[second]].sum())
+    mean_flux = 0.5 * (inflow + outflow)
+    permeability = viscosity * mean_flux * height / (density * area * drop)
+    return ColumnFlow(permeability, inflow, outflow, drop, mean_pressure + departure)
+
+
+def column_permeability(model: MacroModel) -> ColumnFlow:
+    """The mixture column's permeability along its axis in the model's current state.
+
+    The model is left as it was: its state is only read, and the look-up counters of
+    its permeability table, which the conductances advance, are set back.
+
+    The pressures are imposed around the volume-weighted mean suction s of the active
+    systems, with a drop of ``DROP_FRACTION`` s between the plates (k depends on neither).
+
+    Parameters
+    ----------
+    model
+        The mixture (read only).
+    """
+    s = model.settings
+    table = model.table
+    looked_up, clamped = table.looked_up, table.clamped
+    try:
+        conductance = model.conductances() / s.conductivity_factor
+    finally:
+        table.looked_up, table.clamped = looked_up, clamped
+    assert model._exchanges is not None
+    active = ~model.inert
+    suction = float(np.average(-model.pressure[active], weights=model.volume[active]))
+    # the exchanges' geometry: the mesh's pellet centres and cell centroids
+    position = np.concatenate([model.mesh.points[:model.n_pellets, 2], model.mesh.centroids[:, 2]])
+    return network_permeability(
+        model._exchanges.pairs, conductance, position, active, s.height, np.pi * s.radius**2,
+        float(model.radii.mean()), -suction, DROP_FRACTION * suction, s.density, s.viscosity)
