@@ -33,6 +33,8 @@ from shared.swelling import swelling_strain as shared_swelling_strain
 
 __all__ = [
     "MixtureParameters",
+    "MIXTURE_MATERIALS",
+    "case_materials",
     "mixture_parameters",
     "saturation",
     "suction",
@@ -46,6 +48,8 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
+MIXTURE_MATERIALS = ("mixture_pellet", "mixture_powder")
+"""The sections of ``materials`` the macro model reads (Tables 4.1-4.2)."""
 
 
 @dataclass(frozen=True)
@@ -98,6 +102,26 @@ class MixtureParameters:
     grain_density: float
     beta_v: float
     alpha_v: float
+
+
+def case_materials(materials: Mapping[str, Any], case: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """The mixture's material sections of one case.
+
+    Parameters
+    ----------
+    materials
+        Validated ``materials`` section.
+    case
+        The case's entry of ``macro.cases``; its own values (``materials.mixture_pellet``,
+        ``materials.mixture_powder``) replace those of ``materials``, key by key.
+
+    Returns
+    -------
+    dict
+        ``{"mixture_pellet": {...}, "mixture_powder": {...}}``, SI units as in the config.
+    """
+    own = case.get("materials", {})
+    return {key: {**materials[key], **own.get(key, {})} for key in MIXTURE_MATERIALS}
 
 
 def mixture_parameters(materials: Mapping[str, Any], powder: Mapping[str, Any]) -> MixtureParameters:

@@ -26,7 +26,7 @@ import xarray as xr
 
 from macro.checkpoint import load_snapshot, save_snapshot
 from macro.column_permeability import column_permeability
-from macro.laws import mixture_parameters
+from macro.laws import case_materials, mixture_parameters
 from macro.model import MacroModel, MacroSettings, macro_settings
 from macro.newton import NewtonError
 from macro.vtk import SnapshotSeries
@@ -80,7 +80,8 @@ def near_equilibrium(times: FloatArray, series: FloatArray, window: float, toler
 def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) -> MacroModel:
     """The initial model of a case from the validated ``macro`` and ``materials`` sections."""
     settings = macro_settings(config["macro"], case)
-    material = mixture_parameters(config["materials"], settings.powder)
+    material = mixture_parameters(case_materials(config["materials"], config["macro"]["cases"][case]),
+                                  settings.powder)
     packing = pack_cylinder(settings.height, settings.radius, settings.pellet_radius,
                             settings.packing_fraction, np.random.default_rng(settings.seed),
                             settings.packing_sweeps, settings.pellet_radius_spread)
@@ -324,7 +325,7 @@ def run(
     settings = macro_settings(config["macro"], case)
     table = PermeabilityTable.from_file(table_path, settings.table_condition)
     section = {"macro": config["macro"], "case": case,
-               "materials": {k: config["materials"][k] for k in ("mixture_pellet", "mixture_powder")}}
+               "materials": case_materials(config["materials"], config["macro"]["cases"][case])}
     digest = hashlib.sha256((json.dumps(section, sort_keys=True, default=str)
                              + file_sha256(table_path)).encode()).hexdigest()
     output_path = Path(output_path)

@@ -1,8 +1,12 @@
 # Shared helpers of the rules: validation, sample sheet, code hash, input functions.
 import sys
+from pathlib import Path
 
+import macro
 from imaging.ct.io import ImageError, slice_files
 from imaging.packing.config import check_packings
+from macro.ensemble import check_ensembles, ensemble_cases, ensemble_members
+from macro.laws import case_materials
 from micro.run import MATERIAL_KEYS
 from micro.upscaling.run import source_names
 from micro.studies import (
@@ -17,7 +21,9 @@ from shared.provenance import code_sha256
 
 SCHEMA = load_schema(workflow.source_path("../schemas/config.schema.yaml"))
 try:
-    validate_config(config, SCHEMA, checks=[check_packings, check_studies])
+    validate_config(
+        config, SCHEMA, checks=[check_packings, check_studies, check_ensembles]
+    )
 except ConfigError as err:
     sys.exit(f"claychain: invalid configuration: {err}")
 
@@ -26,6 +32,9 @@ CASES = sorted(config["micro"]["cases"])
 PACKINGS = sorted(config["packings"])
 REALIZATIONS = {r.name: r for r in scale_realizations(config)}
 MACRO_CASES = sorted(config["macro"]["cases"])
+# the members of the seed ensembles run as cases of their own (macro.ensembles)
+MACRO_ENTRIES = {**config["macro"]["cases"], **ensemble_cases(config["macro"])}
+ENSEMBLES = sorted(config["macro"]["ensembles"])
 
 
 wildcard_constraints:
@@ -33,7 +42,8 @@ wildcard_constraints:
     case="|".join(CASES),
     packing="|".join(PACKINGS) or "(?!)",
     realization="|".join(REALIZATIONS) or "(?!)",
-    macro_case="|".join(MACRO_CASES) or "(?!)",
+    macro_case="|".join(MACRO_ENTRIES) or "(?!)",
+    ensemble="|".join(ENSEMBLES) or "(?!)",
 
 
 def code_hash(*packages):
@@ -173,28 +183,59 @@ def get_scale_layout(wildcards):
 
 
 def get_macro_case_config(wildcards):
-    """The macro settings with this case alone (a param: editing one case reruns it alone)."""
-    shared = {key: value for key, value in config["macro"].items() if key != "cases"}
+    """The macro settings with this case (or ensemble member) alone (a param: editing one
+    case reruns it alone)."""
+    # an ensemble only aggregates its members: declaring one reruns no other case
+    shared = {
+        key: value
+        for key, value in config["macro"].items()
+        if key not in ("cases", "ensembles")
+    }
     return {
         **shared,
-        "cases": {wildcards.macro_case: config["macro"]["cases"][wildcards.macro_case]},
+        "cases": {wildcards.macro_case: MACRO_ENTRIES[wildcards.macro_case]},
     }
 
 
 def get_macro_materials(wildcards):
-    """The mixture's material sections (Tables 4.1-4.2), the only materials macro reads."""
+    """The mixture's material sections (Tables 4.1-4.2) with this case's own values, the
+    only materials macro reads (a param: a case's own values rerun it alone)."""
+    materials = case_materials(config["materials"], MACRO_ENTRIES[wildcards.macro_case])
+    # keys sorted: the param does not depend on the order the config lists them in
     return {
-        key: config["materials"][key] for key in ("mixture_pellet", "mixture_powder")
+        section: dict(sorted(values.items())) for section, values in materials.items()
     }
 
 
+def get_ensemble_members(wildcards):
+    """The results of a seed ensemble's members (macro.ensembles.<ensemble>)."""
+    return expand(
+        "results/macro/{member}.nc",
+        member=ensemble_members(config["macro"], wildcards.ensemble),
+    )
+
+
+def get_ensemble_config(wildcards):
+    """A seed ensemble's entry (a param: editing it reruns its statistics)."""
+    return config["macro"]["ensembles"][wildcards.ensemble]
+
+
 def get_macro_outputs():
-    """One result and figure per macro case; the cases on one figure when there are several."""
+    """One result and figure per macro case; the cases on one figure when there are several;
+    the statistics of each seed ensemble (none by default)."""
     outputs = expand(
         ["results/macro/{macro_case}.nc", "results/macro/{macro_case}.png"],
         macro_case=MACRO_CASES,
     )
-    return outputs + (["results/macro/comparison.png"] if len(MACRO_CASES) > 1 else [])
+    ensembles = expand(
+        [
+            "results/macro/ensemble_{ensemble}.nc",
+            "results/macro/ensemble_{ensemble}.png",
+        ],
+        ensemble=ENSEMBLES,
+    )
+    comparison = ["results/macro/comparison.png"] if len(MACRO_CASES) > 1 else []
+    return outputs + comparison + ensembles
 
 
 def get_study_outputs():
@@ -279,8 +320,14 @@ UPSCALING_CODE = code_hash(
     "shared/figures.py",
     "shared/config.py",
 )
+# Case rules: the macro package but its ensemble statistics (their edits rerun no case).
+MACRO_FOLDER = Path(macro.__file__).parent
 MACRO_CODE = code_hash(
-    "macro",
+    *(
+        f"macro/{path.relative_to(MACRO_FOLDER)}"
+        for path in MACRO_FOLDER.rglob("*.py")
+        if path.name != "ensemble.py"
+    ),
     "shared/upscaling.py",
     "shared/mesh.py",
     "shared/dem",
@@ -289,4 +336,12 @@ MACRO_CODE = code_hash(
     "shared/figures.py",
     "shared/progress.py",
     "shared/config.py",
+)
+ENSEMBLE_CODE = code_hash(
+    "macro/__init__.py",
+    "macro/ensemble.py",
+    "shared/config.py",
+    "shared/io.py",
+    "shared/provenance.py",
+    "shared/figures.py",
 )

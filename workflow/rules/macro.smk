@@ -36,3 +36,22 @@ rule macro_comparison:
         "results/benchmarks/macro_comparison.tsv"
     script:
         "../scripts/macro_comparison.py"
+
+
+rule macro_ensemble:
+    input:
+        members=get_ensemble_members,
+    output:
+        result="results/macro/ensemble_{ensemble}.nc",
+        figure="results/macro/ensemble_{ensemble}.png",
+    params:
+        code=ENSEMBLE_CODE,
+        ensemble=get_ensemble_config,
+    conda:
+        "../envs/claychain.yaml"
+    log:
+        "results/logs/macro_ensemble/{ensemble}.log",
+    benchmark:
+        "results/benchmarks/macro_ensemble/{ensemble}.tsv"
+    script:
+        "../scripts/macro_ensemble.py"
