@@ -32,9 +32,10 @@ def test_a_cases_own_values_reach_its_parameters_and_no_other_cases():
     plain = mixture_parameters(
         case_materials(config["materials"], config["macro"]["cases"]["plain"]), powder)
     assert own.beta == 3.0e-8 and own.lambda0 == 0.3
-    # the keys it does not set keep Tables 4.1-4.2's values, as the other case's
-    assert own.alpha == plain.alpha == 1.6e-8 and own.zeta0 == plain.zeta0 == 4.026e6
-    assert plain.beta == 2.4e-8 and plain.lambda0 == 0.26
+    # the keys it does not set keep the defaults (the Appendix .1 script's alpha, beta;
+    # Table 4.2), as the other case's
+    assert own.alpha == plain.alpha == 2.4e-8 and own.zeta0 == plain.zeta0 == 4.026e6
+    assert plain.beta == 1.6e-8 and plain.lambda0 == 0.26
 
 
 def test_the_model_is_built_from_the_cases_own_values(table_path, monkeypatch):
@@ -53,7 +54,7 @@ def test_the_model_is_built_from_the_cases_own_values(table_path, monkeypatch):
     with pytest.raises(Built):
         macro_run.build_model(config, "own", PermeabilityTable.from_file(table_path, "free"))
     assert seen["mixture_pellet"]["swelling_beta_per_pa"] == 3.0e-8
-    assert seen["mixture_pellet"]["swelling_alpha_per_pa"] == 1.6e-8
+    assert seen["mixture_pellet"]["swelling_alpha_per_pa"] == 2.4e-8
     assert seen["mixture_powder"]["retention_exponent_reference"] == 0.3
 
 
