@@ -390,11 +390,15 @@ class MacroModel:
         return model
 
     def _hold_boundary(self) -> None:
-        """Held cells at the boundary suction: S, V from the laws (capped by their void)."""
+        """Held cells at the boundary suction: S, V from the laws, V capped by their void
+        (at least their solid at the smallest porosity). Called at every step: the held
+        cells are the water supply's side, so the water a shrinking void squeezes out
+        leaves through the boundary (it is not interior water)."""
         h = np.flatnonzero(self.held)
         s_b = self.settings.boundary_suction
         target = self.reference_volume[h] * (1.0 + swelling_strain(s_b, self.material))
-        self.volume[h] = np.minimum(target, self.max_volume[h] * (1.0 - 1e-9))
+        densest = self.solid_volume[h] / (1.0 - float(self.settings.powder["porosity_clamp"][0]))
+        self.volume[h] = np.maximum(np.minimum(target, self.max_volume[h] * (1.0 - 1e-9)), densest)
         porosity = self.retention_porosity()[h]
         sat = saturation(s_b, porosity, self.material)
         self.water_mass[h] = self.settings.density * sat * (self.volume[h] - self.solid_volume[h])
@@ -983,6 +987,7 @@ class MacroModel:
         clock = time.perf_counter()
         if self.steps > 0:
             self._update_geometry()
+            self._hold_boundary()
         now = time.perf_counter()
         self.phase_seconds["remesh"] += now - clock
         clock = now
