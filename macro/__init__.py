@@ -5,7 +5,9 @@ Entry point: :func:`macro.run.run` (``config, case, table_path, output_path, fig
 Modules: ``laws`` (constitutive laws), ``packing`` (radius-growth packing in the cylinder),
 ``field`` (powder heterogeneity), ``mixture`` (systems and exchanges on the Delaunay mesh),
 ``transport`` (explicit mass update, Eq. 4.58), ``newton`` (local pressure-volume solve),
-``model`` (the coupled step and the wall readings), ``figures``.
+``model`` (the coupled step and the wall readings), ``sensors`` (the wall's pressure
+sensors), ``stopping`` (the stop criterion and the progress line), ``figures``.
 """
 
-__all__ = ["field", "figures", "laws", "mixture", "model", "newton", "packing", "run", "transport"]
+__all__ = ["field", "figures", "laws", "mixture", "model", "newton", "packing", "run", "sensors", "stopping",
+           "transport"]
