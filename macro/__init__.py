@@ -5,11 +5,12 @@ Entry point: :func:`macro.run.run` (``config, case, table_path, output_path, fig
 Modules: ``laws`` (constitutive laws), ``packing`` (radius-growth packing in the cylinder),
 ``field`` (powder heterogeneity), ``mixture`` (systems and exchanges on the Delaunay mesh),
 ``transport`` (explicit mass update, Eq. 4.58), ``newton`` (local pressure-volume solve),
-``model`` (the coupled step and the wall readings), ``figures``, ``ensemble`` (statistics
-of a case run with several seeds).
+``model`` (the coupled step and the wall readings), ``sensors`` (the wall's pressure
+sensors), ``stopping`` (the stop criterion and the progress line), ``figures``,
+``ensemble`` (statistics of a case run with several seeds), ``column_permeability``.
 """
 
 __all__ = [
-    "ensemble", "field", "figures", "laws", "mixture", "model", "newton", "packing", "run",
-    "transport",
+    "column_permeability", "ensemble", "field", "figures", "laws", "mixture", "model", "newton",
+    "packing", "run", "sensors", "stopping", "transport",
 ]

@@ -38,7 +38,7 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
-QUANTITIES = ("sensor_pressure", "axial_pressure", "axial_pressure_lower", "mean_saturation")
+QUANTITIES = ("sensor_pressure", "axial_pressure_upper", "axial_pressure_lower", "mean_saturation")
 """The member variables an ensemble reduces, each over ``time`` and its other dimensions."""
 OPTIONAL = ("axial_pressure_lower",)
 """Quantities reduced only when every member has them."""
@@ -141,7 +141,7 @@ def ensemble_statistics(
     ----------
     members
         Member name -> its ``results/macro/<member>.nc`` dataset, with ``time`` [s],
-        ``sensor_pressure(time, sensor)`` [Pa], ``axial_pressure(time)`` [Pa],
+        ``sensor_pressure(time, sensor)`` [Pa], ``axial_pressure_upper(time)`` [Pa],
         ``mean_saturation(time, material)`` [1] and optionally
         ``axial_pressure_lower(time)`` [Pa]; the ``sensor`` coordinates must agree.
     points
@@ -233,7 +233,7 @@ def plot_ensemble(ds: xr.Dataset, title: str = "") -> Figure:
     handles: dict[Axes, list[tuple[tuple[Any, Any], str]]] = {}
     for sensor in ds["sensor"].values:
         draw(axes[0], "sensor_pressure", _sensor_label(sensor), 1e6, sensor=sensor)
-    draw(axes[1], "axial_pressure", "upper plate", 1e6)
+    draw(axes[1], "axial_pressure_upper", "upper plate", 1e6)
     if "axial_pressure_lower_mean" in ds:
         draw(axes[1], "axial_pressure_lower", "lower plate", 1e6)
     for material in ds["material"].values:

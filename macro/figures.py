@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
+from matplotlib.axes import Axes
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from shared.figures import new_figure, save_figure
 
@@ -21,13 +23,13 @@ def case_figure(ds: xr.Dataset, path: str | Path) -> Path:
     axes = grid[0]  # type: ignore[index]
     ax = axes[0]
     days = ds["time"].values / 86400.0
-    for k in range(ds.sizes["sensor"]):
-        z = float(ds["sensor_height"].values[k]) * 100
-        ax.plot(days, ds["sensor_pressure"].values[:, k] / 1e6, label=f"band at {z:.0f} cm")
-    ax.plot(days, ds["axial_pressure"].values / 1e6, "k--", label="axial (upper)")
-    ax.set_xlabel("time [d]")
+    for name, z in zip(ds["sensor"].values, ds["sensor_height"].values):
+        ax.plot(days, ds["sensor_pressure"].sel(sensor=name).values / 1e6, label=f"{name} ({1e3 * z:.0f} mm)")
+    ax.plot(days, ds["axial_pressure_upper"].values / 1e6, "k--", label="axial, upper plate")
+    ax.plot(days, ds["axial_pressure_lower"].values / 1e6, "k:", label="axial, lower plate")
+    _days_axis(ax, days)
     ax.set_ylabel("pressure [MPa]")
-    ax.legend(fontsize=6)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=2)
     ax.set_title("wall pressures")
     z = ds["z"].values * 100
     # the start, then times a hundredth, a tenth, a third of the run and its end
@@ -62,14 +64,31 @@ def comparison_figure(cases: dict[str, xr.Dataset], path: str | Path) -> Path:
         label = f"{name} ({ds.attrs.get('powder_heterogeneity', '?')}" + (
             ", powder on walls)" if ds.attrs.get("powder_pressure_on_walls") else ")")
         axes[0].plot(days, ds["sensor_pressure"].mean("sensor").values / 1e6, label=label)
-        axes[1].plot(days, ds["axial_pressure"].values / 1e6, label=label)
+        axes[1].plot(days, ds["axial_pressure_upper"].values / 1e6, label=label)
         axes[2].plot(days, ds["mean_suction"].sel(material="pellet").values / 1e6, label=label)
-    for ax, what in zip(axes, ("mean radial wall pressure [MPa]", "axial pressure [MPa]",
+    for ax, what in zip(axes, ("mean radial sensor pressure [MPa]", "axial pressure [MPa]",
                                "mean pellet suction [MPa]")):
-        ax.set_xlabel("time [d]")
+        _days_axis(ax, np.concatenate([ds["time"].values / 86400.0 for ds in cases.values()]))
         ax.set_ylabel(what)
-    axes[0].legend(fontsize=6)
-    axes[0].set_title("sensors (mean of the bands)")
+    axes[0].legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.22))
+    axes[0].set_title("sensors (mean of the named sensors)")
     axes[1].set_title("upper plate")
     axes[2].set_title("hydration")
     return save_figure(fig, path)
+
+
+def _days_axis(ax: Axes, days: np.ndarray) -> None:
+    """Time [d] on a log axis over the last four decades of the run at most (the first
+    steps last seconds): labelled ticks at 1, 2 and 5 per decade over up to three
+    decades, at the decades over more."""
+    ax.set_xlabel("time [d]")
+    after = days[days > 0.0]
+    if after.size < 2:
+        return
+    start, end = max(after.min(), 1e-4 * after.max()), after.max()
+    ax.set_xscale("log", nonpositive="mask")
+    ax.set_xlim(start, end)
+    subs = (1.0, 2.0, 5.0) if end / start <= 1e3 else (1.0,)
+    ax.xaxis.set_major_locator(LogLocator(base=10.0, subs=subs))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    ax.xaxis.set_minor_formatter(NullFormatter())

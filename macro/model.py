@@ -53,6 +53,7 @@ from macro.mixture import (
 )
 from macro.newton import NewtonSettings, PVProblem, solve_pressure_volume
 from macro.packing import Packing
+from macro.sensors import WallBands, equal_bands, named_sensors
 from macro.transport import (
     conductances, harmonic_mean, implicit_pressures, limited_rates, mass_rates, stable_time_step,
 )
@@ -104,7 +105,8 @@ class MacroSettings:
     powder_pressure: bool
     retention_follows_porosity: bool
     powder_on_walls: bool
-    sensor_bands: int
+    sensors: WallBands
+    bands: WallBands
     vtk_snapshots: int
     column_permeability_times: tuple[float, ...]
     seed: int
@@ -118,6 +120,7 @@ class MacroSettings:
     snapshot_interval: float
     stop_window: float
     stop_tolerance: float
+    stop_pressure_tolerance: float
     stop_after: float
     newton: NewtonSettings
     packing_sweeps: int
@@ -136,6 +139,8 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
     ------
     KeyError
         Naming ``macro.cases`` when the case is not declared.
+    ValueError
+        Naming ``macro.sensors.<name>`` when a sensor's band reaches outside the container.
     """
     if case not in macro["cases"]:
         raise KeyError(f"macro.cases has no case {case!r} (has {sorted(macro['cases'])})")
@@ -166,7 +171,8 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         retention_follows_porosity=bool(macro["retention_follows_porosity"]),
         powder_pressure=bool(over.get("powder_swelling_pressure", macro["powder_swelling_pressure"])),
         powder_on_walls=bool(over.get("powder_pressure_on_walls", macro["powder_pressure_on_walls"])),
-        sensor_bands=int(macro["sensor_bands"]),
+        sensors=named_sensors(macro["sensors"], float(macro["cylinder_height_m"])),
+        bands=equal_bands(int(macro["sensor_bands"]), float(macro["cylinder_height_m"])),
         vtk_snapshots=int(macro["vtk_snapshots"]),
         column_permeability_times=tuple(sorted(float(t) for t in macro["column_permeability_times_s"])),
         seed=int(over.get("seed", macro["seed"])),
@@ -180,6 +186,7 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         snapshot_interval=float(num["snapshot_interval_s"]),
         stop_window=float(num["stop_window_fraction"]),
         stop_tolerance=float(num["stop_tolerance"]),
+        stop_pressure_tolerance=float(num["stop_pressure_tolerance"]),
         stop_after=float(num["stop_after_s"]),
         newton=NewtonSettings(
             tolerance=float(num["newton_tolerance"]),
@@ -237,10 +244,12 @@ def mixture_fractions(mixture: Mapping[str, Any], pellet_porosity: float,
 
 @dataclass
 class Readings:
-    """Wall readings of one instant: sensor pressures (bands,) [Pa], axial pressures on
-    the upper and lower plates [Pa], unbalanced force ratio [1]."""
+    """Wall readings of one instant: pressures of the named sensors (sensors,) and of the
+    equal height bands (bands,) [Pa], axial pressures on the upper and lower plates [Pa],
+    unbalanced force ratio [1]."""
 
     sensors: FloatArray
+    bands: FloatArray
     axial_upper: float
     axial_lower: float
     unbalanced: float
@@ -856,15 +865,18 @@ class MacroModel:
         self._contact_pairs, self._shear, self._plastic = pairs, shear, plastic
         self.dem_substeps_used += k
         self._confine(pairs, normal, np.maximum(radial, 0.0) + np.maximum(lower, 0.0) + np.maximum(upper, 0.0))
-        sensors = self._band_pressures(radial)
+        # radial loads on the curved wall at their contact's height above the lower plate
+        heights, loads = self.positions[:, 2] + 0.5 * s.height, radial
         area = np.pi * s.radius**2
         upper_force, lower_force = float(upper.sum()), float(lower.sum())
         if s.powder_on_walls:
-            extra_sensors, extra_upper, extra_lower = self._powder_wall_loads()
-            sensors += extra_sensors
+            wall_heights, wall_loads, extra_upper, extra_lower = self._powder_wall_loads()
+            heights, loads = np.concatenate([heights, wall_heights]), np.concatenate([loads, wall_loads])
             upper_force += extra_upper
             lower_force += extra_lower
-        return Readings(sensors, upper_force / area, lower_force / area, unbalanced)
+        return Readings(s.sensors.pressures(heights, loads, s.radius),
+                        s.bands.pressures(heights, loads, s.radius),
+                        upper_force / area, lower_force / area, unbalanced)
 
     def _powder_load(self) -> tuple[FloatArray, FloatArray]:
         """The powder's push on the pellets (n_p, 3) [N] (Eqs. 4.34-4.38) and its stiffness
@@ -917,7 +929,7 @@ class MacroModel:
         i, j, distance = i[touching], j[touching], distance[touching]
         plane = (distance**2 + radii[i] ** 2 - radii[j] ** 2) / (2.0 * distance)
         lost = np.bincount(i, _cap_volume(radii[i], radii[i] - plane), minlength=n_p) \
-            + np.bincount(j, _cap_volume(radii[j], radii[j] - (distance - plane)), minlength=n_p)
+            + np.bincount(j, _cap_volume(radii[j], radii[j] - (distance - plane)), minlength=n_p) + 0.0
         axis = np.hypot(self.positions[:, 0], self.positions[:, 1])
         for depth in (radii + axis - s.radius, radii - self.positions[:, 2] - 0.5 * s.height,
                       radii + self.positions[:, 2] - 0.5 * s.height):
@@ -949,22 +961,13 @@ class MacroModel:
             plastic[found] = old_plastic[source]
         return pairs, shear, plastic
 
-    def _band_edges(self) -> FloatArray:
-        s = self.settings
-        return np.linspace(-0.5 * s.height, 0.5 * s.height, s.sensor_bands + 1)
-
-    def _band_pressures(self, radial: FloatArray) -> FloatArray:
-        """Radial wall pressure per height band: sum of forces / (2 pi R dz) [Pa].
-
-        The script's getPressure divides by pi R dz (half the band's area)."""
-        edges = self._band_edges()
-        band = np.clip(np.searchsorted(edges, self.positions[:, 2]) - 1, 0, edges.size - 2)
-        force = np.bincount(band, radial, minlength=edges.size - 1)
-        return force / (2.0 * np.pi * self.settings.radius * np.diff(edges))
-
-    def _powder_wall_loads(self) -> tuple[FloatArray, float, float]:
+    def _powder_wall_loads(self) -> tuple[FloatArray, FloatArray, float, float]:
         """Sec. 4.10: confined powder of the cells on the container pushes on it through their
-        triangles on the wall and plates (the mesh's hull)."""
+        triangles on the wall and plates (the mesh's hull).
+
+        Returns the height above the lower plate [m] and the radial force [N] of each
+        triangle on the curved wall (its centroid is its contact point), and the forces on
+        the upper and lower plates [N]."""
         assert self._cell_pressure is not None
         mesh = self.mesh
         force = self._cell_pressure[mesh.boundary_cells] * mesh.boundary_areas
@@ -972,14 +975,10 @@ class MacroModel:
         rho = np.maximum(np.hypot(centroids[:, 0], centroids[:, 1]), 1e-300)
         radial = (normals[:, 0] * centroids[:, 0] + normals[:, 1] * centroids[:, 1]) / rho
         side = np.abs(normals[:, 2]) <= np.sqrt(0.5)
-        edges = self._band_edges()
-        band = np.clip(np.searchsorted(edges, centroids[:, 2]) - 1, 0, edges.size - 2)
-        per_band = np.bincount(band[side], (force * np.maximum(radial, 0.0))[side],
-                               minlength=edges.size - 1)
-        sensors = per_band / (2.0 * np.pi * self.settings.radius * np.diff(edges))
         upper = float((force * np.maximum(normals[:, 2], 0.0))[~side].sum())
         lower = float((force * np.maximum(-normals[:, 2], 0.0))[~side].sum())
-        return sensors, upper, lower
+        return (centroids[side, 2] + 0.5 * self.settings.height, (force * np.maximum(radial, 0.0))[side],
+                upper, lower)
 
     # ------------------------------------------------------------------ step
     def step(self, max_dt: float = float("inf")) -> float:

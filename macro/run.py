@@ -2,16 +2,15 @@
 
 ``run(config, case, table_path, output_path, figure_path)`` packs the pellets, builds the
 mixture on the Delaunay mesh of their centres, hydrates it from both ends and records the
-wall readings (DESIGN section 2). It stops near equilibrium (the trend of the mean sensor
-pressure, of the axial pressure and of both mean suctions over the last
-``stop_window_fraction`` of the elapsed time moved each by less than ``stop_tolerance``
-of its largest magnitude, the initial suction for the suctions; single bands jump when
-force chains rearrange) or at the ``max_time_s`` / ``max_steps`` guards, whichever comes
-first; the reason is recorded.
+wall readings (DESIGN section 2). It stops near equilibrium (:mod:`macro.stopping`: the
+saturations and the wall pressures have levelled off relative to their current levels)
+or at the ``max_time_s`` / ``max_steps`` guards, whichever comes first; the reason is
+recorded.
 """
 
 from __future__ import annotations
 
+import bisect
 import hashlib
 import json
 import logging
@@ -31,12 +30,12 @@ from macro.model import MacroModel, MacroSettings, macro_settings
 from macro.newton import NewtonError
 from macro.vtk import SnapshotSeries
 from macro.packing import pack_cylinder
+from macro.stopping import DAY, MONITORED, RunProgress, stop_distance
 from shared.io import write_dataset
-from shared.progress import Progress
 from shared.provenance import file_sha256
 from shared.upscaling import PermeabilityTable
 
-__all__ = ["run", "simulate", "near_equilibrium"]
+__all__ = ["run", "simulate"]
 
 LOG = logging.getLogger("claychain.macro")
 FloatArray = npt.NDArray[np.float64]
@@ -55,26 +54,8 @@ INVARIANTS = {
     "dry_density": ("kg m-3", "dry mass of pellets and powder over the container's volume"),
 }
 """Invariants recorded at every record (:meth:`macro.model.MacroModel.invariants`): units, long name."""
-STOP_CHECK_STEPS = 20
-"""Steps between two checks of the near-equilibrium criterion."""
 MEASUREMENT_ROWS = ("permeability_time", "column_permeability")
 """Records of the column permeability, on their own time coordinate (neither thinned nor picked)."""
-
-
-def near_equilibrium(times: FloatArray, series: FloatArray, window: float, tolerance: float) -> bool:
-    """Whether every column of ``series`` (time, k) has levelled off: over the last
-    ``window`` fraction of the elapsed time, its least-squares trend times the window's
-    duration is below ``tolerance`` times its largest magnitude so far. A trend rather
-    than the range: the wall readings of a quasi-static DEM fluctuate around their level."""
-    if tolerance <= 0.0 or times.size < 10:
-        return False
-    inside = times >= times[-1] * (1.0 - window)
-    if np.count_nonzero(inside) < 5 or inside.all():
-        return False
-    t = times[inside]
-    slope = np.polyfit(t - t.mean(), series[inside], 1)[0]
-    scale = np.abs(series).max(axis=0)
-    return bool(np.all(np.abs(slope) * (t[-1] - t[0]) <= tolerance * np.maximum(scale, 1e-300)))
 
 
 def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) -> MacroModel:
@@ -110,7 +91,8 @@ def simulate(
     is called every ``snapshot_every`` seconds of wall time, after a whole step;
     ``series`` writes the ParaView snapshots when due and at the end. The profiles' bins
     follow from the packing, not from the current state, so that a resumed run records
-    as the uninterrupted one. The column's permeability
+    as the uninterrupted one. The stop distance (:func:`macro.stopping.stop_distance`) is
+    evaluated after every step and recorded. The column's permeability
     (:func:`macro.column_permeability.column_permeability`) is measured at the start,
     when the run first passes each of ``column_permeability_times_s`` and at the end.
     """
@@ -123,15 +105,17 @@ def simulate(
     new = rows is None
     if rows is None:
         rows = {k: [] for k in (
-            "time", "sensors", "axial_upper", "axial_lower", "suction", "saturation",
+            "time", "sensors", "bands", "axial_upper", "axial_lower", "suction", "saturation",
             "swelling", "suction_profile", "pellet_suction", "unbalanced", "dt", "step",
-            *INVARIANTS, *MEASUREMENT_ROWS)}
+            "stop_distance", *INVARIANTS, *MEASUREMENT_ROWS)}
+    tolerances = np.array([s.stop_tolerance] * 2 + [s.stop_pressure_tolerance] * 3)
 
     def record(dt: float) -> None:
         r = model.readings
         swell, suction = model.profiles(edges)
         rows["time"].append(model.time)
         rows["sensors"].append(r.sensors.copy())
+        rows["bands"].append(r.bands.copy())
         rows["axial_upper"].append(r.axial_upper)
         rows["axial_lower"].append(r.axial_lower)
         rows["suction"].append(model.mean_suction())
@@ -156,6 +140,15 @@ def simulate(
         times = np.asarray(s.column_permeability_times)
         return bool(np.any((times > rows["permeability_time"][-1]) & (times <= model.time)))
 
+    def distance() -> tuple[float, int]:
+        """The stop distance over the records of the window, and the quantity setting it."""
+        times = rows["time"]
+        first = bisect.bisect_left(times, times[-1] * (1.0 - s.stop_window))
+        monitored = np.column_stack([
+            np.asarray(rows["saturation"][first:]), np.asarray(rows["sensors"][first:]).mean(axis=1),
+            rows["axial_upper"][first:], rows["axial_lower"][first:]])
+        return stop_distance(np.asarray(times[first:]), monitored, s.stop_window, tolerances)
+
     def thin() -> None:
         """Every other record (the first and last kept) once there are more than
         ``THIN_ABOVE``: memory and snapshots stay bounded over long runs."""
@@ -166,45 +159,42 @@ def simulate(
 
     if new:
         record(0.0)
+        rows["stop_distance"].append(float("nan"))
         measure()
-
-    def done() -> float:
-        """Progress towards the first guard to stop the run (simulated time or steps) [1]."""
-        return max(model.time / s.max_time, model.steps / s.max_steps)
-
-    # a resumed run's ETA extrapolates the rate of its own steps
-    progress = Progress(1.0, f"macro ({model.n_pellets} pellets, {model.n_cells} cells), "
-                        "fraction of the max_time_s/max_steps guard", LOG, done_before=done())
+    progress = RunProgress(f"macro ({model.n_pellets} pellets, {model.n_cells} cells)", LOG,
+                           s.max_time, s.max_steps, s.stop_after, model.time, model.steps)
+    held_by = -1
     reason = "max_steps"
     last_snapshot = time.monotonic()
     while model.steps < s.max_steps:
         dt = model.step(max_dt=s.max_time - model.time)
         record(dt)
+        gap, held_by = distance()
+        rows["stop_distance"].append(gap)
         thin()
         if measure_due():
             measure()
         if series is not None and series.due(model):
             series.write(model)
-        progress.update(done())
+        progress.update(model.time, model.steps, rows["saturation"][-1], rows["time"], rows["stop_distance"],
+                        held_by)
         if model.time >= s.max_time * (1.0 - 1e-12):
             reason = "max_time"
             break
-        if model.steps % STOP_CHECK_STEPS == 0 and model.time >= s.stop_after and near_equilibrium(
-                np.array(rows["time"]),
-                np.column_stack([np.array(rows["sensors"]).mean(axis=1), np.array(rows["axial_upper"]),
-                                 np.array(rows["suction"])]),
-                s.stop_window, s.stop_tolerance):
+        if model.time >= s.stop_after and gap <= 1.0:
             reason = "near_equilibrium"
             break
         if snapshot is not None and time.monotonic() - last_snapshot >= snapshot_every:
             snapshot(model, rows)
             last_snapshot = time.monotonic()
-    progress.update(done(), force=True)
+    progress.update(model.time, model.steps, rows["saturation"][-1], rows["time"], rows["stop_distance"],
+                    held_by, force=True)
     if series is not None:
         series.write(model)
     if rows["permeability_time"][-1] != model.time:
         measure()
-    LOG.info("stopped (%s) at t = %.4g s after %d steps", reason, model.time, model.steps)
+    LOG.info("stopped (%s) at t = %.4g d after %d steps, stop distance %.3g%s", reason, model.time / DAY,
+             model.steps, rows["stop_distance"][-1], f" ({MONITORED[held_by]})" if held_by >= 0 else "")
     return _dataset(model, rows, edges), reason
 
 
@@ -221,14 +211,15 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
     s = model.settings
     keep = _keep(np.asarray(rows["step"]), s.records)
     pick = {k: np.asarray(v)[keep] for k, v in rows.items() if k not in MEASUREMENT_ROWS}
-    bands = np.linspace(-0.5 * s.height, 0.5 * s.height, s.sensor_bands + 1)
-    sensor_z = 0.5 * (bands[:-1] + bands[1:]) + 0.5 * s.height
     z = 0.5 * (edges[:-1] + edges[1:]) + 0.5 * s.height
     packing = model.packing  # type: ignore[attr-defined]
     coords = {
         "time": ("time", pick["time"], {"units": "s", "long_name": "simulated time"}),
-        "sensor": ("sensor", np.arange(s.sensor_bands), {"units": "1", "long_name": "wall sensor (height band)"}),
-        "sensor_height": ("sensor", sensor_z, {"units": "m", "long_name": "height of the band's middle above the lower plate"}),
+        "sensor": ("sensor", list(s.sensors.names), {"units": "1", "long_name": "radial pressure sensor (macro.sensors)"}),
+        "sensor_height": ("sensor", s.sensors.heights, {"units": "m", "long_name": "height of the sensor's centre above the lower plate"}),
+        "sensor_band_width": ("sensor", s.sensors.widths, {"units": "m", "long_name": "height of the wall band the sensor reads"}),
+        "band": ("band", np.arange(len(s.bands.names)), {"units": "1", "long_name": "equal height band of the curved wall, from the bottom"}),
+        "band_height": ("band", s.bands.heights, {"units": "m", "long_name": "height of the band's middle above the lower plate"}),
         "material": ("material", ["pellet", "powder"], {"units": "1", "long_name": "material"}),
         "z": ("z", z, {"units": "m", "long_name": "height above the lower plate"}),
         "pellet": ("pellet", np.arange(model.n_pellets), {"units": "1", "long_name": "pellet index"}),
@@ -237,14 +228,16 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
                               {"units": "s", "long_name": "simulated time of a column permeability measurement"}),
     }
     data = {
-        "sensor_pressure": (("time", "sensor"), pick["sensors"], {"units": "Pa", "long_name": "radial pressure on the curved wall per height band (swelling pressure sensors)"}),
-        "axial_pressure": (("time",), pick["axial_upper"], {"units": "Pa", "long_name": "axial pressure on the upper plate"}),
+        "sensor_pressure": (("time", "sensor"), pick["sensors"], {"units": "Pa", "long_name": "radial pressure read by each sensor: radial force in its band over 2 pi R w"}),
+        "band_pressure": (("time", "band"), pick["bands"], {"units": "Pa", "long_name": "radial pressure on the curved wall per equal height band (Appendix .1 getPressure), force over 2 pi R dz"}),
+        "axial_pressure_upper": (("time",), pick["axial_upper"], {"units": "Pa", "long_name": "axial pressure on the upper plate"}),
         "axial_pressure_lower": (("time",), pick["axial_lower"], {"units": "Pa", "long_name": "axial pressure on the lower plate"}),
         "mean_suction": (("time", "material"), pick["suction"], {"units": "Pa", "long_name": "volume-weighted mean suction"}),
         "mean_saturation": (("time", "material"), pick["saturation"], {"units": "1", "long_name": "pore-volume-weighted mean water saturation"}),
         "swelling_profile": (("time", "z"), pick["swelling"], {"units": "1", "long_name": "mean volumetric swelling strain V/V0 - 1 of pellets and powder along the axis"}),
         "suction_profile": (("time", "z"), pick["suction_profile"], {"units": "Pa", "long_name": "mean suction along the axis"}),
         "pellet_suction": (("time", "pellet"), pick["pellet_suction"], {"units": "Pa", "long_name": "suction of each pellet (field snapshots)"}),
+        "stop_distance": (("time",), pick["stop_distance"], {"units": "1", "long_name": "largest relative rate of the monitored quantities over its tolerance (1 = stop; NaN: too few records in the window)"}),
         "unbalanced_force": (("time",), pick["unbalanced"], {"units": "1", "long_name": "mean resultant over mean contact force"}),
         "time_step": (("time",), pick["dt"], {"units": "s", "long_name": "time step that ended at this record"}),
         "balanced": (("time",), (pick["unbalanced"] < s.dem_balance_tolerance).astype(np.int8),
@@ -282,6 +275,7 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
         "powder_swelling_pressure": int(s.powder_pressure),
         "powder_pressure_on_walls": int(s.powder_on_walls),
         "sensor_area_convention": "force / (2 pi R dz); the thesis's getPressure divides by pi R dz",
+        "stop_monitored": ", ".join(MONITORED),
         **{f"seconds_{k}": v for k, v in model.phase_seconds.items()},
     }
     return xr.Dataset(data, coords=coords, attrs=attrs)

@@ -53,10 +53,13 @@ def write_table(path: Path, scale: float = 1.0) -> Path:
 
 
 def small_config(**macro: Any) -> dict[str, Any]:
-    """The default configuration with a small column (about 70 pellets of 4 mm)."""
+    """The default configuration with a small column (about 70 pellets of 4 mm) and three
+    sensors 10 mm from each end and at mid-height, each over one pellet diameter."""
     config = copy.deepcopy(CONFIG)
     config["macro"].update(
         cylinder_height_m=0.05, cylinder_radius_m=0.015, pellet_radius_m=4.0e-3,
+        sensors={name: {"height_m": height, "band_width_m": 0.008}
+                 for name, height in (("S10", 0.01), ("S25", 0.025), ("S40", 0.04))},
         cases={"small": {}},
     )
     config["macro"]["numerics"]["packing_iterations"] = 1500

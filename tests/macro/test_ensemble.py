@@ -32,7 +32,7 @@ def _member(k: int, sensors, lower: bool = True) -> xr.Dataset:
     data = {
         "sensor_pressure": (("time", "sensor"), t[:, None] * SLOPES["sensor"] + c,
                             {"units": "Pa", "long_name": "radial pressure"}),
-        "axial_pressure": ("time", SLOPES["axial"] * t + c, {"units": "Pa", "long_name": "axial"}),
+        "axial_pressure_upper": ("time", SLOPES["axial"] * t + c, {"units": "Pa", "long_name": "axial"}),
         "mean_saturation": (("time", "material"), np.column_stack([0 * t + c, 0 * t + 2 * c]),
                             {"units": "1", "long_name": "mean saturation"}),
     }
@@ -64,13 +64,13 @@ def test_shifted_copies_give_the_curve_plus_the_offsets_statistics(sensors):
     band = ds["sensor_pressure_band"].transpose("quantile", "time", "sensor").values
     np.testing.assert_allclose(band[0], line + 0.7)
     np.testing.assert_allclose(band[1], line + 6.3)
-    for name, slope in (("axial_pressure", SLOPES["axial"]),
+    for name, slope in (("axial_pressure_upper", SLOPES["axial"]),
                         ("axial_pressure_lower", SLOPES["lower"])):
         np.testing.assert_allclose(ds[f"{name}_mean"].values, slope * t + 3.5)
         np.testing.assert_allclose(ds[f"{name}_band"].values, [slope * t + 0.7, slope * t + 6.3])
     np.testing.assert_allclose(ds["mean_saturation_mean"].sel(material="powder"), 7.0)
     # each member on the common axis is its own line
-    np.testing.assert_allclose(ds["axial_pressure"].sel(member="e_s5").values, 5.0 * t + 5.0)
+    np.testing.assert_allclose(ds["axial_pressure_upper"].sel(member="e_s5").values, 5.0 * t + 5.0)
     np.testing.assert_allclose(ds["member_end_time"].values, 1.0e6 * (OFFSETS + 1))
     assert list(ds["seed"].values) == list(range(8))
 
@@ -78,14 +78,14 @@ def test_shifted_copies_give_the_curve_plus_the_offsets_statistics(sensors):
 def test_quantiles_zero_and_one_give_the_min_max_band():
     ds = ensemble_statistics(_members(), points=5, quantiles=(0.0, 1.0))
     t = ds["time"].values
-    np.testing.assert_allclose(ds["axial_pressure_band"].values, [5.0 * t, 5.0 * t + 7.0])
+    np.testing.assert_allclose(ds["axial_pressure_upper_band"].values, [5.0 * t, 5.0 * t + 7.0])
 
 
 def test_the_lower_plate_is_reduced_only_when_every_member_has_it():
     members = _members()
     members["e_s3"] = members["e_s3"].drop_vars("axial_pressure_lower")
     ds = ensemble_statistics(members, points=5)
-    assert "axial_pressure_lower_mean" not in ds and "axial_pressure_mean" in ds
+    assert "axial_pressure_lower_mean" not in ds and "axial_pressure_upper_mean" in ds
 
 
 def test_members_with_other_sensors_are_refused_naming_the_member():

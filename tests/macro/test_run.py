@@ -25,9 +25,16 @@ def test_run_writes_the_contract(tmp_path, table_path):
     run(config, "small", table_path, out, tmp_path / "small.png")
     ds = xr.load_dataset(out)
     assert ds["sensor_pressure"].dims == ("time", "sensor")
-    assert ds.sizes["sensor"] == config["macro"]["sensor_bands"]
-    for name in ("axial_pressure", "mean_suction", "mean_saturation", "swelling_profile", "sensor_height"):
+    assert list(ds["sensor"].values) == ["S10", "S25", "S40"]
+    np.testing.assert_allclose(ds["sensor_height"].values, [0.01, 0.025, 0.04])
+    assert ds["band_pressure"].dims == ("time", "band")
+    assert ds.sizes["band"] == config["macro"]["sensor_bands"]
+    np.testing.assert_allclose(ds["band_height"].values, [0.005, 0.015, 0.025, 0.035, 0.045])
+    for name in ("axial_pressure_upper", "axial_pressure_lower", "mean_suction", "mean_saturation",
+                 "swelling_profile", "stop_distance"):
         assert name in ds.variables
+    # four steps leave too few records for a trend
+    assert np.isnan(ds["stop_distance"].values).all()
     assert ds.sizes["time"] == 5 and list(ds["material"].values) == ["pellet", "powder"]
     inputs = json.loads(ds.attrs["inputs"])
     assert file_sha256(table_path) in json.dumps(inputs)
@@ -56,7 +63,7 @@ def test_column_loaded_from_both_ends_is_mirror_symmetric(table_path):
     """Hydraulics: the suction profile is its own mirror image within 10 % of s0 (the
     mesh of the jittered mirror packing is not symmetric: its held and inert cells
     differ between the ends; about 7 % measured at the steepest bin). Mechanics: the two
-    plates carry the same pressure within a factor 2 and the mirrored sensor bands
+    plates carry the same pressure within a factor 2 and the mirrored equal bands
     within the spread that force chains give between bands of one side. The powder
     pushes on the container too: early on, the wetted powder of the end cells pushes the
     pellets off the plates, which then carry only that push."""
@@ -67,7 +74,7 @@ def test_column_loaded_from_both_ends_is_mirror_symmetric(table_path):
         model.step(max_dt=3000.0 - model.time)
         upper.append(model.readings.axial_upper)
         lower.append(model.readings.axial_lower)
-        sensors.append(model.readings.sensors)
+        sensors.append(model.readings.bands)
     _, suction = model.profiles(edges)
     s0 = model.material.initial_suction
     assert np.abs(suction - suction[::-1]).max() < 0.1 * s0
@@ -89,7 +96,7 @@ def test_larger_pellet_permeability_gives_a_faster_pressure_rise(tmp_path):
         config["macro"]["numerics"].update(max_time_s=400.0, max_steps=2000, stop_tolerance=0.0)
         ds = run(config, "small", table, tmp_path / f"run_{scale}.nc")
         assert ds["time"].values[-1] == pytest.approx(400.0)
-        wall = ds["sensor_pressure"].mean("sensor") + ds["axial_pressure"]
+        wall = ds["sensor_pressure"].mean("sensor") + ds["axial_pressure_upper"]
         results[scale] = (float(ds["mean_suction"].sel(material="pellet")[-1]), float(wall.mean()))
     assert results[10.0][0] < results[1.0][0]
     assert results[10.0][1] > results[1.0][1]
@@ -116,25 +123,6 @@ def test_pellets_larger_than_the_container_are_named(table_path, tmp_path):
 def test_unknown_case_is_named(table_path, tmp_path):
     with pytest.raises(KeyError, match="macro.cases has no case 'nope'"):
         run(small_config(), "nope", table_path, tmp_path / "out.nc")
-
-
-def test_near_equilibrium_stop_criterion():
-    """Flat over the window -> stop; still rising, or too short a history -> go on."""
-    from macro.run import near_equilibrium
-
-    times = np.linspace(0.0, 100.0, 50)
-    plateau = np.column_stack([1e6 * (1 - np.exp(-times / 5.0)), 5e7 + 0 * times])
-    rising = np.column_stack([1e4 * times, 5e7 + 0 * times])
-    assert near_equilibrium(times, plateau, 0.2, 0.01)
-    assert not near_equilibrium(times, rising, 0.2, 0.01)
-    assert not near_equilibrium(times[:5], plateau[:5], 0.2, 0.01)
-    assert not near_equilibrium(times, plateau, 0.2, 0.0)
-    # fluctuations of 10 % around a level (a quasi-static DEM's readings) do not hold the
-    # run, a slow drift under them does
-    long = np.linspace(0.0, 100.0, 2000)
-    noise = 0.1 * np.random.default_rng(0).standard_normal(long.size)
-    assert near_equilibrium(long, (1.0 + noise)[:, None], 0.2, 0.02)
-    assert not near_equilibrium(long, (1.0 + noise + 0.002 * long)[:, None], 0.2, 0.02)
 
 
 def test_powder_pressure_starts_at_confinement_and_stays_below_the_consolidation_line(table_path):
@@ -278,3 +266,27 @@ def test_records_are_thinned_and_picked_at_equal_step_spacing(table_path, tmp_pa
     assert ds["time_step"].values[-1] > 0.0
     keep = macro_run._keep(np.array([0, 4, 8, 16, 24, 32, 33, 34, 35, 36, 40]), 5)
     np.testing.assert_array_equal(keep, [0, 2, 4, 5, 10])  # steps 0, 8, 16/24 -> 24, 32, 40
+
+
+def test_run_stops_once_the_recorded_distance_reaches_one(table_path, tmp_path):
+    """Tolerances so loose that the first distance stops the run (stop_after_s 0): it stops
+    near equilibrium at the first record whose distance is at most 1, and every recorded
+    distance is the criterion evaluated on the written records (all of them are written:
+    fewer steps than records) in the order of macro.stopping.MONITORED."""
+    from macro.stopping import stop_distance
+
+    config = small_config()
+    config["macro"]["numerics"].update(max_steps=300, stop_after_s=0.0, stop_tolerance=10.0,
+                                       stop_pressure_tolerance=10.0, records=400)
+    ds = run(config, "small", table_path, tmp_path / "small.nc")
+    assert ds.attrs["stop_reason"] == "near_equilibrium" and ds.attrs["steps"] < 300
+    distance = ds["stop_distance"].values
+    assert distance[-1] <= 1.0 and not np.any(distance[:-1] <= 1.0)
+    times = ds["time"].values
+    monitored = np.column_stack([ds["mean_saturation"].values, ds["sensor_pressure"].mean("sensor").values,
+                                 ds["axial_pressure_upper"].values, ds["axial_pressure_lower"].values])
+    numerics = config["macro"]["numerics"]
+    for k in range(1, times.size):
+        expected = stop_distance(times[: k + 1], monitored[: k + 1], numerics["stop_window_fraction"],
+                                 np.full(5, 10.0))[0]
+        np.testing.assert_equal(distance[k], expected)
