@@ -961,6 +961,26 @@ class MacroModel:
             plastic[found] = old_plastic[source]
         return pairs, shear, plastic
 
+    def _wall_cell_pressure(self) -> FloatArray:
+        """(n_c,) the powder's pressure with the inert cells given their active neighbours'
+        mean: the hull's slivers between container points hold no powder, and the powder
+        beside them presses on the container through them."""
+        assert self._cell_pressure is not None
+        pressure = self._cell_pressure.copy()
+        known = ~self.inert[self.n_pellets:]
+        neighbours = self.mesh.neighbours
+        for _ in range(4):
+            if known.all():
+                break
+            inside = neighbours >= 0
+            hits = np.where(inside, known[np.where(inside, neighbours, 0)], False)
+            total = np.where(hits, pressure[np.where(inside, neighbours, 0)], 0.0).sum(axis=1)
+            count = hits.sum(axis=1)
+            fill = ~known & (count > 0)
+            pressure[fill] = total[fill] / count[fill]
+            known = known | fill
+        return pressure
+
     def _powder_wall_loads(self) -> tuple[FloatArray, FloatArray, float, float]:
         """Sec. 4.10: confined powder of the cells on the container pushes on it through their
         triangles on the wall and plates (the mesh's hull).
@@ -970,7 +990,7 @@ class MacroModel:
         the upper and lower plates [N]."""
         assert self._cell_pressure is not None
         mesh = self.mesh
-        force = self._cell_pressure[mesh.boundary_cells] * mesh.boundary_areas
+        force = self._wall_cell_pressure()[mesh.boundary_cells] * mesh.boundary_areas
         normals, centroids = mesh.boundary_normals, mesh.boundary_centroids
         rho = np.maximum(np.hypot(centroids[:, 0], centroids[:, 1]), 1e-300)
         radial = (normals[:, 0] * centroids[:, 0] + normals[:, 1] * centroids[:, 1]) / rho
