@@ -119,16 +119,34 @@ def test_a_small_disk_under_a_large_one_can_hide_between_scan_points() -> None:
 
 @pytest.mark.slow
 def test_scan_settles_upright_entries_as_exact_contacts_do() -> None:
-    """Twenty R = 0.1 disks entering at theta = 85 deg (the 10-20 um preset's entry), each
+    """300 R = 0.1 disks entering at theta = 85 deg (the 10-20 um preset's entry), each
     settled on the same 60-disk bed from the same pose with the same random moves, once
     with exact contacts and once with the scan (n_sp = 500): as the scan finds every
-    contact to within d_cont, they accept about as many moves (36.1 and 37.5 per particle)
-    and end as tilted (medians 23.9 and 24.7 deg). A scan that falls by its coarse grid's
-    gap leaves upright particles inside their supports, where every move overlaps: 22.9
-    moves, median 38.0 deg here (43 against 76 moves in paired runs of the 10-20 um bed)."""
+    contact to within d_cont, they accept as many moves and end as tilted. A scan that
+    falls by its coarse grid's gap leaves upright particles inside their supports, where
+    every move overlaps: about 27 % fewer accepted moves and 11 deg more mean tilt (43
+    against 76 moves in paired runs of the 10-20 um bed).
+
+    Each settlement is a chaotic trajectory: a rounding difference between CPUs (code
+    generation, FMA) changes the bed and which entries end flat (~10 deg) or upright
+    (80+ deg); only 40 % of the paired settlements here end within 1 deg of each other.
+    The former test's median tilts of 20 particles, 23.9 (scan) and 24.7 deg (exact) on
+    the machine that landed it, were 14.0 and 26.8 deg on this one; the statistics are
+    now means over 300 particles and the bounds come from their spread over seeds.
+    Measured on an AMD EPYC (AVX2 only): 29.1 scanned against 30.9 exact moves here
+    (ratio 0.94), mean tilts 41.5 and 41.1 deg. Over 10 pairs of bed (1-5) and entry
+    (6, 7) seeds the ratio was 0.94-1.05 (mean 1.00, sd 0.03, as the per-particle sd of
+    the paired difference, 16 moves, predicts) and the mean tilt difference -3.9 to
+    +1.2 deg (sd 1.4); with the coarse-grid fall (refinement of the points within
+    delta_n of the bed instead of the lowest point) 0.68-0.76 and +8.2 to +14.5 deg
+    (0.68 and +11.1 here). Perturbing the bed centres and entry poses by 1e-12 to 1e-6
+    (relative) moved the ratio by 0.002 and the difference by 0.4 deg. The bounds, 0.85
+    and 6 deg, are 5 and 4 sd from the scan's runs; the coarse-grid fall fails the
+    first by 5 sd and the second by 2."""
+    n = 300
     bed_packing = small_bed(seed=5, n=60, theta_max=np.radians(85.0), attempts=200)
     rng = np.random.default_rng(6)
-    axes = np.array([0.5, 0.5, 0.05]) * DIAMETER * rng.uniform(0.8, 1.2, (20, 1))
+    axes = np.array([0.5, 0.5, 0.05]) * DIAMETER * rng.uniform(0.8, 1.2, (n, 1))
     semi_axes = np.vstack([bed_packing.semi_axes, axes])
     bed = BedIndex(semi_axes, bed_packing.box_width, bed_packing.contact_distance, 500)
     for i in range(60):
@@ -141,9 +159,9 @@ def test_scan_settles_upright_entries_as_exact_contacts_do() -> None:
     steepest = np.array([True, True, True])
     exact_geometry = bed.geometry.copy()
     exact_geometry[8] = 0.0
-    accepted = np.zeros((20, 2))
-    tilt = np.zeros((20, 2))
-    for k in range(20):
+    accepted = np.zeros((n, 2))
+    tilt = np.zeros((n, 2))
+    for k in range(n):
         centre, rotation = _entry_pose(axes[k], params, bed, rng)
         uniforms = rng.random((3 * 200, 4))
         for mode, geometry in enumerate((exact_geometry, bed.geometry)):
@@ -154,8 +172,8 @@ def test_scan_settles_upright_entries_as_exact_contacts_do() -> None:
                 geometry, bed.found, bed.shifts, bed.drops, bed.witness)
             tilt[k, mode] = np.degrees(np.arccos(abs(r[2, 2])))
     exact, scanned = accepted.mean(axis=0)
-    assert scanned >= 0.8 * exact
-    assert abs(np.median(tilt[:, 1]) - np.median(tilt[:, 0])) <= 5.0
+    assert 0.85 <= scanned / exact <= 1.15
+    assert abs(tilt[:, 1].mean() - tilt[:, 0].mean()) <= 6.0
 
 
 def test_fall_finds_the_least_scanned_drop_of_the_whole_bed() -> None:
