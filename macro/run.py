@@ -54,7 +54,10 @@ INVARIANTS = {
     "dry_density": ("kg m-3", "dry mass of pellets and powder over the container's volume"),
 }
 """Invariants recorded at every record (:meth:`macro.model.MacroModel.invariants`): units, long name."""
-MEASUREMENT_ROWS = ("permeability_time", "column_permeability")
+MEASUREMENT_ROWS = ("permeability_time", "column_permeability", "passage")
+PASSAGE_PRESSURE = 5e5
+"""Pressure whose first passage by each sensor and plate is recorded at full time
+resolution (Sec. 4.8 compares the order in which the sensors rise) [Pa]."""
 """Records of the column permeability, on their own time coordinate (neither thinned nor picked)."""
 
 
@@ -108,6 +111,7 @@ def simulate(
             "time", "sensors", "bands", "axial_upper", "axial_lower", "suction", "saturation",
             "swelling", "suction_profile", "pellet_suction", "unbalanced", "dt", "step",
             "stop_distance", *INVARIANTS, *MEASUREMENT_ROWS)}
+    rows.setdefault("passage", [])  # absent from the snapshots of earlier versions
     tolerances = np.array([s.stop_tolerance] * 2 + [s.stop_pressure_tolerance] * 3)
 
     def record(dt: float) -> None:
@@ -128,6 +132,12 @@ def simulate(
         rows["step"].append(model.steps)
         for name, value in model.invariants().items():
             rows[name].append(value)
+        # first passage of PASSAGE_PRESSURE by the sensors, then the upper and lower plates
+        readings = np.concatenate([r.sensors, [r.axial_upper, r.axial_lower]])
+        if not rows["passage"]:
+            rows["passage"].append(np.full(readings.size, np.nan))
+        passage = rows["passage"][0]
+        passage[np.isnan(passage) & (readings >= PASSAGE_PRESSURE)] = model.time
 
     def measure() -> None:
         k = column_permeability(model).permeability
@@ -224,6 +234,7 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
         "z": ("z", z, {"units": "m", "long_name": "height above the lower plate"}),
         "pellet": ("pellet", np.arange(model.n_pellets), {"units": "1", "long_name": "pellet index"}),
         "xyz": ("xyz", ["x", "y", "z"], {"units": "1", "long_name": "axis"}),
+        "plate": ("plate", ["upper", "lower"], {"units": "1", "long_name": "plate of the container"}),
         "permeability_time": ("permeability_time", np.asarray(rows["permeability_time"]),
                               {"units": "s", "long_name": "simulated time of a column permeability measurement"}),
     }
@@ -246,6 +257,8 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
            for name, (units, long) in INVARIANTS.items()},
         "pellet_position": (("pellet", "xyz"), packing.positions, {"units": "m", "long_name": "initial pellet centre (origin at the container's centre)"}),
         "column_permeability": (("permeability_time",), np.asarray(rows["column_permeability"]), {"units": "m2", "long_name": "permeability of the whole column along its axis (steady flow between the plates, Appendix .1 emulatePermeability)"}),
+        "sensor_passage_time": (("sensor",), rows["passage"][0][:-2], {"units": "s", "long_name": f"first time the sensor read {PASSAGE_PRESSURE:g} Pa (every step; NaN: never)"}),
+        "axial_passage_time": (("plate",), rows["passage"][0][-2:], {"units": "s", "long_name": f"first time the plate read {PASSAGE_PRESSURE:g} Pa (every step; NaN: never)"}),
         "pellet_radius_final": (("pellet",), model.radii, {"units": "m", "long_name": "pellet radius at the end"}),
     }
     table = model.table

@@ -66,8 +66,9 @@ macro.run.run(json.loads(open(config).read()), "small", table, output)
 ``thin_above``."""
 THIN_ABOVE = 16
 """Records in memory before thinning in the test runs: thinned before and after kills."""
-VARYING = ("runtime_s", "resumed", "created", "history")
-"""Attributes of a result that tell when and how fast it was made, not what."""
+VARYING = ("runtime_s", "resumed", "created", "history", "code_version", "source")
+"""Attributes of a result that tell when, how fast and from which working tree it was
+made (a tree edited during the run is "-dirty"), not what."""
 
 
 def _swelling_config(steps):

@@ -117,3 +117,23 @@ def test_closed_column_keeps_its_water(small_run, monkeypatch):
         model.step()
     assert model.boundary_inflow == 0.0
     assert model.water_mass.sum() == pytest.approx(before, rel=1e-12)
+
+
+def test_first_passages_are_the_first_records_above_half_a_megapascal(tmp_path_factory):
+    """The passage times, tracked at every step, against the records kept at every step
+    (records = max_steps + 1: none thinned or dropped)."""
+    from tests._macro_cases import write_table
+
+    table = write_table(tmp_path_factory.mktemp("table") / "table.nc")
+    config = small_config()
+    config["macro"]["numerics"].update(max_steps=40, records=41, stop_tolerance=0.0)
+    ds = run(config, "small", table, tmp_path_factory.mktemp("run") / "small.nc")
+    readings = np.column_stack([ds["sensor_pressure"].values, ds["axial_pressure_upper"].values,
+                                ds["axial_pressure_lower"].values])
+    passages = np.concatenate([ds["sensor_passage_time"].values, ds["axial_passage_time"].values])
+    assert ds.sizes["time"] == 41
+    for column, passage in zip(readings.T, passages):
+        above = np.flatnonzero(column >= 5e5)
+        expected = ds["time"].values[above[0]] if above.size else np.nan
+        np.testing.assert_equal(passage, expected)
+    assert np.isfinite(passages).any()
