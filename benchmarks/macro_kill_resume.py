@@ -9,7 +9,8 @@ configuration's first macro case (``config/config.yaml``; ``MAX_STEPS`` lowers
 2. as a user would, in a process of its own (``macro.run.run``) SIGKILLed when it is
    about to take the step after the kill point, then rerun (it resumes from its
    snapshot), three times: halfway to the first remesh, and just after the remeshes a
-   third and two thirds into the run's remeshes; the last rerun finishes.
+   third and two thirds into the run's remeshes (a quarter, half and three quarters
+   into the run when it remeshes fewer than three times); the last rerun finishes.
 
 The configuration asks for a snapshot after every step (``snapshot_interval_s`` 1e-9),
 and each run writes only the one at its kill point: pickling the records at every step
@@ -125,7 +126,11 @@ def bench_macro_kill_resume(max_steps: int | None = None) -> dict:
         whole_s = time.monotonic() - start
         steps = int(whole.attrs["steps"])
         third = len(remeshed) // 3
-        kills = [remeshed[0] // 2, remeshed[third], remeshed[2 * third]] if len(remeshed) >= 3 else []
+        if len(remeshed) >= 3:
+            kills = [remeshed[0] // 2, remeshed[third], remeshed[2 * third]]
+        else:
+            # a run that never remeshes (confined pellets): a quarter, half and three quarters in
+            kills = [steps // 4, steps // 2, 3 * steps // 4]
         if len(kills) < 3 or len(set(kills)) < 3 or kills[0] < 1 or kills[-1] >= steps:
             raise ValueError(f"{steps} steps with remeshes at steps {remeshed}: too few for three "
                              "kill points; raise the max_steps (--size)")
