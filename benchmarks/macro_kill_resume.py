@@ -49,8 +49,9 @@ from shared.io import write_dataset
 __all__ = ["bench_macro_kill_resume"]
 
 ROOT = Path(__file__).resolve().parents[1]
-VARYING = ("runtime_s", "resumed", "created", "history")
-"""Attributes of a result that tell when and how fast it was made, not what."""
+VARYING = ("runtime_s", "resumed", "created", "history", "code_version", "source")
+"""Attributes of a result that tell when and how fast it was made, not what (the code
+version carries a dirty mark when the tree is edited while the runs go on)."""
 
 
 def _uninterrupted(config: dict, case: str, table: Path, output: Path) -> tuple[xr.Dataset, list[int]]:
