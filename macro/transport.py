@@ -31,7 +31,6 @@ import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-
 from sksparse.cholmod import cholesky
 
 __all__ = ["conductances", "harmonic_mean", "implicit_pressures", "limited_rates", "mass_rates", "stable_time_step"]

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from tests._macro_cases import small_config, write_table
 
-import macro.model
+import macro.hydraulics
 from macro.column_permeability import column_permeability, network_permeability
 from macro.run import build_model, simulate
 from shared.upscaling import PermeabilityTable
@@ -88,7 +88,7 @@ def _uniform(monkeypatch, model, k):
         return np.full(np.shape(values), k)
 
     monkeypatch.setattr(model.table, "permeability", same)
-    monkeypatch.setattr(macro.model, "powder_permeability", same)
+    monkeypatch.setattr(macro.hydraulics, "powder_permeability", same)
 
 
 def test_uniform_medium_on_the_network(model, monkeypatch):

@@ -105,10 +105,10 @@ def test_mixture_holds_its_target_dry_density(small_run):
 
 def test_closed_column_keeps_its_water(small_run, monkeypatch):
     """No held cells: nothing enters, the water stays to round-off."""
-    import macro.model
+    import macro.geometry
 
     _, table = small_run
-    monkeypatch.setattr(macro.model, "end_cells", lambda mesh, on_plate: np.zeros(mesh.n_cells, dtype=bool))
+    monkeypatch.setattr(macro.geometry, "end_cells", lambda mesh, on_plate: np.zeros(mesh.n_cells, dtype=bool))
     config = small_config()
     model = build_model(config, "small", PermeabilityTable.from_file(table, "free"))
     assert not model.held.any()

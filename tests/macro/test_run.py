@@ -10,7 +10,8 @@ import xarray as xr
 from tests._macro_cases import small_config, swelling, synthetic_table, write_table
 
 from macro.laws import mixture_parameters
-from macro.model import MacroModel, macro_settings
+from macro.model import MacroModel
+from macro.settings import macro_settings
 from macro.packing import Packing, pack_cylinder
 from macro.run import build_model, run
 from shared.io import OutputError, write_dataset

@@ -7,7 +7,8 @@ import pytest
 from tests._macro_cases import small_config
 
 from macro.laws import mixture_parameters
-from macro.model import MacroModel, macro_settings
+from macro.model import MacroModel
+from macro.settings import macro_settings
 from macro.packing import Packing
 from shared.upscaling import PermeabilityTable
 

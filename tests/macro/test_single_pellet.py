@@ -15,7 +15,8 @@ import pytest
 from tests._macro_cases import small_config, write_table
 
 from macro.laws import case_materials, mixture_parameters, swelling_pressure, swelling_strain
-from macro.model import MacroModel, macro_settings
+from macro.model import MacroModel
+from macro.settings import macro_settings
 from macro.packing import Packing
 from shared.upscaling import PermeabilityTable
 

@@ -14,7 +14,8 @@ from tests._macro_cases import small_config
 
 import macro.model
 from macro.laws import case_materials, mixture_parameters
-from macro.model import MacroModel, macro_settings
+from macro.model import MacroModel
+from macro.settings import macro_settings
 from macro.packing import Packing, pack_cylinder
 from shared.upscaling import PermeabilityTable
 

@@ -1,0 +1,192 @@
+"""The cells of the mixture: the Delaunay mesh of the pellet centres and the container's
+points, the cells' voids, which cells are slivers (inert) or hydrated ends (held), and a
+new mesh with a conservative transfer of the powder when a cell inverts (Sec. 4.5)."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+from threadpoolctl import threadpool_limits
+
+from macro.mixture import (
+    Exchanges,
+    cell_voids,
+    end_cells,
+    exchanges,
+    mesh_edges,
+    moved_mesh,
+    solid_angles,
+)
+from macro.settings import MacroSettings
+from shared.mesh import Mesh, mesh_from_tetrahedra
+
+FloatArray = npt.NDArray[np.float64]
+
+VOID_FLOOR = 1e-3
+"""Smallest cell void, fraction of the tetrahedron (the script's minVoidVolume ratio is 1e-4)."""
+_REMESH_WEIGHTS = 0.05 + 0.8 * np.array(
+    [(i, j, k, 3 - i - j - k) for i in range(4) for j in range(4 - i) for k in range(4 - i - j)]) / 3.0
+"""Barycentric weights of the 20 points (a lattice of the tetrahedron, shrunk towards its
+centroid) that carry equal shares of an old cell's powder in a remesh."""
+MIN_AREA_FRACTION = 1e-2
+"""Smallest powder path through a cell-cell triangle covered by pellets, fraction of it."""
+
+
+class Geometry:
+    """Mesh part of :class:`macro.model.MacroModel`: vertices, voids, moves and remeshes."""
+
+    @property
+    def n_pellets(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def n_cells(self) -> int:
+        return self.mesh.n_cells
+
+    @property
+    def n_vertices(self) -> int:
+        """Mesh vertices: the pellets, then the container's points."""
+        return self.n_pellets + int(self.container.shape[0])
+
+    def vertex_positions(self) -> FloatArray:
+        """(n_p + n_w, 3) the mesh's vertices now: pellet centres, container points [m]."""
+        return np.concatenate([self.positions, self.container])
+
+    def vertex_radii(self) -> FloatArray:
+        """(n_p + n_w,) pellet radii, 0 on the container [m]."""
+        return np.concatenate([self.radii, np.zeros(self.container.shape[0])])
+
+    def clay_radii(self) -> FloatArray:
+        """(n_p + n_w,) radii of spheres of the pellets' clay volumes, 0 on the container [m]:
+        a cell's void is its tetrahedron less the pellets' clay volumes shared by solid
+        angle, so that the voids and the pellets fill the container whatever the
+        spheres' overlaps."""
+        return np.concatenate([np.cbrt(3.0 * self.volume[:self.n_pellets] / (4.0 * np.pi)),
+                               np.zeros(self.container.shape[0])])
+
+    def _update_geometry(self) -> None:
+        n_p = self.n_pellets
+        if self.steps > 0:
+            mesh, inverted = moved_mesh(self.mesh, self.vertex_positions())
+            if np.any(inverted & ~self.inert[self.n_pellets:]):
+                self._remesh()
+            else:
+                self.mesh = mesh
+            self._omega = solid_angles(self.mesh.points, self.mesh.tetrahedra)
+        assert self._omega is not None
+        radii = self.vertex_radii()
+        voids = cell_voids(self.mesh, self.clay_radii(), self._omega, VOID_FLOOR)
+        cells = slice(n_p, None)
+        self.max_volume[cells] = voids
+        self._void = voids
+        if self._edges is None or self._edges_of is not self.mesh.tetrahedra:
+            self._edges, self._edges_of = mesh_edges(self.mesh), self.mesh.tetrahedra
+        ex = exchanges(self.mesh, radii, n_p, self._omega, MIN_AREA_FRACTION, self._edges)
+        keep = ~self.inert[ex.pairs].any(axis=1)
+        self._exchanges = Exchanges(ex.pairs[keep], ex.area[keep], ex.length[keep], ex.kind[keep])
+
+    def _remesh(self) -> None:
+        """New Delaunay mesh when an active cell inverted; the powder moves with it.
+
+        Conservative transfer: 20 points (``_REMESH_WEIGHTS``) spread over each old cell (at the
+        pellets' current positions) carry equal shares of its powder solid, water and
+        volume into the new cells that contain them (Qhull point location); shares that
+        land in a new cell without powder (a sliver) go to the nearest active one. The
+        totals are conserved to round-off; what crosses between held and free cells is
+        booked as boundary inflow. The initial void is carried the same way (for the
+        neglected void fraction). Each new cell's reference volume follows from its solid
+        (V_0 = V_s / (1 - phi_powder)), its suction is the water-weighted mean of its
+        donors' (the next local solve corrects it); held cells are re-selected and reset.
+        """
+        from scipy.spatial import Delaunay, cKDTree
+
+        n_p = self.n_pellets
+        old = slice(n_p, None)
+        interior_before = self.interior_water()
+        vertices = self.vertex_positions()
+        triangulation = Delaunay(vertices)
+        mesh = mesh_from_tetrahedra(triangulation.points, triangulation.simplices, triangulation.neighbors)
+        omega = solid_angles(mesh.points, mesh.tetrahedra)
+        voids = cell_voids(mesh, self.clay_radii(), omega, VOID_FLOOR)
+        inert, held = _cell_roles(mesh, voids, self.on_plate, n_p, self.settings)
+        # sample points of every old cell and the new cell holding each
+        corners = vertices[self.mesh.tetrahedra]  # (n_old, 4, 3)
+        samples = np.einsum("ks,csx->ckx", _REMESH_WEIGHTS, corners).reshape(-1, 3)
+        owner = np.repeat(np.arange(self.mesh.n_cells), _REMESH_WEIGHTS.shape[0])
+        # Qhull's point location calls LAPACK once per cell: threaded BLAS on a loaded
+        # machine made it 1000x slower (seconds instead of milliseconds)
+        with threadpool_limits(limits=1, user_api="blas"):
+            target = triangulation.find_simplex(samples)
+        lost = target < 0
+        if lost.any():
+            target[lost] = cKDTree(mesh.centroids).query(samples[lost])[1]
+        share = 1.0 / _REMESH_WEIGHTS.shape[0]
+        n_new = mesh.n_cells
+        initial_void = np.bincount(target, self.initial_void[owner] * share, minlength=n_new)
+        # powder of the active old cells only; shares landing in new inert cells move on
+        carries = ~self.inert[old][owner]
+        dest = target[carries]
+        stray = inert[n_p:][dest]
+        if stray.any():
+            active = np.flatnonzero(~inert[n_p:])
+            dest[stray] = active[cKDTree(mesh.centroids[active]).query(samples[carries][stray])[1]]
+        donor = owner[carries]
+
+        def moved(values: FloatArray) -> FloatArray:
+            return np.bincount(dest, values[old][donor] * share, minlength=n_new)
+
+        solid, water, volume = moved(self.solid_volume), moved(self.water_mass), moved(self.volume)
+        suction = moved(-self.pressure * self.water_mass) / np.maximum(water, 1e-300)
+        empty = solid <= 0.0
+        inert = inert | np.concatenate([np.zeros(n_p, dtype=np.bool_), empty])
+        held &= ~inert
+        phi_powder = self.powder_porosity
+        v0 = np.where(empty, voids * (1.0 - phi_powder), solid / (1.0 - phi_powder))
+        solid = np.where(empty, (1.0 - phi_powder) * v0, solid)
+        low = solid + water / self.settings.density
+        volume = np.clip(volume, low * (1.0 + 1e-6), np.maximum(voids, low * (1.0 + 1e-3)))
+        self.mesh, self._omega = mesh, omega
+        self.inert, self.held = inert, held
+        self.initial_void = initial_void
+        self.water_mass = np.concatenate([self.water_mass[:n_p], water])
+        self.solid_volume = np.concatenate([self.solid_volume[:n_p], solid])
+        self.reference_volume = np.concatenate([self.reference_volume[:n_p], v0])
+        self.volume = np.concatenate([self.volume[:n_p], volume])
+        self.max_volume = np.concatenate([self.max_volume[:n_p], np.maximum(voids, volume * (1.0 + 1e-6))])
+        self.pressure = np.concatenate([self.pressure[:n_p],
+                                        -np.where(empty, self.material.initial_suction, suction)])
+        assert self.stress is not None
+        self.stress = np.concatenate([self.stress[:n_p], np.zeros(n_new)])
+        self._hold_boundary()
+        self.boundary_inflow += self.interior_water() - interior_before
+        self.remeshes += 1
+
+
+    def _moved_geometry(self) -> bool:
+        """The cells' geometry and voids at the pellets' current positions (same
+        connectivity); False, and nothing changed, when an active cell has inverted."""
+        mesh, inverted = moved_mesh(self.mesh, self.vertex_positions())
+        if np.any(inverted & ~self.inert[self.n_pellets:]):
+            return False
+        self.mesh = mesh
+        self._omega = solid_angles(mesh.points, mesh.tetrahedra)
+        self._void = cell_voids(mesh, self.clay_radii(), self._omega, VOID_FLOOR)
+        return True
+
+
+
+def _cell_roles(mesh: Mesh, voids: FloatArray, on_plate: npt.NDArray[np.bool_], n_pellets: int,
+                settings: MacroSettings) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Inert (sliver) and held (hydrated end) flags over all systems (pellets never).
+
+    Inert: cells whose void is below ``min_cell_void_fraction`` of the mean void (slivers
+    between container points; after remeshes also cells squeezed by swollen pellets,
+    whose powder the remesh hands to their neighbours). Held: active cells with a vertex
+    on a plate (:func:`macro.mixture.end_cells`).
+    """
+    none = np.zeros(n_pellets, dtype=np.bool_)
+    inert = voids < settings.min_cell_void_fraction * voids.mean()
+    held = end_cells(mesh, on_plate) & ~inert
+    return np.concatenate([none, inert]), np.concatenate([none, held])
+
+

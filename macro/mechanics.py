@@ -1,0 +1,277 @@
+"""Forces on the pellets: the powder's swelling pressure on its cell contour (Eqs.
+4.31-4.38), Hertz-Mindlin contacts between pellets and against the container, and the
+quasi-static relaxation that balances them; the confining stress of each pellet.
+
+The quasi-static DEM uses a fictitious mass per pellet equal to its contact stiffness
+(time unit 1), so every substep is stable whatever the moduli (density scaling, as
+the thesis's script scales the density by 1e10); it is a relaxation, not dynamics.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from macro import _kernels
+from macro.laws import (
+    consolidation_pressure,
+    saturation,
+    swelling_pressure,
+    swelling_strain,
+    yield_force,
+    yield_pressure,
+    young_modulus,
+)
+from macro.mixture import facet_angles
+from macro.readings import Readings
+from shared.dem import detect_contacts
+
+FloatArray = npt.NDArray[np.float64]
+
+POWDER_REFRESH = 50
+"""DEM substeps between two updates of the powder's push to the pellets' positions."""
+MAX_OVERLAP_LOSS = 0.3
+"""Largest fraction of a pellet's sphere that its overlaps may cut off."""
+
+
+class Mechanics:
+    """Mechanics part of :class:`macro.model.MacroModel`."""
+
+    def powder_pressure(self) -> tuple[FloatArray, FloatArray]:
+        """Effective pressure of the powder on its cell contour [Pa] (Eqs. 4.31-4.35) and
+        its derivative with respect to the cell's void [Pa/m3], both (n_c,).
+
+        The powder swells freely until it fills its cell's void V_c; held there, it
+        presses with the swelling pressure of the confined clay
+        (:func:`macro.laws.swelling_pressure`, zero at the moment of confinement), scaled
+        by the powder's share of the tetrahedron V / V_t (Eq. 4.35). A cell squeezed below
+        the powder's densest state (its solid at the smallest porosity, or solid and
+        water) presses as at that state. With the pellets' yield (Eq. 4.4) on, at most
+        the yield pressure of the cell's weakest pellet. Zero everywhere when
+        ``macro.powder_swelling_pressure`` is off.
+        """
+        cells = slice(self.n_pellets, None)
+        if not self.settings.powder_pressure:
+            return np.zeros(self.n_cells), np.zeros(self.n_cells)
+        assert self._void is not None
+        held = np.maximum(self._void, self.densest_volume(cells))
+        suction = -self.pressure[cells]
+        solid_mass = self.solid_mass()[cells]
+        porosity = self.retention_porosity()[cells]
+        free = self.reference_volume[cells] * (1.0 + swelling_strain(suction, self.material))
+        share = np.minimum(free, held) / self.mesh.volumes
+        active = ~self.inert[cells] & (free > held)
+        pressure = np.where(active, swelling_pressure(held, suction, solid_mass, self.reference_volume[cells],
+                                                      porosity, self.material) * share, 0.0)
+        bound = self._pressure_bound()
+        capped = pressure > bound
+        pressure = np.where(capped, bound, pressure)
+        # d/dV_c of S p'_vc(m_s / V_c) V_c / V_t
+        line = saturation(suction, porosity, self.material) * consolidation_pressure(solid_mass / held, self.material)
+        slope = line * self.material.alpha_v * solid_mass / held**2 * share
+        return pressure, np.where(active & ~capped, slope, 0.0)
+
+    def _pressure_bound(self) -> FloatArray:
+        """(n_c,) the largest push of each cell's powder [Pa]: the yield pressure of its
+        weakest pellet (:func:`macro.laws.yield_pressure`: the pellets' surface gives way
+        first); a cell with only container points is bounded by its neighbours' bounds
+        (the powder around it gives way), inf without yield."""
+        tet, n_p = self.mesh.tetrahedra, self.n_pellets
+        strength = np.append(yield_pressure(-self.pressure[:n_p], self.radii, self.material), np.inf)
+        bound = strength[np.where(tet < n_p, tet, n_p)].min(axis=1)
+        if not np.isfinite(strength[:n_p]).any():
+            return bound
+        neighbours = self.mesh.neighbours
+        for _ in range(4):
+            unbounded = np.isinf(bound)
+            if not unbounded.any():
+                break
+            # a missing neighbour (-1) reads the appended -inf
+            around = np.append(bound, -np.inf)[neighbours]
+            bound = np.where(unbounded, np.where(np.isfinite(around), around, -np.inf).max(axis=1), bound)
+            bound[np.isneginf(bound)] = np.inf
+        return bound
+
+    def hydro_forces(self, cell_pressure: FloatArray) -> FloatArray:
+        """(n_p, 3) forces of the cell pressures on the pellets [N] (Eqs. 4.34-4.38).
+
+        A pellet's sector A_k = theta r^2 / 2 of each triangle is pushed by the pressure
+        difference across it, A_k (P_i - P_j) n_ij (n_ij from cell i to j). The mesh's hull
+        is made of container points, which have no sectors: no pellet is pushed there.
+        """
+        mesh = self.mesh
+        verts, cells = mesh.facet_vertices, mesh.facet_cells
+        sector = 0.5 * facet_angles(mesh.points, verts) * self.vertex_radii()[verts] ** 2
+        jump = cell_pressure[cells[:, 0]] - cell_pressure[cells[:, 1]]
+        vec = (sector * jump[:, None])[:, :, None] * mesh.facet_normals[:, None, :]
+        forces = np.empty((self.n_vertices, 3))
+        for c in range(3):
+            forces[:, c] = np.bincount(verts.ravel(), vec[:, :, c].ravel(), minlength=self.n_vertices)
+        return forces[:self.n_pellets]
+
+    def relax(self, substeps: int) -> Readings:
+        """Quasi-static DEM under the current radii, moduli and powder: damped substeps
+        until the unbalanced force ratio is below ``dem_balance_tolerance``, at most
+        ``substeps`` (counted in ``dem_substeps_used``).
+
+        The powder's push and its stiffness (dP/dV_c A^2 over a pellet's cells, added to
+        the fictitious mass) are those of the step's geometry.
+        """
+        s = self.settings
+        n_p = self.n_pellets
+        young = young_modulus(-self.pressure[:n_p], self.material)
+        strength = yield_force(-self.pressure[:n_p], self.material)
+        assert self._wall_plastic is not None
+        nu = self.material.poisson_ratio
+        z_lo, z_hi = -0.5 * s.height, 0.5 * s.height
+        skin = 0.2 * float(self.radii.mean())
+        pairs, shear, plastic = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin))
+        reference = self.positions.copy()
+        # fictitious mass floor: the stiffness of a contact overlapping by 1e-3 r
+        floor = 2.0 * young / (1.0 - nu * nu) * self.radii * np.sqrt(1e-3)
+        cap = 1e-3 * self.radii
+        external, powder_stiffness = self._powder_load()
+        refresh = substeps > 0
+        # displacement and rotation of the last substep (none before the first)
+        moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))
+        anchor = self.positions.copy()
+        for k in range(substeps + 1):
+            if refresh and k > 0 and k % POWDER_REFRESH == 0:
+                # the powder's push follows the pellets: voids reopen as they move apart
+                refresh = self._moved_geometry()
+                if refresh:
+                    external, powder_stiffness = self._powder_load()
+                    anchor = self.positions.copy()
+            if 2.0 * np.sqrt(((self.positions - reference) ** 2).sum(axis=1)).max() > skin:
+                pairs, shear, plastic = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin),
+                                                       pairs, shear, plastic)
+                reference = self.positions.copy()
+            # between two updates, the push linearised about them (isotropic mean of the
+            # cells' stiffness: moving into a cell squeezes it and opens the opposite one)
+            forces = external - powder_stiffness[:, None] / 3.0 * (self.positions - anchor)
+            torques = np.zeros((n_p, 3))
+            stiffness = powder_stiffness.copy()
+            normal = _kernels.hertz_mindlin_pairs(self.positions, moved, turned, self.radii, young, nu,
+                                                  self.material.friction, pairs, shear, forces, torques,
+                                                  stiffness, strength, plastic)
+            radial, lower, upper = _kernels.container_contacts(
+                self.positions, self.radii, young, nu, s.radius, z_lo, z_hi, forces, stiffness, strength,
+                self._wall_plastic)
+            carried = np.concatenate([normal[normal > 0.0], radial[radial > 0.0],
+                                      lower[lower > 0.0], upper[upper > 0.0]])
+            resultant = np.sqrt((forces**2).sum(axis=1)).mean()
+            unbalanced = float(resultant / carried.mean()) if carried.size else 0.0
+            if k == substeps or unbalanced < s.dem_balance_tolerance:
+                break
+            mass = np.maximum(stiffness, floor)[:, None]
+            self.velocities = _damped_update(self.velocities, forces, mass, s.dem_damping, cap)
+            self.spins = _damped_update(self.spins, torques, mass * self.radii[:, None] ** 2, s.dem_damping,
+                                        cap / self.radii)
+            moved, turned = self.velocities, self.spins
+            self.positions += self.velocities
+        self._contact_pairs, self._shear, self._plastic = pairs, shear, plastic
+        self.dem_substeps_used += k
+        self._confine(pairs, normal, np.maximum(radial, 0.0) + np.maximum(lower, 0.0) + np.maximum(upper, 0.0))
+        # radial loads on the curved wall at their contact's height above the lower plate
+        heights, loads = self.positions[:, 2] + 0.5 * s.height, radial
+        area = np.pi * s.radius**2
+        upper_force, lower_force = float(upper.sum()), float(lower.sum())
+        if s.powder_on_walls:
+            wall_heights, wall_loads, extra_upper, extra_lower = self._powder_wall_loads()
+            heights, loads = np.concatenate([heights, wall_heights]), np.concatenate([loads, wall_loads])
+            upper_force += extra_upper
+            lower_force += extra_lower
+        return Readings(s.sensors.pressures(heights, loads, s.radius),
+                        s.bands.pressures(heights, loads, s.radius),
+                        upper_force / area, lower_force / area, unbalanced)
+
+    def _powder_load(self) -> tuple[FloatArray, FloatArray]:
+        """The powder's push on the pellets (n_p, 3) [N] (Eqs. 4.34-4.38) and its stiffness
+        per pellet, dP/dV_c A^2 over the pellet's cells [N/m], at the current geometry."""
+        assert self._omega is not None
+        tet = self.mesh.tetrahedra
+        self._cell_pressure, slope = self.powder_pressure()
+        area = self._omega * self.vertex_radii()[tet] ** 2
+        stiffness = np.bincount(tet.ravel(), (slope[:, None] * area**2).ravel(),
+                                minlength=self.n_vertices)[:self.n_pellets]
+        return self.hydro_forces(self._cell_pressure), stiffness
+
+
+    def _confine(self, pairs: npt.NDArray[np.int64], normal: FloatArray, walls: FloatArray) -> None:
+        """Confining stress of every pellet from the relaxed state, and the volume its
+        sphere loses to overlaps.
+
+        The mean stress on a sphere is the normal load over its surface,
+        (sum of contact forces + sum_c P_c Omega_c r^2) / (4 pi r^2) (contacts, walls
+        and the powder's push over the sphere's sectors in its cells); it enters the
+        pellet's swelling target under-relaxed by ``stress_relaxation`` (the pellets'
+        volumes and contacts are coupled explicitly, step by step). The overlaps' caps
+        (with other pellets and the container) are the volume the sphere of a pellet
+        loses, so that its radius keeps its clay volume (:meth:`step`).
+        """
+        assert self.stress is not None and self._omega is not None and self._cell_pressure is not None
+        n_p, s = self.n_pellets, self.settings
+        radii = self.radii
+        load = walls + np.bincount(pairs[:, 0], normal, minlength=n_p) \
+            + np.bincount(pairs[:, 1], normal, minlength=n_p)
+        tet = self.mesh.tetrahedra
+        surface = self._cell_pressure[:, None] * self._omega * self.vertex_radii()[tet] ** 2
+        load += np.bincount(tet.ravel(), surface.ravel(), minlength=self.n_vertices)[:n_p]
+        measured = load / (4.0 * np.pi * radii**2)
+        self.stress[:n_p] += s.stress_relaxation * (measured - self.stress[:n_p])
+        # caps cut off each sphere by its overlaps: pellets (plane of the lens) and container
+        i, j = pairs[:, 0], pairs[:, 1]
+        distance = np.linalg.norm(self.positions[j] - self.positions[i], axis=1)
+        touching = radii[i] + radii[j] > distance
+        i, j, distance = i[touching], j[touching], distance[touching]
+        plane = (distance**2 + radii[i] ** 2 - radii[j] ** 2) / (2.0 * distance)
+        lost = np.bincount(i, _cap_volume(radii[i], radii[i] - plane), minlength=n_p) \
+            + np.bincount(j, _cap_volume(radii[j], radii[j] - (distance - plane)), minlength=n_p) + 0.0
+        axis = np.hypot(self.positions[:, 0], self.positions[:, 1])
+        for depth in (radii + axis - s.radius, radii - self.positions[:, 2] - 0.5 * s.height,
+                      radii + self.positions[:, 2] - 0.5 * s.height):
+            lost += _cap_volume(radii, np.maximum(depth, 0.0))
+        self._occupied_loss = np.minimum(lost / (4.0 / 3.0 * np.pi * radii**3), MAX_OVERLAP_LOSS)
+
+    def _contacts(self, pairs: npt.NDArray[np.int64], old_pairs: npt.NDArray[np.int64] | None = None,
+                  old_shear: FloatArray | None = None, old_plastic: FloatArray | None = None,
+                  ) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
+        """Detected pairs, their shear forces and plastic overlaps carried over from the
+        same pairs before (by default the contacts at the end of the last relaxation); new
+        pairs start at 0."""
+        if old_pairs is None:
+            old_pairs, old_shear, old_plastic = self._contact_pairs, self._shear, self._plastic
+        shear = np.zeros((pairs.shape[0], 3))
+        plastic = np.zeros(pairs.shape[0])
+        if old_pairs is not None and old_shear is not None and old_plastic is not None \
+                and old_pairs.size and pairs.size:
+            n = self.n_pellets
+            old_code = old_pairs.min(axis=1) * n + old_pairs.max(axis=1)
+            code = pairs.min(axis=1) * n + pairs.max(axis=1)
+            order = np.argsort(old_code)
+            where = np.clip(np.searchsorted(old_code[order], code), 0, old_code.size - 1)
+            found = old_code[order][where] == code
+            source = order[where[found]]
+            # the stored force acts on the pair's first pellet: flip where the order flipped
+            sign = np.where(old_pairs[source, 0] == pairs[found, 0], 1.0, -1.0)
+            shear[found] = old_shear[source] * sign[:, None]
+            plastic[found] = old_plastic[source]
+        return pairs, shear, plastic
+
+
+
+def _cap_volume(radius: FloatArray, height: FloatArray) -> FloatArray:
+    """Volume of spherical caps pi h^2 (3 r - h) / 3 [m3]."""
+    return np.pi * height**2 * (3.0 * radius - height) / 3.0
+
+
+
+def _damped_update(rate: FloatArray, drive: FloatArray, inertia: FloatArray, damping: float,
+                   cap: FloatArray) -> FloatArray:
+    """A damped substep of a velocity (or spin) per substep: Cundall's damping of the
+    drive (force or torque) against the half-step rate, then the rate capped per pellet."""
+    mid = rate + 0.5 * drive / inertia
+    rate = rate + drive * (1.0 - damping * np.sign(drive * mid)) / inertia
+    speed = np.sqrt((rate**2).sum(axis=1))
+    return rate * np.minimum(1.0, cap / np.maximum(speed, 1e-300))[:, None]
+

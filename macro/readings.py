@@ -1,0 +1,149 @@
+"""What the model reports: the container's readings (sensor bands, plates, the powder's
+push through the hull), water and volume invariants, means and axial profiles."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass
+class Readings:
+    """Wall readings of one instant: pressures of the named sensors (sensors,) and of the
+    equal height bands (bands,) [Pa], axial pressures on the upper and lower plates [Pa],
+    unbalanced force ratio [1]."""
+
+    sensors: FloatArray
+    bands: FloatArray
+    axial_upper: float
+    axial_lower: float
+    unbalanced: float
+
+
+
+class WallReadings:
+    """Readings part of :class:`macro.model.MacroModel`."""
+
+    def _wall_cell_pressure(self) -> FloatArray:
+        """(n_c,) the powder's pressure with the inert cells given their active neighbours'
+        mean: the hull's slivers between container points hold no powder, and the powder
+        beside them presses on the container through them."""
+        assert self._cell_pressure is not None
+        pressure = self._cell_pressure.copy()
+        known = ~self.inert[self.n_pellets:]
+        neighbours = self.mesh.neighbours
+        for _ in range(4):
+            if known.all():
+                break
+            inside = neighbours >= 0
+            hits = np.where(inside, known[np.where(inside, neighbours, 0)], False)
+            total = np.where(hits, pressure[np.where(inside, neighbours, 0)], 0.0).sum(axis=1)
+            count = hits.sum(axis=1)
+            fill = ~known & (count > 0)
+            pressure[fill] = total[fill] / count[fill]
+            known = known | fill
+        return pressure
+
+    def _powder_wall_loads(self) -> tuple[FloatArray, FloatArray, float, float]:
+        """Sec. 4.10: confined powder of the cells on the container pushes on it through their
+        triangles on the wall and plates (the mesh's hull).
+
+        Returns the height above the lower plate [m] and the radial force [N] of each
+        triangle on the curved wall (its centroid is its contact point), and the forces on
+        the upper and lower plates [N]."""
+        assert self._cell_pressure is not None
+        mesh = self.mesh
+        force = self._wall_cell_pressure()[mesh.boundary_cells] * mesh.boundary_areas
+        normals, centroids = mesh.boundary_normals, mesh.boundary_centroids
+        rho = np.maximum(np.hypot(centroids[:, 0], centroids[:, 1]), 1e-300)
+        radial = (normals[:, 0] * centroids[:, 0] + normals[:, 1] * centroids[:, 1]) / rho
+        side = np.abs(normals[:, 2]) <= np.sqrt(0.5)
+        upper = float((force * np.maximum(normals[:, 2], 0.0))[~side].sum())
+        lower = float((force * np.maximum(-normals[:, 2], 0.0))[~side].sum())
+        return (centroids[side, 2] + 0.5 * self.settings.height, (force * np.maximum(radial, 0.0))[side],
+                upper, lower)
+
+
+    @property
+    def readings(self) -> Readings:
+        assert self._readings is not None
+        return self._readings
+
+    def neglected_void_fraction(self) -> float:
+        """Fraction of the cells' initial void in cells without powder [1]."""
+        cells = slice(self.n_pellets, None)
+        return float(self.initial_void[self.inert[cells]].sum() / self.initial_void.sum())
+
+    def invariants(self) -> dict[str, float]:
+        """What the model must conserve, now: water mass of the pellets, of the free
+        powder and in the held end cells [kg]; the balance residual, interior water less
+        the initial interior water and the boundary inflow [kg]; the solids and water of
+        pellets and active cells over the container's volume, and the pellets' clay with
+        the powder's solid and water over it [1]; the largest overfill of a cell, its
+        powder's solid and water over its void less 1 [1]; the dry density of the
+        pellets and active cells over the container [kg/m3]."""
+        n_p, rho = self.n_pellets, self.settings.density
+        cells = n_p + np.flatnonzero(~self.inert[n_p:])
+        free_cells = cells[~self.held[cells]]
+        container = np.pi * self.settings.radius**2 * self.settings.height
+        solid = self.solid_volume[:n_p].sum() + self.solid_volume[cells].sum()
+        water = self.water_mass[:n_p].sum() + self.water_mass[cells].sum()
+        powder = self.solid_volume[cells] + self.water_mass[cells] / rho
+        assert self._void is not None
+        return {
+            "water_pellets": float(self.water_mass[:n_p].sum()),
+            "water_powder": float(self.water_mass[free_cells].sum()),
+            "water_held": float(self.water_mass[self.held].sum()),
+            "water_residual": self.interior_water() - self.initial_interior_water - self.boundary_inflow,
+            "solid_water_fraction": float((solid + water / rho) / container),
+            "occupied_fraction": float((self.volume[:n_p].sum() + powder.sum()) / container),
+            "largest_overfill": float(np.max(powder / self._void[cells - n_p]) - 1.0),
+            "dry_density": float(self.material.grain_density * solid / container),
+        }
+
+    def dry_mass_ratio(self) -> float:
+        """Dry mass of the pellets over that of the powder in the active cells [1]."""
+        n_p = self.n_pellets
+        cells = n_p + np.flatnonzero(~self.inert[n_p:])
+        return float(self.solid_volume[:n_p].sum() / self.solid_volume[cells].sum())
+
+    def interior_water(self) -> float:
+        """Water mass of the systems not held [kg]."""
+        return float(self.water_mass[~self.held].sum())
+
+    def mean_suction(self) -> tuple[float, float]:
+        """Volume-weighted mean suction of the pellets and of the free powder cells [Pa]."""
+        n_p = self.n_pellets
+        s = -self.pressure
+        cells = n_p + np.flatnonzero(~self.inert[n_p:])
+        return (float(np.average(s[:n_p], weights=self.volume[:n_p])),
+                float(np.average(s[cells], weights=self.volume[cells])))
+
+    def mean_saturation(self) -> tuple[float, float]:
+        """Pore-volume-weighted mean saturation of pellets and powder [1]."""
+        n_p = self.n_pellets
+        sat = self.saturations()
+        pore = self.volume - self.solid_volume
+        cells = n_p + np.flatnonzero(~self.inert[n_p:])
+        return (float(np.average(sat[:n_p], weights=pore[:n_p])),
+                float(np.average(sat[cells], weights=pore[cells])))
+
+    def profiles(self, edges: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Along the axis (bins ``edges``): mean swelling strain V/V_0 - 1 of pellets and
+        powder (volume-weighted) [1], and mean suction [Pa]."""
+        n_p = self.n_pellets
+        z = np.concatenate([self.positions[:, 2], self.mesh.centroids[:, 2]])
+        bins = np.clip(np.searchsorted(edges, z) - 1, 0, edges.size - 2)
+        n = edges.size - 1
+        v0 = np.where(self.inert, 0.0, self.reference_volume)
+        weight = np.bincount(bins, v0, minlength=n)
+        swell = np.bincount(bins, self.volume - v0, minlength=n)
+        suction = np.bincount(bins, -self.pressure * v0, minlength=n)
+        del n_p
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return swell / weight, suction / weight
+
