@@ -213,7 +213,7 @@ def yield_force(suction: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
     an area it gives 50 N at 132 MPa and 6 N at 1 MPa, the order of the crushing forces of
     bentonite pellets, and a Hertz contact between two 6 mm pellets reaches it at a mean
     contact pressure of about 26 MPa dry and 5 MPa wet: the yield stress "normal force
-    divided by the contact area" of the text (see :func:`macro._kernels.hertz_yield`).
+    divided by the contact area" of the text (see :func:`shared.dem.hertz_yield`).
     inf when the yield is off (``materials.mixture_pellet.yield``).
     """
     s = np.asarray(suction, dtype=np.float64)

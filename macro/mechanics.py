@@ -12,7 +12,6 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from macro import _kernels
 from macro.laws import (
     consolidation_pressure,
     saturation,
@@ -24,7 +23,7 @@ from macro.laws import (
 )
 from macro.mixture import facet_angles
 from macro.readings import Readings
-from shared.dem import detect_contacts
+from shared.dem import cylinder_contacts, damped_update, detect_contacts, yielding_hertz_mindlin
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -151,10 +150,10 @@ class Mechanics:
             forces = external - powder_stiffness[:, None] / 3.0 * (self.positions - anchor)
             torques = np.zeros((n_p, 3))
             stiffness = powder_stiffness.copy()
-            normal = _kernels.hertz_mindlin_pairs(self.positions, moved, turned, self.radii, young, nu,
+            normal = yielding_hertz_mindlin(self.positions, moved, turned, self.radii, young, nu,
                                                   self.material.friction, pairs, shear, forces, torques,
                                                   stiffness, strength, plastic)
-            radial, lower, upper = _kernels.container_contacts(
+            radial, lower, upper = cylinder_contacts(
                 self.positions, self.radii, young, nu, s.radius, z_lo, z_hi, forces, stiffness, strength,
                 self._wall_plastic)
             carried = np.concatenate([normal[normal > 0.0], radial[radial > 0.0],
@@ -164,8 +163,8 @@ class Mechanics:
             if k == substeps or unbalanced < s.dem_balance_tolerance:
                 break
             mass = np.maximum(stiffness, floor)[:, None]
-            self.velocities = _damped_update(self.velocities, forces, mass, s.dem_damping, cap)
-            self.spins = _damped_update(self.spins, torques, mass * self.radii[:, None] ** 2, s.dem_damping,
+            self.velocities = damped_update(self.velocities, forces, mass, s.dem_damping, cap)
+            self.spins = damped_update(self.spins, torques, mass * self.radii[:, None] ** 2, s.dem_damping,
                                         cap / self.radii)
             moved, turned = self.velocities, self.spins
             self.positions += self.velocities
@@ -263,15 +262,3 @@ class Mechanics:
 def _cap_volume(radius: FloatArray, height: FloatArray) -> FloatArray:
     """Volume of spherical caps pi h^2 (3 r - h) / 3 [m3]."""
     return np.pi * height**2 * (3.0 * radius - height) / 3.0
-
-
-
-def _damped_update(rate: FloatArray, drive: FloatArray, inertia: FloatArray, damping: float,
-                   cap: FloatArray) -> FloatArray:
-    """A damped substep of a velocity (or spin) per substep: Cundall's damping of the
-    drive (force or torque) against the half-step rate, then the rate capped per pellet."""
-    mid = rate + 0.5 * drive / inertia
-    rate = rate + drive * (1.0 - damping * np.sign(drive * mid)) / inertia
-    speed = np.sqrt((rate**2).sum(axis=1))
-    return rate * np.minimum(1.0, cap / np.maximum(speed, 1e-300))[:, None]
-

@@ -22,6 +22,7 @@ from shared.dem.contacts import (
 from shared.dem.hertz import bond_stretches, bond_tension, contact_forces
 from shared.dem.integrator import (
     StepReport,
+    damped_update,
     integrate,
     limit_speed,
     stable_time_step,
@@ -38,6 +39,7 @@ from shared.dem.walls import (
     wall_forces,
     walls_around,
 )
+from shared.dem.yielding import cylinder_contacts, hertz_yield, yielding_hertz_mindlin
 
 __all__ = [
     "dem_parameters",
@@ -67,4 +69,8 @@ __all__ = [
     "wall_forces",
     "walls_around",
     "limit_speed",
+    "cylinder_contacts",
+    "damped_update",
+    "hertz_yield",
+    "yielding_hertz_mindlin",
 ]

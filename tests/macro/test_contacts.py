@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from macro._kernels import container_contacts, hertz_mindlin_pairs
+from shared.dem import cylinder_contacts as container_contacts
+from shared.dem import yielding_hertz_mindlin as hertz_mindlin_pairs
 
 
 def _pair(overlap, young=(8e8, 4e8)):
