@@ -1,4 +1,4 @@
-"""Hertz-Mindlin contacts of the macro DEM (Eqs. 4.1-4.9) against closed forms."""
+"""Contacts of swelling pellets (shared.dem.yielding): Hertz-Mindlin with yield and the cylinder, against closed forms (Eqs. 4.1-4.9)."""
 
 from __future__ import annotations
 
