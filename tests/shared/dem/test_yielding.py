@@ -1,4 +1,5 @@
-"""Contacts of swelling pellets (shared.dem.yielding): Hertz-Mindlin with yield and the cylinder, against closed forms (Eqs. 4.1-4.9)."""
+"""Contacts of swelling pellets (shared.dem.yielding): Hertz-Mindlin with yield and the
+cylinder, against closed forms (Eqs. 4.1-4.9)."""
 
 from __future__ import annotations
 
