@@ -177,6 +177,12 @@ def _check_micro(config: Mapping[str, Any]) -> None:
         return
     if micro["sample"] not in config["samples"]:
         raise ConfigError(f"config key 'micro.sample': {micro['sample']!r} is not a sample")
+    for case, entry in micro["cases"].items():
+        if entry.get("sample", micro["sample"]) not in config["samples"]:
+            raise ConfigError(
+                f"config key 'micro.cases.{case}.sample': {entry['sample']!r} is not a sample "
+                f"(samples: {', '.join(sorted(config['samples']))})"
+            )
     checkpoints = list(micro["checkpoints_suction_pa"])
     if any(later >= earlier for earlier, later in zip(checkpoints, checkpoints[1:])):
         raise ConfigError(

@@ -485,6 +485,8 @@ CONFIGS = {
     "porosity_bounds_three_values": (_set("imaging.calibration.porosity_bounds", [0, 0.5, 1]),
                                      "imaging.calibration.porosity_bounds"),
     "micro_sample_unknown": (_set("micro.sample", "nowhere"), "micro.sample"),
+    "micro_case_sample_unknown": (_set("micro.cases.heterogeneous.sample", "nowhere"),
+                                  "micro.cases.heterogeneous.sample"),
     "checkpoints_increasing": (_set("micro.checkpoints_suction_pa", [1e6, 1e7]),
                                "micro.checkpoints_suction_pa"),
     "case_material_unknown_key": (

@@ -99,8 +99,14 @@ def get_packing_config(wildcards):
 
 
 def get_micro_porosity(wildcards):
-    """The porosity grid that informs the micro cases."""
-    return f"results/porosity/{config['micro']['sample']}.nc"
+    """The porosity grid that informs a micro case (a scale realization: its reference
+    case): that of the case's own sample, else of micro.sample."""
+    micro = config["micro"]
+    if hasattr(wildcards, "realization"):
+        entry = micro["cases"][micro["studies"]["scale"]["reference"]]
+    else:
+        entry = micro["cases"][wildcards.case]
+    return f"results/porosity/{entry.get('sample', micro['sample'])}.nc"
 
 
 def _micro_with_case(name, entry):
