@@ -10,14 +10,14 @@ from the current rules' after a config edit, i.e. the jobs that the edit itself 
 from __future__ import annotations
 
 import copy
-import os
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 import yaml
+from tests.workflow._chain import snakemake as _snakemake
+from tests.workflow._chain import workdir as _workdir
 
 ROOT = Path(__file__).resolve().parents[2]
 PRESET = "config/paper/macro_ensemble.yaml"
@@ -34,30 +34,6 @@ TINY = {
         "ensembles": {"e": {"case": "b", "seeds": [1, 2]}},
     },
 }
-
-
-def _workdir(tmp: Path, config: dict | None) -> Path:
-    """The workflow in ``tmp`` with ``config`` (None: the repository's config folder)."""
-    shutil.copy(ROOT / "Snakefile", tmp / "Snakefile")
-    shutil.copytree(ROOT / "workflow", tmp / "workflow")
-    if config is None:
-        shutil.copytree(ROOT / "config", tmp / "config")
-    else:
-        (tmp / "config").mkdir()
-        (tmp / "config" / "config.yaml").write_text(yaml.safe_dump(config))
-    return tmp
-
-
-def _snakemake(workdir: Path, *args: str, ok: bool = True) -> subprocess.CompletedProcess:
-    # the packages of this checkout, not those the environment has installed
-    path = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
-    result = subprocess.run(
-        [sys.executable, "-m", "snakemake", "--cores", "2", *args],
-        cwd=workdir, capture_output=True, text=True, timeout=600,
-        env={**os.environ, "PYTHONPATH": path},
-    )
-    assert (result.returncode == 0) == ok, result.stderr[-3000:]
-    return result
 
 
 def _listed(result: subprocess.CompletedProcess) -> set[str]:

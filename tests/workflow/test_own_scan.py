@@ -10,19 +10,13 @@ disk.
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-import yaml
+from tests.workflow._chain import snakemake, workdir
 
 from shared.io import read_dataset
 from shared.provenance import file_sha256
-
-ROOT = Path(__file__).resolve().parents[2]
 
 
 def _inputs(path: Path) -> dict[str, str]:
@@ -62,17 +56,9 @@ def chain(tmp_path_factory):
                       "suction_range_pa": [60.0e6, 132.0e6]},
         "macro": macro,
     }
-    work = tmp / "wf"
-    work.mkdir()
-    shutil.copy(ROOT / "Snakefile", work / "Snakefile")
-    shutil.copytree(ROOT / "workflow", work / "workflow")
-    (work / "config").mkdir()
-    (work / "config" / "config.yaml").write_text(yaml.safe_dump(config))
-    path = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
-    result = subprocess.run(
-        [sys.executable, "-m", "snakemake", "--cores", "2", "results/macro/mine.nc"],
-        cwd=work, capture_output=True, text=True, timeout=900, env={**os.environ, "PYTHONPATH": path})
-    assert result.returncode == 0, result.stderr[-3000:]
+    (tmp / "wf").mkdir()
+    work = workdir(tmp / "wf", config)
+    snakemake(work, "results/macro/mine.nc")
     return work
 
 
