@@ -24,6 +24,7 @@ CASE_MODULES = (
     "benchmarks.yade_compare",
     "benchmarks.macro",
     "benchmarks.macro_kill_resume",
+    "benchmarks.macro_homogenised",
     "benchmarks.micro_profile",
 )
 OUT = Path("results/benchmarks")
