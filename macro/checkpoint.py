@@ -4,13 +4,14 @@ The model is a plain dataclass of numpy arrays, the mesh, the packing and the ta
 look-up counters; it is pickled whole (with the trial time step of the implicit scheme
 and every counter), so that a resumed run continues bit for bit as the uninterrupted
 one would (``tests/macro/test_checkpoint.py``). A snapshot carries the hash of what
-decides the run (the case's configuration and the table's sha256): a snapshot written
-under another configuration is ignored. Files are written to a temporary name and
+decides the run (the case's configuration, the table's sha256 and the sources of macro/
+and shared/): a snapshot written under another configuration or code is ignored (logged). Files are written to a temporary name and
 renamed; the run removes its snapshot when it has written its output.
 """
 
 from __future__ import annotations
 
+import logging
 import pickle
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,8 @@ from macro.model import MacroModel
 from shared.io import OutputError, atomic_write
 
 __all__ = ["load_snapshot", "save_snapshot"]
+
+LOG = logging.getLogger("claychain.macro")
 
 
 def save_snapshot(path: Path, digest: str, model: MacroModel, rows: dict[str, list[Any]],
@@ -36,7 +39,8 @@ def save_snapshot(path: Path, digest: str, model: MacroModel, rows: dict[str, li
 
 
 def load_snapshot(path: Path, digest: str) -> tuple[MacroModel, dict[str, list[Any]], float] | None:
-    """The saved model, records and wall time, or None if absent or of another configuration.
+    """The saved model, records and wall time, or None if absent or of another
+    configuration, table or code.
 
     Raises
     ------
@@ -55,6 +59,7 @@ def load_snapshot(path: Path, digest: str) -> tuple[MacroModel, dict[str, list[A
         raise OutputError(f"{path}: unreadable macro snapshot ({type(error).__name__}); "
                           "delete it to start the case afresh") from error
     if digest_saved != digest:
+        LOG.info("%s: snapshot of another configuration, table or code: the case starts afresh", path)
         return None
     rows = payload["rows"]
     uneven = sorted(k for k, values in rows.items() if len({np.shape(v) for v in values}) > 1)

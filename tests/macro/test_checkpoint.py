@@ -179,3 +179,19 @@ def test_a_snapshot_whose_records_differ_in_shape_is_named(table_path, tmp_path,
     with pytest.raises(OutputError, match=r"\.case\.snapshot\.pkl: .*swelling differ in shape.*afresh"):
         run(_config(3), "small", table_path, out)
     assert snapshot.is_file() and not out.exists()
+
+
+def test_snapshot_of_other_code_is_ignored(table_path, tmp_path, monkeypatch, caplog):
+    """An edit of macro/ or shared/ between a kill and the rerun starts the case afresh."""
+    import macro.run
+
+    out = tmp_path / "case.nc"
+    original = _kill_at(monkeypatch, 2)
+    with pytest.raises(KeyboardInterrupt):
+        run(_config(3), "small", table_path, out)
+    monkeypatch.setattr(MacroModel, "step", original)
+    assert (tmp_path / ".case.snapshot.pkl").is_file()
+    monkeypatch.setattr(macro.run, "code_sha256", lambda *packages: "edited")
+    with caplog.at_level("INFO", logger="claychain.macro"):
+        assert run(_config(3), "small", table_path, out).attrs["resumed"] == 0
+    assert "of another configuration, table or code" in caplog.text
