@@ -465,7 +465,7 @@ def bench_coupled_step(
     residual_tolerance
         Solver tolerance; None keeps hydration's (:class:`shared.solver.SPDSolver`'s
         default). ``inf`` accepts the stale factor's single substitution as it is, never
-        refactoring: Yade's reuse (a stale system solved silently, REFERENCE_NOTES 8.2),
+        refactoring: Yade's reuse (a stale system solved silently, docs/yade.md §8.2),
         timed for a like-for-like comparison of the implementations, not a mode of ours.
 
     Returns

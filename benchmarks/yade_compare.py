@@ -22,7 +22,7 @@ Compared (ratio = ours / Yade's):
   at every step, so they are part of ``hydro_forces``, not of a remesh);
 * the water permeability along x of the homogeneous specimen (porosity phi_0) after
   Yade's equilibration, at the equilibrium saturation S(s_0) and fully saturated,
-  both by the wall-flux method (REFERENCE_NOTES section 10), ours on Yade's
+  both by the wall-flux method (docs/yade.md §10), ours on Yade's
   equilibrated point positions with :func:`micro.permeability.permeability_tensor_axes`;
 * the water permeability curve k_x(S) on the same frozen positions: at each suction of
   :data:`CURVE_SUCTIONS_PA` (0: full saturation) every cell of both codes gets the van

@@ -1,4 +1,4 @@
-"""Crack model of the micro pellet (Caulk 2022, Sec. 3.3.6; DESIGN.md section 3).
+"""Crack model of the micro pellet (Caulk 2022, Sec. 3.3.6; docs/design.md §3).
 
 A bond (two points in contact in the reference state) breaks in the DEM once its
 tension exceeds its strength (:func:`shared.dem.bond_tension`). A broken bond is open
@@ -12,8 +12,8 @@ n = (x_b - x_a)/|x_b - x_a|.
 It crosses every internal facet (triangle a, b, c between cells i and j) around the
 edge; each such crossing is a patch of the crack with
 
-- half-area 1/2 |(C_i - p3) x (C_j - p3)| (Eq. 3.36 with the half of REFERENCE_NOTES
-  section 3), C the cell centroids (circumcentres of hull slivers lie far away);
+- half-area 1/2 |(C_i - p3) x (C_j - p3)| (Eq. 3.36 with the half of docs/yade.md
+  §3), C the cell centroids (circumcentres of hull slivers lie far away);
 - trace width b, the length of the crack plane's cut through the triangle, from p3 to
   the edge a-c or b-c.
 

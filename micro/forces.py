@@ -315,7 +315,7 @@ def point_suction(
     fallback
         Suction [Pa] (scalar or (n_points,)) of points without an incident cell (not
         triangulated, e.g. duplicates); None uses the volume-weighted mean of all
-        cells. Yade divides by zero there (REFERENCE_NOTES section 8, defect 10).
+        cells. Yade divides by zero there (docs/yade.md §8, defect 10).
 
     Returns
     -------

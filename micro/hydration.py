@@ -18,7 +18,7 @@ checkpoint the model advances in staggered steps until hydraulic balance:
 Flow time steps start at ``initial_time_step`` after each checkpoint and grow
 geometrically, since the suction front slows down as it diffuses inwards. Yade instead
 lowers the boundary suction by 10 Pa per 1e-9 s DEM step and stays far from balance
-(REFERENCE_NOTES section 10): the staggered quasi-static scheme is what lets the
+(docs/yade.md §10): the staggered quasi-static scheme is what lets the
 specimen reach each checkpoint's state.
 """
 

@@ -1,7 +1,7 @@
-"""Numerical permeability measurement of the frozen micro model (DESIGN.md section 3).
+"""Numerical permeability measurement of the frozen micro model (docs/design.md §3).
 
 Thesis Sec. 3.5.3 and Appendix .2 (``emulatePermeability``), with the corrections of
-REFERENCE_NOTES sections 4 and 10: saturation, porosity and the mesh are frozen, a
+docs/yade.md §§4 and 10: saturation, porosity and the mesh are frozen, a
 pressure drop of ``drop_fraction`` (10 %) of the current suction is imposed along one
 axis, the steady problem is solved (no transient term), and the permeability follows
 from either
@@ -15,7 +15,7 @@ from either
   mu |<v>| / |grad p| with <v> the volume average over the cells whose centroid lies in
   the central ``inner_fraction`` of the box along every axis.
 
-The full tensor (:func:`permeability_tensor`, DESIGN §2 ``permeability_tensor``) uses the
+The full tensor (:func:`permeability_tensor`, docs/design.md §2 ``permeability_tensor``) uses the
 velocity method's boundary conditions and average for a gradient along x, y and z in
 turn, K[:, j] = -mu <v> / (grad p)_j, with one factorisation per phase serving the three
 right-hand sides; :func:`principal_permeability` derives its symmetric part, principal
@@ -701,7 +701,8 @@ def permeability_tensor(
     sealed: npt.NDArray[np.bool_] | None = None,
     executor: Executor | None = None,
 ) -> FloatArray:
-    """Water and gas permeability tensors of a frozen state (DESIGN §2, ``permeability_tensor``).
+    """Water and gas permeability tensors of a frozen state (docs/design.md §2,
+    ``permeability_tensor``).
 
     Three steady solves per phase with one factorisation
     (:func:`measure_permeability_tensor`).

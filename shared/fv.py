@@ -1,6 +1,6 @@
 """Partially saturated finite volumes on a tetrahedral mesh: conductances and systems.
 
-DESIGN.md section 3. Per free cell i, implicit in the water pressure p:
+docs/design.md §3. Per free cell i, implicit in the water pressure p:
 
     n_i V_i (dS/dp)_i (p_i - p_i^old) / dt = sum_j g_ij (p_j - p_i),
 
@@ -588,7 +588,7 @@ def transfer_cell_state(
     *,
     conserve_water: bool = True,
 ) -> TransferredState:
-    """Carry the cell state across a remesh (REFERENCE_NOTES sections 8.3 and 8.4).
+    """Carry the cell state across a remesh (docs/yade.md §§8.3 and 8.4).
 
     A remesh of moved points keeps most cells: a new cell with the same four vertices
     as an old one keeps that cell's state (its material moved with its vertices); the

@@ -1,8 +1,8 @@
 """SPD solver of the flow systems: CHOLMOD factor reuse, or algebraic multigrid for large systems.
 
 Factorising dominates the flow solve (thesis Chap. 5.3.1), so the factor is reused while
-the matrix changes little. Yade then silently solves a stale system (REFERENCE_NOTES
-section 8.2); here every answer solves the current matrix to the stated tolerance.
+the matrix changes little. Yade then silently solves a stale system (docs/yade.md
+§8.2); here every answer solves the current matrix to the stated tolerance.
 
 Two preconditioners of conjugate gradients, chosen by the number of unknowns
 (``method="auto"``): below ``amg_unknowns`` a sparse Cholesky factor (CHOLMOD), which
