@@ -1,25 +1,15 @@
 """Coupled hydration of a compacted bentonite pellet (Caulk 2022, Chap. 3), quasi-statically.
 
 The specimen is a cube of DEM points whose Delaunay tetrahedra are partially saturated
-finite volumes. Boundary suction is lowered through a list of checkpoints. At each
-checkpoint the model advances in staggered steps until hydraulic balance:
-
-1. one implicit flow step (water pressure, then explicit saturation; factor reused);
-2. point suction = volume-weighted suction of the incident cells, swelling strain
-   and radii r = r0 (1 + eps_v)^(1/3);
-3. hydro-mechanical forces and DEM relaxation to mechanical balance (unbalanced force
-   below a tolerance): the mechanics is quasi-static at the flow time scale;
-4. cell geometry from the moved points with the same connectivity, porosity from the
-   conserved solid volume of each cell; a Delaunay remesh when a cell inverts or
-   degenerates, with solid and water volumes conserved across it;
-5. the crack model: bonds that have separated, their aperture, imbibed or gas-filled
-   state, and their effect on the facet conductances.
-
-Flow time steps start at ``initial_time_step`` after each checkpoint and grow
-geometrically, since the suction front slows down as it diffuses inwards. Yade instead
-lowers the boundary suction by 10 Pa per 1e-9 s DEM step and stays far from balance
-(docs/yade.md §10): the staggered quasi-static scheme is what lets the
-specimen reach each checkpoint's state.
+finite volumes. Boundary suction is lowered through a list of checkpoints; at each the
+model advances in staggered steps until hydraulic balance: (1) one implicit flow step;
+(2) point suction from the incident cells, swelling strain and radii
+r = r0 (1 + eps_v)^(1/3); (3) hydro-mechanical forces (:mod:`micro.forces`) and DEM
+relaxation to mechanical balance; (4) cell geometry and porosity from the moved points,
+a conservative Delaunay remesh when a cell inverts; (5) the crack model. Flow time steps
+grow geometrically from ``initial_time_step`` after each checkpoint. Yade instead lowers
+the boundary suction by 10 Pa per 1e-9 s DEM step and stays far from balance
+(docs/yade.md §10). The steps in full: docs/micro.md, "micro.hydration".
 """
 
 from __future__ import annotations

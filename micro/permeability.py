@@ -1,63 +1,19 @@
 """Numerical permeability measurement of the frozen micro model (docs/design.md §3).
 
-Thesis Sec. 3.5.3 and Appendix .2 (``emulatePermeability``), with the corrections of
-docs/yade.md §§4 and 10: saturation, porosity and the mesh are frozen, a
-pressure drop of ``drop_fraction`` (10 %) of the current suction is imposed along one
-axis, the steady problem is solved (no transient term), and the permeability follows
-from either
+Thesis Sec. 3.5.3 and Appendix .2 (``emulatePermeability``), corrected as in
+docs/yade.md §§4 and 10: saturation, porosity and mesh are frozen, a pressure drop of
+``drop_fraction`` of the suction is imposed along one axis, the steady problem is solved:
 
-* ``"wall_flux"``: Dirichlet cells on the two walls normal to the axis only, no flux
-  elsewhere; k = mu Q L / (A dP), Q the mean of the flux leaving the inlet layer and
-  entering the outlet layer, A = V / L the mean cross-section of the meshed volume V
-  over the length L between the wall planes; or
-* ``"velocity"``: Dirichlet cells on all six walls, as in the thesis script; cell
-  velocities v_i = (1/V_i) sum_f q_f (x_f - x_i) (exact for uniform flow); k =
-  mu |<v>| / |grad p| with <v> the volume average over the cells whose centroid lies in
-  the central ``inner_fraction`` of the box along every axis.
+* ``"wall_flux"``: Dirichlet cells on the two walls normal to the axis,
+  k = mu Q L / (A dP), A = V / L the mean cross-section;
+* ``"velocity"``: Dirichlet cells on all six walls, k = mu |<v>| / |grad p|, <v> the
+  volume average of v_i = (1/V_i) sum_f q_f (x_f - x_i) over the central cells;
+* the tensor (:func:`permeability_tensor`): velocity method for gradients along x, y and
+  z, K[:, j] = -mu <v> / (grad p)_j; :func:`principal_permeability` its symmetric part.
 
-The full tensor (:func:`permeability_tensor`, docs/design.md §2 ``permeability_tensor``) uses the
-velocity method's boundary conditions and average for a gradient along x, y and z in
-turn, K[:, j] = -mu <v> / (grad p)_j, with one factorisation per phase serving the three
-right-hand sides; :func:`principal_permeability` derives its symmetric part, principal
-values and directions, and relative asymmetry. Its limitation: with every wall cell
-Dirichlet, a crack cluster that joins two wall cells carries, between their two imposed
-pressures, a flux proportional to its own conductance (gas cracks reach 1e16 times the
-clay's), and where it crosses the averaged region that flux dominates <v>; the tensor
-then has a large asymmetry and often a negative principal value (the whole tensor is
-then NaN). At 1000 points the inner 80 % begins one point spacing from the walls:
-in the default cracked specimen, such clusters made the gas tensor 1e3-1e6 times the
-wall-flux values from 20 MPa on, with asymmetries 0.05-0.4 against 0.002 without
-cracks. The wall-flux method does not see them (no-flux side walls, rates across the
-wall layers).
-
-The imposed pressure is the linear profile evaluated at each Dirichlet cell's
-circumcentre (its dual point). With the velocity method every boundary cell is
-Dirichlet and this linear field is the exact discrete solution of a homogeneous
-medium (the scheme reproduces linear fields), so the input permeability comes back to
-round-off. With the wall-flux method the jagged no-flux side walls break linearity
-anyway, an O(h/L) excess; there the circumcentres are clipped to the box, so that hull
-slivers, whose circumcentres lie far out, keep pressures between the two wall values,
-which reduces that excess.
-
-Zero conductances (e.g. the gas phase of a saturated region) would make isolated free
-cells singular: conductances are floored at ``conductance_floor`` times the largest
-one, a floor low enough to leave the clay's gas conductances alone although gas cracks
-reach 1e11 times them.
-
-A steady solve without storage does not depend on the mean pressure, so it is solved
-for the departure from ``mean_pressure``: with open gas cracks the conductances span
-twelve decades, and carrying a mean ten times the drop through that ill-conditioned
-system loses the digits the flux is made of. Near saturation a few gas-filled cracks
-conduct 1e16 times the clay's gas conductance: the flux across such a facet, computed
-in double precision, carries a round-off as large as a few per cent of the whole
-specimen's rate, whatever the solver's tolerance, and the clay's fluxes can be off as
-much. Inlet and outlet rates that differ by more than ``balance_tolerance`` (0.1 %) are
-then refined: the residual and the fluxes are computed in extended precision
-(``numpy.longdouble``) and the double-precision factor solves for the correction
-(mixed-precision iterative refinement). A wall flux that runs against the gradient, or that stays unbalanced
-after ``_REFINEMENTS`` sweeps, is a failed solve: it is reported as NaN with a warning
-rather than as a permeability. The measurements behind these choices are in
-``benchmarks/reference/README.md``.
+A wall flux against the gradient, or unbalanced after extended-precision refinement, is
+reported as NaN. Boundary values, floors, refinement and limits: docs/micro.md,
+"micro.permeability".
 """
 
 from __future__ import annotations
@@ -96,7 +52,7 @@ __all__ = [
     "measurement_pattern",
     "tensor_pattern",
     "permeability_tensor",
-    "permeability_tensor_axes",
+    "axis_permeabilities",
     "checkpoint_permeabilities",
     "principal_permeability",
 ]
@@ -393,7 +349,7 @@ def _refined_rates(
     return entering, leaving, flux
 
 
-def permeability_tensor_axes(
+def axis_permeabilities(
     mesh: Mesh,
     saturation: FloatArray,
     porosity: FloatArray,
@@ -469,7 +425,7 @@ def _axes_calls(
     mesh: Mesh, phases: Mapping[str, FloatArray], suction: float, material: ClayParameters,
     method: Method, drop_fraction: float,
 ) -> list[Callable[[], float]]:
-    """The six solves of :func:`permeability_tensor_axes`, by axis then phase."""
+    """The six solves of :func:`axis_permeabilities`, by axis then phase."""
     # one pattern per axis for both phases; the velocity method's serves every axis
     patterns = [measurement_pattern(mesh, 0, method)]
     if method == "wall_flux":
@@ -717,7 +673,7 @@ def permeability_tensor(
         Porosity per cell [1], shape (n_cells,).
     suction
         Current (mean) suction of the specimen [Pa], > 0: the pressure drop across the
-        box is ``drop_fraction * suction``, as for :func:`permeability_tensor_axes`.
+        box is ``drop_fraction * suction``, as for :func:`axis_permeabilities`.
     material
         Clay parameters (viscosities, k_0, b_k, S_r, S_s, n).
     conductances
@@ -732,7 +688,7 @@ def permeability_tensor(
         :func:`measure_permeability_tensor`.
     executor
         Makes one phase's solves while this thread makes the other's, as in
-        :func:`permeability_tensor_axes`.
+        :func:`axis_permeabilities`.
 
     Returns
     -------
@@ -771,7 +727,7 @@ def checkpoint_permeabilities(
     sealed: npt.NDArray[np.bool_] | None = None,
     executor: Executor | None = None,
 ) -> tuple[dict[str, dict[str, float]], FloatArray]:
-    """A checkpoint's eight solves: :func:`permeability_tensor_axes` (wall-flux method)
+    """A checkpoint's eight solves: :func:`axis_permeabilities` (wall-flux method)
     and :func:`permeability_tensor` with their default fractions, in one gather.
 
     With ``executor``, the worker makes one phase's four solves and this thread the
@@ -780,18 +736,18 @@ def checkpoint_permeabilities(
     Parameters
     ----------
     mesh, saturation, porosity, suction, material, conductances
-        As for :func:`permeability_tensor_axes`: the frozen state [1, 1], the suction
+        As for :func:`axis_permeabilities`: the frozen state [1, 1], the suction
         [Pa], the clay parameters, optional facet conductances per phase [m3/(Pa s)].
     sealed
         Cells that stay free in the tensor's wall layers (crack mouths), as for
         :func:`permeability_tensor`.
     executor
-        A worker, as for :func:`permeability_tensor_axes`; the results do not depend on it.
+        A worker, as for :func:`axis_permeabilities`; the results do not depend on it.
 
     Returns
     -------
     axes : dict
-        ``{phase: {axis: permeability [m2]}}``, as :func:`permeability_tensor_axes`.
+        ``{phase: {axis: permeability [m2]}}``, as :func:`axis_permeabilities`.
     tensor : ndarray, shape (2, 3, 3)
         K[phase, i, j] [m2], as :func:`permeability_tensor`.
     """

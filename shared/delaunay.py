@@ -1,28 +1,14 @@
-"""Delaunay tetrahedralisation of moved points, repaired from the previous one.
+"""Delaunay tetrahedralisation of points: from scratch, or repaired from a previous one.
 
-A coupled run remeshes points that moved a little since the last Delaunay mesh: most
-cells are still Delaunay. A tetrahedron is a cell of the Delaunay tetrahedralisation of
-the points if (and, for points in general position, only if) its circumsphere holds no
-other point, which a uniform grid of the points decides for each cell in O(1). So
-:func:`update_delaunay` keeps the previous cells whose circumsphere is still empty,
-triangulates only the vertices of the others (scipy/Qhull on that subset), and keeps
-the new cells whose circumsphere is empty among *all* the points. A point near a
-sphere is decided by the insphere determinant, and one within its rounding bound
-counts as inside, so that no cell is accepted by rounding. Every kept cell is then a
-Delaunay cell, and the union is the whole tetrahedralisation exactly when its volume
-equals the convex hull's (Qhull, cheap), which is checked, as is that no face has more
-than two cells: a near-cospherical configuration that the test cannot decide leaves a
-gap, and the caller then triangulates from scratch.
-
-Why the subset suffices: a Delaunay cell that is not a kept cell lies in the region the
-rejected previous cells tile, so its vertices are vertices of rejected cells, and a cell
-whose circumsphere is empty among all points is empty among the subset, hence a cell of
-the subset's tetrahedralisation. Where the hull moved, or cells inverted, the previous
-cells do not tile the hull: the cells that were on the hull and the hull's vertices
-join the subset (on three successive remeshes of a 150k-point run this covered every
-new cell). The subset's face-connected components are split into one group per numba
-thread, each triangulated on a thread of its own (Qhull releases the GIL): a new cell
-lies within one component.
+A tetrahedron is a Delaunay cell if (for points in general position, only if) its
+circumsphere holds no other point, which a uniform grid of the points decides per cell
+in O(1). :func:`update_delaunay` keeps the previous cells whose circumsphere is still
+empty (insphere determinant, points within its rounding bound count as inside),
+triangulates only the vertices of the others (scipy/Qhull, one thread per group of
+face-connected components), and keeps the new cells empty among all points. The union
+is the whole tetrahedralisation exactly when its volume equals the convex hull's and no
+face has more than two cells, which is checked; otherwise the caller triangulates from
+scratch. Why the subset suffices: docs/micro.md, "shared.delaunay".
 """
 
 from __future__ import annotations

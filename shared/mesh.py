@@ -1,38 +1,16 @@
 """Delaunay finite-volume mesh of DEM points: tetrahedra, facets, dual lengths, walls.
 
-Each tetrahedron of the (plain, unweighted) Delaunay tetrahedralisation of the points is
-a finite volume. Its dual point is the circumcentre, so that the two-point flux
-g_ij (p_j - p_i) between neighbours i, j uses the dual length
-l_ij = (c_j - c_i) . n_ij, c the circumcentres and n_ij the unit normal of the shared
-triangle from i to j. In a Delaunay mesh c_j - c_i is parallel to n_ij with a
-non-negative projection, so the scheme reproduces linear pressure fields exactly
-(evaluated at circumcentres) on any Delaunay mesh, jittered or not.
-
-Plain rather than regular (radius-weighted, Yade's choice) Delaunay: scipy's Qhull
-wrapper gives no power triangulation and a lifted 4-D hull would hide points; the
-flow law uses the points only as vertices, so plain Delaunay is the robust choice.
-
-Degenerate dual lengths: near-cospherical vertex sets (jittered grids) give
-circumcentre distances close to zero, and sliver tetrahedra on the hull give far or
-non-finite circumcentres. A dual length that is not finite or not larger than
-``min_dual_length_ratio`` times the centroid distance is replaced by the centroid
-distance; :attr:`Mesh.facet_length_fallback` flags those facets (the linear-field
-exactness is lost only there).
-
-Walls: a boundary (hull) facet belongs to the face of the points' bounding box
-nearest to its centroid, index ``2 * axis + side`` with side 0 for the lower and 1
-for the upper wall (:data:`WALLS` gives the names). Not to the face its normal points
-to most: on the jagged faces of a deformed specimen a hull triangle in the middle of
-the y- face can face -x, and a permeability measurement along x would impose the
-inlet pressure there, next to outlet cells. The hull of a packed or jittered point
-cloud has few, large triangles, so pressure boundary conditions use a boundary *layer*
-of cells (:func:`boundary_cell_mask`): cells with a vertex within half a point spacing
-of the wall plane, plus the cells owning the wall's hull triangles, whose centroids lie
-within one spacing of the plane.
-
-All loops over cells and facets run in serial numba kernels or vectorised numpy.
-:func:`update_mesh` recomputes only the geometry of moved points on the facet lists
-of a previous mesh (the per-step update of a coupled run).
+Each tetrahedron of the plain (unweighted) Delaunay tetrahedralisation of the points is
+a finite volume with its circumcentre as dual point, so that the two-point flux
+g_ij (p_j - p_i) uses the dual length l_ij = (c_j - c_i) . n_ij, which is non-negative
+on a Delaunay mesh: the scheme reproduces linear pressure fields exactly. A dual length
+that is not finite or below ``min_dual_length_ratio`` times the centroid distance is
+replaced by the centroid distance (:attr:`Mesh.facet_length_fallback`). A hull facet
+belongs to the wall (:data:`WALLS`, index ``2 * axis + side``) of the bounding-box face
+nearest its centroid; pressure conditions use a boundary layer of cells
+(:func:`boundary_cell_mask`). :func:`update_mesh` recomputes the geometry of moved
+points on the connectivity of a previous mesh. Why plain Delaunay, and the wall rules:
+docs/micro.md, "shared.mesh".
 """
 
 from __future__ import annotations

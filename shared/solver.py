@@ -1,66 +1,18 @@
-"""SPD solver of the flow systems: CHOLMOD factor reuse, or algebraic multigrid for large systems.
+"""SPD solver of the flow systems: CG preconditioned by a CHOLMOD factor or by multigrid.
 
-Factorising dominates the flow solve (thesis Chap. 5.3.1), so the factor is reused while
-the matrix changes little. Yade then silently solves a stale system (docs/yade.md
-§8.2); here every answer solves the current matrix to the stated tolerance.
+Factorising dominates the flow solve (thesis Chap. 5.3.1), so the preconditioner is
+reused while the matrix drifts. Yade then silently solves a stale system (docs/yade.md
+§8.2); here every answer solves the current matrix A to a row-wise backward error
+max_i |b - A x|_i / (|a_ii| ||x||_inf + |b_i|) <= ``residual_tolerance``.
 
-Two preconditioners of conjugate gradients, chosen by the number of unknowns
-(``method="auto"``): below ``amg_unknowns`` a sparse Cholesky factor (CHOLMOD), which
-solves a matrix it has factored in one substitution; from there on a classical
-Ruge-Stueben hierarchy (pyamg), whose setup and V-cycles cost O(n) where the factor of a
-3D mesh costs O(n^2) to compute and O(n^(4/3)) to apply. The crossover is measured on
-the flow systems of the micro model (``benchmarks/reference/README.md``). Both paths
-stop on the same criterion, so the choice changes the work, not the answer beyond it.
-
-With the factor:
-
-* the symbolic analysis (fill-reducing ordering) is kept while the sparsity pattern is
-  unchanged, and redone only when it changes;
-* the old factor preconditions conjugate gradients on the *current* matrix, run until
-  the row-wise backward error max_i |b - A x|_i / (|a_ii| ||x||_inf + |b_i|) of the
-  current A is below ``residual_tolerance`` (for an increment x of a known ``offset``,
-  that of the system the whole unknown solves). Row-wise, because once cracks put
-  conductances 1e10 times the clay's in A a normwise ||b - A x|| / (||A|| ||x|| + ||b||)
-  lets the largest rows excuse residuals that lose water to the saturation clamps
-  (``tests/shared/test_fv.py``);
-* the numeric factor is refreshed by a rent-or-buy rule: once the CG iterations spent
-  since the last factorisation reach ``refactor_iterations`` (about the cost of one
-  factorisation in substitutions), the solve refactors, in the middle of a solve if
-  need be, and finishes from the iterate it had. A solve also refactors at once when
-  the previous solve's stale iterations alone would exhaust what is left of that
-  budget (the drift only accumulates, so the next solve needs at least as many). When
-  even the first solve after a factorisation exhausts the budget, one step of drift
-  costs more than a factorisation: the next solves buy at once, 1, 2, 4, ... up to 32
-  of them before the next such probe, until a probe converges within its budget. The
-  total work is then never more than about twice that of the better of always and
-  never refactoring, whatever the drift does; a hydration front that jumps once and
-  then moves slowly does not pay ten substitutions per step for ever;
-* a refactorisation can also be requested on demand, or (``refactor_tolerance``) when
-  the largest symmetric-scaled entry change max |a_ij - a0_ij| / sqrt(a0_ii a0_jj)
-  exceeds a threshold. That trigger is off by default: the CG iterations a stale
-  factor needs depend on how many entries changed, not on the largest change
-  (``tests/shared/test_solver.py``).
-
-With the multigrid hierarchy, every solve iterates (5-9 V-cycles to a row-wise 1e-8
-with a fresh hierarchy on the micro model's systems); the hierarchy is built for a new
-pattern or on demand and reused on drifted matrices (the coarsening of a conductance
-graph survives a step of drift) for at most ``amg_rebuild_ratio`` times the iterations
-of the first solve after the setup: a stale hierarchy that misses the tolerance within
-them (a crack opened and changed conductances by ten decades) is rebuilt and the solve
-finishes from its iterate. A fresh hierarchy that still misses it (conductance
-contrasts of 1e15 and a tolerance of 1e-13, as a permeability measurement across
-gas-filled cracks sets) hands the system to the factor with ``method="auto"``, for
-the rest of that pattern; with ``method="amg"`` it is an error. The classical
-coarsening runs the second pass of Ruge and Stueben (every strong F-F connection gets
-a common C point): on the micro model's systems it takes the V-cycle CG from about 50
-to 7 iterations at 1e-8. Its strength threshold (``amg_strength``) trades the setup and
-the cost of a cycle (operator complexity) against the number of cycles. The V-cycle
-smooths by a forward Gauss-Seidel sweep before the coarse correction and its adjoint, a
-backward sweep, after it: a symmetric positive definite preconditioner, as CG needs.
-
-The rules only trade factorisations against iterations, deterministically (iteration
-counts, not timings, decide). Counters in :class:`SolverStats` serve the benchmarks;
-the measurements behind the defaults are in ``benchmarks/reference/README.md``.
+``method="auto"`` preconditions with a sparse Cholesky factor (CHOLMOD) below
+``amg_unknowns`` unknowns and with a classical Ruge-Stueben hierarchy (pyamg) above:
+on a 3D mesh the factor costs O(n^2) to compute and O(n^(4/3)) to apply, the hierarchy
+O(n). A stale factor is refreshed by a rent-or-buy rule on the CG iterations spent
+since the last factorisation (``refactor_iterations``), a stale hierarchy after
+``amg_rebuild_ratio`` times its first solve's iterations; both rules count iterations,
+not time, so they are deterministic. The rules in full: docs/performance.md,
+"shared.solver".
 """
 
 from __future__ import annotations
