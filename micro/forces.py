@@ -25,12 +25,14 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit, prange
 
-from shared.mesh import Mesh
+from shared.mesh import Mesh, face_planes
 
 __all__ = [
     "SectorWeights",
     "facet_vertex_weights",
+    "hull_face_loads",
     "hydromechanical_forces",
+    "membrane_forces",
     "point_suction",
     "sector_weights",
 ]
@@ -333,3 +335,48 @@ def point_suction(
     fallback = np.broadcast_to(np.asarray(fallback, dtype=np.float64), (n_points,))
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(weight > 0.0, weighted / weight, fallback)
+
+
+def hull_face_loads(mesh: Mesh, bishop_pressure: FloatArray) -> FloatArray:
+    """Resultant of the pore-fluid pull on the hull, per face of the specimen [N], (6, 3).
+
+    Each hull triangle carries chi p A n (chi p = S p of the cell it closes, air outside,
+    n outward; chi p < 0 pulls inward), summed over the triangles of each face
+    (:attr:`shared.mesh.Mesh.boundary_walls`, order of :data:`shared.mesh.WALLS`). The
+    six sum to -(resultant of the internal facet forces) exactly, so the specimen as a
+    whole carries no net force whatever the saturation field.
+    """
+    loads = bishop_pressure[mesh.boundary_cells, None] * mesh.boundary_areas[:, None] \
+        * mesh.boundary_normals
+    return np.stack([loads[mesh.boundary_walls == wall].sum(axis=0) for wall in range(6)])
+
+
+def membrane_forces(positions: FloatArray, face_loads: FloatArray, layer: float) -> FloatArray:
+    """Forces of six face loads shared by the outer points, as a membrane would [N].
+
+    Each face's load (a vector) is shared equally by the points within ``layer`` of
+    that face's plane (or beyond it); points on an edge or corner take a share from
+    each of their faces. The planes are :func:`shared.mesh.face_planes`, robust to a
+    point pushed out of a face.
+
+    Parameters
+    ----------
+    positions
+        (n, 3) point centres [m].
+    face_loads
+        (6, 3) load of each face [N], order of :data:`shared.mesh.WALLS` (x-, x+, y-,
+        ...), e.g. :func:`hull_face_loads`.
+    layer
+        Thickness of the loaded outer layer [m].
+    """
+    forces = np.zeros_like(positions)
+    lower, upper = face_planes(positions)
+    for wall in range(6):
+        axis, side = divmod(wall, 2)
+        if side == 0:
+            distance = positions[:, axis] - lower[axis]
+        else:
+            distance = upper[axis] - positions[:, axis]
+        loaded = distance <= layer
+        forces[loaded] += face_loads[wall] / loaded.sum()
+    return forces

@@ -24,9 +24,9 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, Delaunay, QhullError
 
 from shared.dem import point_bins
-from shared.mesh import cell_geometry
+from shared.tetrahedra import cell_geometry
 
-__all__ = ["same_cells", "update_delaunay"]
+__all__ = ["delaunay_tetrahedra", "same_cells", "update_delaunay"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -206,6 +206,44 @@ def _link_open_faces(
     flat[first] = second // 4
     flat[second] = first // 4
     return True
+
+
+def delaunay_tetrahedra(points: npt.ArrayLike) -> tuple[FloatArray, IntArray, IntArray]:
+    """Plain Delaunay tetrahedralisation of points (scipy/Qhull).
+
+    Parameters
+    ----------
+    points
+        Point coordinates [m], shape (n_points, 3), n_points >= 5, not coplanar.
+
+    Returns
+    -------
+    points : ndarray, shape (n_points, 3)
+        The points as contiguous float64 [m].
+    tetrahedra : ndarray of int64, shape (n_cells, 4)
+        Vertex indices of each cell.
+    neighbours : ndarray of int64, shape (n_cells, 4)
+        Cell across the face opposite each vertex, -1 on the hull.
+
+    Raises
+    ------
+    ValueError
+        If points are not finite, not of shape (n >= 5, 3), or all coplanar.
+    """
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 3 or points.shape[0] < 5:
+        raise ValueError(f"points must have shape (n >= 5, 3), got {points.shape}")
+    if not np.all(np.isfinite(points)):
+        raise ValueError("points contain NaN or inf")
+    try:
+        triangulation = Delaunay(points)
+    except QhullError as error:
+        raise ValueError(f"Delaunay failed (coplanar or duplicated points?): {error}") from error
+    return (
+        points,
+        triangulation.simplices.astype(np.int64),
+        triangulation.neighbors.astype(np.int64),
+    )
 
 
 def update_delaunay(
