@@ -29,6 +29,7 @@ import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
+from micro.pool import gathered
 from shared.fv import (
     FlowPattern,
     assemble_matrix,
@@ -36,7 +37,6 @@ from shared.fv import (
     facet_divergence,
     facet_flux,
     solver_pattern,
-    steady_pressure,
 )
 from shared.materials import ClayParameters
 from shared.mesh import WALLS, Mesh, boundary_cell_mask
@@ -70,23 +70,6 @@ INNER_FRACTION = 0.8
 
 # Extended-precision refinement sweeps allowed for an unbalanced wall-flux solve.
 _REFINEMENTS = 6
-
-
-def _called(calls: Sequence[Callable[[], object]]) -> list:
-    return [call() for call in calls]
-
-
-def _gathered(executor: Executor | None, calls: Sequence[Callable[[], object]]) -> list:
-    """Results of independent calls, in order: every other call on ``executor`` (one
-    task, so that a worker process receives the mesh they share once) while this thread
-    makes the others, or all of them here."""
-    if executor is None or len(calls) < 2:
-        return _called(calls)
-    remote = executor.submit(_called, calls[0::2])
-    results: list = [None] * len(calls)
-    results[1::2] = _called(calls[1::2])
-    results[0::2] = remote.result()
-    return results
 
 
 def _floored(conductance: FloatArray, floor: float) -> FloatArray | None:
@@ -190,6 +173,36 @@ def _mean_velocity(
     return moment[cells].sum(axis=0) / mesh.volumes[cells].sum()
 
 
+def _steady_solve(
+    mesh: Mesh, pattern: FlowPattern, solver: SPDSolver, conductance: FloatArray,
+    profile: FloatArray, matrix: sp.csc_matrix,
+    rates: Callable[[npt.NDArray], tuple[float, float]] | None, tolerance: float,
+) -> tuple[npt.NDArray, float, float]:
+    """The steady solve every measurement makes: the departure from the mean pressure
+    with the linear ``profile`` imposed on the Dirichlet cells (and as the start of the
+    free ones), its facet fluxes [m3/s], and with ``rates`` the two rates of a region
+    (in and out), refined in extended precision (:func:`_refined_rates`) when they do not
+    balance to ``tolerance``. ``matrix`` is the steady matrix of ``conductance``; the
+    solver's factor of it serves every solve and refinement sweep."""
+    pressure = np.array(profile, dtype=np.float64)
+    free = pattern.free_cells
+    rhs = facet_divergence(mesh, conductance, pressure)[free]
+    pressure[free] += solver.solve(matrix, rhs, ordered=pattern.fill_reducing)
+    flux: npt.NDArray = facet_flux(mesh, conductance, pressure)
+    if rates is None:
+        return flux, float("nan"), float("nan")
+    entering, leaving = rates(flux)
+    if not _balanced(entering, leaving, tolerance):
+        entering, leaving, flux = _refined_rates(
+            mesh, pattern, solver, conductance, pressure, rates, tolerance, matrix)
+    return flux, entering, leaving
+
+
+def _steady_matrix(mesh: Mesh, pattern: FlowPattern, conductance: FloatArray) -> sp.csc_matrix:
+    """Lower triangle of the steady (storage-free) system of ``conductance``."""
+    return assemble_matrix(mesh, pattern, conductance, np.zeros(mesh.n_cells))
+
+
 def measure_permeability(
     mesh: Mesh,
     conductance: FloatArray,
@@ -264,15 +277,12 @@ def measure_permeability(
     elif not np.array_equal(pattern.dirichlet, dirichlet):
         raise ValueError(f"pattern: its Dirichlet cells are not those of the {method} "
                          f"method along axis {axis}")
+    matrix = _steady_matrix(mesh, pattern, floored)
     if layers is not None:
         inlet, outlet = layers
-        pressure = steady_pressure(mesh, pattern, solver, floored, departure, departure)
-        entering, leaving = _wall_rates(mesh, facet_flux(mesh, floored, pressure), inlet, outlet)
-        if not _balanced(entering, leaving, balance_tolerance):
-            entering, leaving, _ = _refined_rates(
-                mesh, pattern, solver, floored, pressure,
-                lambda flux: _wall_rates(mesh, flux, inlet, outlet), balance_tolerance,
-            )
+        _, entering, leaving = _steady_solve(
+            mesh, pattern, solver, floored, departure, matrix,
+            lambda flux: _wall_rates(mesh, flux, inlet, outlet), balance_tolerance)
         if not _balanced(entering, leaving, balance_tolerance):
             log.warning(
                 "axis %d at %.4g Pa: inlet and outlet rates %.4g and %.4g m3/s disagree "
@@ -282,8 +292,8 @@ def measure_permeability(
             return float("nan")
         area = mesh.volumes.sum() / length
         return viscosity * 0.5 * (entering + leaving) / (area * abs(gradient))
-    pressure = steady_pressure(mesh, pattern, solver, floored, departure, departure)
-    flux = facet_flux(mesh, floored, pressure)
+    flux, _, _ = _steady_solve(mesh, pattern, solver, floored, departure, matrix, None,
+                               balance_tolerance)
     inner = _inner_cells(mesh, pattern.dirichlet, inner_fraction)
     if not np.any(inner):
         raise ValueError("no free cell in the inner region: mesh too coarse")
@@ -396,8 +406,8 @@ def axis_permeabilities(
         ``x``, ``y``, ``z``.
     """
     phases = _phase_conductances(mesh, saturation, porosity, suction, material, conductances)
-    return _axes_result(_gathered(executor, _axes_calls(mesh, phases, suction, material,
-                                                        method, drop_fraction)))
+    return _axes_result(gathered(executor, _axes_calls(mesh, phases, suction, material,
+                                                       method, drop_fraction)))
 
 
 def _phase_conductances(
@@ -576,23 +586,16 @@ def measure_permeability_tensor(
         return tensor
     solver = _measurement_solver() if solver is None else solver
     pattern = _pattern(mesh, dirichlet, solver) if pattern is None else pattern
-    matrix = assemble_matrix(mesh, pattern, floored, np.zeros(mesh.n_cells))
-    free = pattern.free_cells
+    matrix = _steady_matrix(mesh, pattern, floored)
     centre = 0.5 * (mesh.bounds[0] + mesh.bounds[1])
     for j in range(3):
         gradient = -pressure_drop / (mesh.bounds[1, j] - mesh.bounds[0, j])
-        pressure = gradient * (mesh.circumcentres[:, j] - centre[j])
         try:
             # the first solve factors the matrix; the next ones reuse the factor
-            rhs = facet_divergence(mesh, floored, pressure)[free]
-            pressure[free] += solver.solve(matrix, rhs, ordered=pattern.fill_reducing)
-            flux: npt.NDArray = facet_flux(mesh, floored, pressure)
-            entering, leaving = _region_rates(mesh, flux, inner)
-            if not _balanced(entering, leaving, balance_tolerance):
-                entering, leaving, flux = _refined_rates(
-                    mesh, pattern, solver, floored, pressure,
-                    lambda f: _region_rates(mesh, f, inner), balance_tolerance, matrix,
-                )
+            flux, entering, leaving = _steady_solve(
+                mesh, pattern, solver, floored,
+                gradient * (mesh.circumcentres[:, j] - centre[j]), matrix,
+                lambda f: _region_rates(mesh, f, inner), balance_tolerance)
         except SolverError as error:
             log.warning("%s: steady solve failed (%s); tensor set to NaN", label, error)
             return np.full((3, 3), np.nan)
@@ -697,8 +700,8 @@ def permeability_tensor(
         entries (with a warning) where a solve failed.
     """
     phases = _phase_conductances(mesh, saturation, porosity, suction, material, conductances)
-    return np.stack(_gathered(executor, _tensor_calls(mesh, phases, suction, material,
-                                                      drop_fraction, inner_fraction, sealed)))
+    return np.stack(gathered(executor, _tensor_calls(mesh, phases, suction, material,
+                                                     drop_fraction, inner_fraction, sealed)))
 
 
 def _tensor_calls(
@@ -753,7 +756,7 @@ def checkpoint_permeabilities(
     """
     phases = _phase_conductances(mesh, saturation, porosity, suction, material, conductances)
     axes = _axes_calls(mesh, phases, suction, material, "wall_flux", DROP_FRACTION)
-    values = _gathered(executor, [*axes, *_tensor_calls(mesh, phases, suction, material,
+    values = gathered(executor, [*axes, *_tensor_calls(mesh, phases, suction, material,
                                                         DROP_FRACTION, INNER_FRACTION, sealed)])
     return _axes_result(values[:len(axes)]), np.stack(values[len(axes):])
 
