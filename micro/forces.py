@@ -1,20 +1,13 @@
 """Hydro-mechanical forces on DEM points and point suctions (Caulk 2022, Sec. 3.3.5).
 
 Force of the pore fluid on the points, Eqs. 3.28-3.32 with Bishop's chi = S (as Yade):
-across each facet between cells i and j, the pressure jump S_i p_i - S_j p_j acts on the
-whole triangle, A_ij (S_i p_i - S_j p_j) n_ij with n_ij from i to j. Eq. 3.29 gives each
-vertex k the part A^k on its own sector of the triangle, and Eq. 3.31 shares the rest,
-A^f, in proportion to the sectors; together vertex k receives the fraction
-A^k / sum_x A^x of the facet force, with A^k = theta_k r_k^2 / 2 the sector of its
-interaction radius (theta_k the triangle's angle at k). A hull triangle of cell i sees
-the exterior value instead of S_j p_j. Interior facets cancel exactly for a uniform
-field, and the hull triangles then carry p A n to their vertices.
-
-Exterior value: Yade closes the mesh with boundary cells held at the imposed pressure,
-so a specimen in equilibrium with its boundary feels no net fluid force. To reproduce
-that, pass ``exterior_pressure = S(p_b) p_b`` of the imposed boundary pressure p_b; the
-default 0 (gas at the reference pressure outside) makes suction squeeze the specimen
-with S p A on every face instead.
+across each facet between cells i and j the jump S_i p_i - S_j p_j acts on the whole
+triangle, A_ij (S_i p_i - S_j p_j) n_ij, and vertex k receives the fraction
+A^k / sum_x A^x of it, A^k = theta_k r_k^2 / 2 the sector of its interaction radius
+(Eqs. 3.29, 3.31). A hull triangle sees ``exterior_pressure`` instead of S_j p_j (Yade's
+boundary cells at the imposed pressure: pass S(p_b) p_b). The specimen's hull loads per
+face (:func:`hull_face_loads`) can instead be shared by the outer points as a membrane
+would (:func:`membrane_forces`). Details: docs/micro.md, "micro.forces".
 """
 
 from __future__ import annotations
