@@ -461,11 +461,8 @@ def swell(
     instead face by face, each face's resultant shared by its outer layer of points
     (:func:`micro.forces.hull_face_loads`, :func:`micro.forces.membrane_forces`). On a jittered cloud the hull
     has few large triangles, and hull forces would concentrate the whole face load on a
-    handful of points. A uniform stress (the area-weighted mean S p of the hull) on
-    every face, as before, left the specimen with a net force wherever S p varies over
-    the hull (78 N against a mean point load of 25 N on a 125-point specimen with a
-    porosity gradient): it never came to rest (unbalanced force stuck at 0.035, 5e-7
-    with the face resultants), and weakly bonded specimens crept apart. With
+    handful of points; a uniform stress on every face would leave the specimen with a
+    net force wherever S p varies over the hull, so that it never comes to rest. With
     ``cracks``, the capillary pull across the gas-filled cracks of ``state.cracks`` is
     removed (Eq. 3.35, :func:`micro.cracks.capillary_release_forces`).
     """

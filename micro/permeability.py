@@ -83,8 +83,7 @@ def _floored(conductance: FloatArray, floor: float) -> FloatArray | None:
 
 # Unknowns from which a measurement's solves use multigrid: at 1e-13 the hierarchy needs
 # about 18 iterations and hands some crack networks to the factor, so it pays off later
-# than for the flow steps (at 37.5k points, 250k unknowns, the measurements took 289 s
-# with multigrid against 252 s with the factor).
+# than for the flow steps (the measurements: benchmarks/reference/README.md).
 _MEASUREMENT_AMG_UNKNOWNS = 400_000
 
 

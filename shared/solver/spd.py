@@ -65,8 +65,7 @@ class SPDSolver:
         factorisations only, ``blas_threads`` being restored after: the large dense
         supernodes of a factorisation may gain from threads that the small blocks of the
         substitutions lose to. Off by default: a threaded factorisation rounds
-        differently, so a run's results would depend on its thread count (README,
-        "Benchmarks"), and on a shared 2-core machine the gain was not reproducible.
+        differently, so a run's results would depend on its thread count.
     method
         ``"direct"`` (CHOLMOD factor), ``"amg"`` (multigrid hierarchy) or ``"auto"``:
         multigrid from ``amg_unknowns`` unknowns on.
