@@ -26,7 +26,7 @@ from scipy.spatial import ConvexHull, Delaunay, QhullError
 from shared.dem import point_bins
 from shared.tetrahedra import cell_geometry
 
-__all__ = ["delaunay_tetrahedra", "same_cells", "update_delaunay"]
+__all__ = ["delaunay_tetrahedra", "qhull_delaunay", "same_cells", "update_delaunay"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -208,6 +208,21 @@ def _link_open_faces(
     return True
 
 
+def qhull_delaunay(points: FloatArray) -> Delaunay:
+    """Qhull's plain Delaunay tetrahedralisation of (n, 3) float64 points, as scipy's
+    object (for callers that also locate points in it, ``find_simplex``).
+
+    Raises
+    ------
+    ValueError
+        If Qhull fails (coplanar or duplicated points).
+    """
+    try:
+        return Delaunay(points)
+    except QhullError as error:
+        raise ValueError(f"Delaunay failed (coplanar or duplicated points?): {error}") from error
+
+
 def delaunay_tetrahedra(points: npt.ArrayLike) -> tuple[FloatArray, IntArray, IntArray]:
     """Plain Delaunay tetrahedralisation of points (scipy/Qhull).
 
@@ -235,10 +250,7 @@ def delaunay_tetrahedra(points: npt.ArrayLike) -> tuple[FloatArray, IntArray, In
         raise ValueError(f"points must have shape (n >= 5, 3), got {points.shape}")
     if not np.all(np.isfinite(points)):
         raise ValueError("points contain NaN or inf")
-    try:
-        triangulation = Delaunay(points)
-    except QhullError as error:
-        raise ValueError(f"Delaunay failed (coplanar or duplicated points?): {error}") from error
+    triangulation = qhull_delaunay(points)
     return (
         points,
         triangulation.simplices.astype(np.int64),
