@@ -42,7 +42,7 @@ from matplotlib.figure import Figure
 from benchmarks.dem import _timings_ms
 from benchmarks.parameters import CLAY, DEM, SETTINGS
 from micro.hydration import FlowSystem, PelletState, swell, triangulate, update_geometry
-from shared.delaunay import same_cells
+from shared.delaunay import delaunay_tetrahedra, same_cells
 from shared.dem import cube_points, new_state, step
 from shared.fv import (
     FlowPattern,
@@ -56,7 +56,6 @@ from shared.mesh import (
     Mesh,
     boundary_cell_mask,
     build_mesh,
-    delaunay_tetrahedra,
     mesh_from_tetrahedra,
     update_mesh,
 )
@@ -465,7 +464,7 @@ def bench_coupled_step(
     residual_tolerance
         Solver tolerance; None keeps hydration's (:class:`shared.solver.SPDSolver`'s
         default). ``inf`` accepts the stale factor's single substitution as it is, never
-        refactoring: Yade's reuse (a stale system solved silently, REFERENCE_NOTES 8.2),
+        refactoring: Yade's reuse (a stale system solved silently, docs/yade.md §8.2),
         timed for a like-for-like comparison of the implementations, not a mode of ours.
 
     Returns

@@ -22,8 +22,8 @@ Compared (ratio = ours / Yade's):
   at every step, so they are part of ``hydro_forces``, not of a remesh);
 * the water permeability along x of the homogeneous specimen (porosity phi_0) after
   Yade's equilibration, at the equilibrium saturation S(s_0) and fully saturated,
-  both by the wall-flux method (REFERENCE_NOTES section 10), ours on Yade's
-  equilibrated point positions with :func:`micro.permeability.permeability_tensor_axes`;
+  both by the wall-flux method (docs/yade.md §10), ours on Yade's
+  equilibrated point positions with :func:`micro.permeability.axis_permeabilities`;
 * the water permeability curve k_x(S) on the same frozen positions: at each suction of
   :data:`CURVE_SUCTIONS_PA` (0: full saturation) every cell of both codes gets the van
   Genuchten saturation S(s, phi_0) of :func:`shared.retention.saturation` and the x
@@ -62,7 +62,7 @@ from scipy.spatial import Delaunay
 from benchmarks.dem import bench_dem
 from benchmarks.flow import bench_flow
 from benchmarks.parameters import CLAY, DEM
-from micro.permeability import measure_permeability, permeability_tensor_axes
+from micro.permeability import measure_permeability, axis_permeabilities
 from shared.dem.points import cube_points
 from shared.fv import facet_conductance, transfer_cell_state
 from shared.mesh import Mesh, build_mesh
@@ -212,7 +212,7 @@ def _our_permeability(positions: np.ndarray) -> dict:
     }
     result = {}
     for name, water in states.items():
-        k = permeability_tensor_axes(mesh, water, porosity, material.initial_suction, material)
+        k = axis_permeabilities(mesh, water, porosity, material.initial_suction, material)
         result[name] = {
             "k_x_m2": k["water"]["x"],
             "k_water_m2": k["water"],

@@ -2,12 +2,12 @@
 
 Units are SI and per Pa: suction s = -p > 0 [Pa], alpha and beta [1/Pa].
 
-- Retention (Eqs. 4.24-4.26, DESIGN section 3): S(s) = [1 + (s/zeta)^(1/(1-lambda))]^(-lambda),
+- Retention (Eqs. 4.24-4.26, docs/design.md §3): S(s) = [1 + (s/zeta)^(1/(1-lambda))]^(-lambda),
   zeta = zeta_0 exp(a (phi_0 - phi)), lambda = lambda_0 exp(b (phi_0 - phi)); inverse
   s(S) = zeta (S^(-1/lambda) - 1)^(1-lambda).
 - Powder permeability (Eqs. 4.16-4.19): k = k_0 exp(b_k (phi - phi_0)) k_r,
   k_r = ((S - S_r)/(S_s - S_r))^n clamped to [0, 1].
-- Swelling (Eq. 4.28 with the sign of DESIGN section 3):
+- Swelling (Eq. 4.28 with the sign of docs/design.md §3):
   eps(s) = (beta/alpha) [exp(-alpha s) - exp(-alpha s_0)] > 0 for s < s_0.
 - Pellet Young's modulus (Eq. 4.3): E(s) = 3 (1 - 2 nu) exp(alpha s) / beta, capped.
 - Swelling under confinement (Eqs. 4.31-4.33, our reading, for pellets and powder alike):
@@ -162,7 +162,7 @@ def retention_parameters(porosity: npt.ArrayLike, m: MixtureParameters) -> tuple
 
 
 def saturation(suction: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
-    """Water saturation S(s, phi) [1] (Eq. 4.24 inverted, DESIGN section 3); 1 for s <= 0."""
+    """Water saturation S(s, phi) [1] (Eq. 4.24 inverted, docs/design.md §3); 1 for s <= 0."""
     return van_genuchten_saturation(suction, *retention_parameters(porosity, m))
 
 
@@ -192,7 +192,7 @@ def powder_permeability(sat: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureP
 
 
 def swelling_strain(suction: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
-    """Volumetric swelling strain eps(s) [1] (Eq. 4.28, sign of DESIGN section 3)."""
+    """Volumetric swelling strain eps(s) [1] (Eq. 4.28, sign of docs/design.md §3)."""
     return shared_swelling_strain(suction, m.alpha, m.beta, m.initial_suction)
 
 

@@ -2,7 +2,7 @@
 
 ``run(config, case, table_path, output_path, figure_path)`` packs the pellets, builds the
 mixture on the Delaunay mesh of their centres, hydrates it from both ends and records the
-wall readings (DESIGN section 2). It stops near equilibrium (:mod:`macro.stopping`: the
+wall readings (docs/design.md §2). It stops near equilibrium (:mod:`macro.stopping`: the
 saturations and the wall pressures have levelled off relative to their current levels)
 or at the ``max_time_s`` / ``max_steps`` guards, whichever comes first; the reason is
 recorded.

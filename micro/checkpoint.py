@@ -2,30 +2,14 @@
 or between two flow steps of the balance at the next one (``micro.snapshot_interval_s``).
 
 A killed run resumes from the last file with the same configuration hash and continues
-bit for bit as if it had not stopped, whatever the kill point
-(``tests/micro/test_resume.py``). Saved besides the state's own arrays (points,
-velocities, spins, radii, bonds, the contact list and its shear history, cells, the
-mesh with its geometry, walls, the last hydro-mechanical loads, times and counters):
-
-* the flow system's numbering of the unknowns (:class:`shared.fv.FlowPattern`). It is
-  a fill-reducing order of the cell centroids at the last (re)mesh, so rebuilding it
-  from the current geometry numbers the unknowns differently and changes the round-off
-  of every later solve;
-* the solver's reuse state (:meth:`shared.solver.SPDSolver.reuse_state`): its
-  rent-or-buy counters (e.g. the back-off) outlive the reset of the factor at each
-  checkpoint; the factored matrix is saved and refactored on loading;
-* the wall time spent so far, in all and per phase (:class:`shared.progress.PhaseClock`),
-  so that a resumed run reports the whole run's;
-* between flow steps, the balance's own progress (:class:`micro.hydration.BalanceProgress`:
-  flow and DEM steps done, the next time step).
-
-Without the first two, a 1000-point run killed after checkpoint 3, 6 or 9 of 14 ended
-with a final gas permeability 5.4, 1.4 and 1.1 % lower and 7 more, 7 and 3 fewer
-remeshes than the uninterrupted run.
-
-Files are written to a temporary name and renamed. A file that cannot be read (damaged
-on disk, not a checkpoint) stops the run with :class:`CheckpointError`, which names it:
-it is neither used nor overwritten.
+bit for bit as if it had not stopped (``tests/micro/test_resume.py``). Besides the
+state's own arrays, a file holds the flow system's numbering of the unknowns
+(:class:`shared.fv.FlowPattern`, rebuilding it would change the round-off of every
+later solve), the solver's reuse state (:meth:`shared.solver.SPDSolver.reuse_state`),
+the wall time spent so far per phase (:class:`shared.progress.PhaseClock`) and, between
+flow steps, the balance's progress (:class:`micro.hydration.BalanceProgress`). Files are
+written to a temporary name and renamed; a file that cannot be read stops the run with
+:class:`CheckpointError`, which names it. Details: docs/micro.md, "micro.checkpoint".
 """
 
 from __future__ import annotations

@@ -1,37 +1,15 @@
-"""Crack model of the micro pellet (Caulk 2022, Sec. 3.3.6; DESIGN.md section 3).
+"""Crack model of the micro pellet (Caulk 2022, Sec. 3.3.6; docs/design.md §3).
 
-A bond (two points in contact in the reference state) breaks in the DEM once its
-tension exceeds its strength (:func:`shared.dem.bond_tension`). A broken bond is open
-while its aperture w is positive, i.e. while it carries no normal force: w is the
-bond's stretch beyond its stress-free contact (:func:`shared.dem.bond_stretches`, the
-number the DEM breaks it by; |x_b - x_a| - (r_a + r_b) without a stress-free overlap).
-An open bond that is an edge of the Delaunay mesh is a crack: a planar gap normal to
-the bond through the middle of the gap, p3 = x_a + n (r_a + w/2),
-n = (x_b - x_a)/|x_b - x_a|.
-
-It crosses every internal facet (triangle a, b, c between cells i and j) around the
-edge; each such crossing is a patch of the crack with
-
-- half-area 1/2 |(C_i - p3) x (C_j - p3)| (Eq. 3.36 with the half of REFERENCE_NOTES
-  section 3), C the cell centroids (circumcentres of hull slivers lie far away);
-- trace width b, the length of the crack plane's cut through the triangle, from p3 to
-  the edge a-c or b-c.
-
-Water-entry suction gamma / w (Eqs. 3.33, 3.38): the crack is imbibed (water-filled)
-while its local suction, the mean over its patches of the two cells' mean suction, is
-below gamma / w, gas-filled otherwise. A gas-filled crack scales the water conductivity
-of its facets by eta (Eq. 3.34) and adds the cubic-law gas conductivity
-w^3 / (12 mu_gas) b / l_ij (Eq. 3.37 times the facet geometry b / l_ij, the crack's
-width across the facet over the distance between the two cells' centroids); an
-imbibed crack does the reverse with the water viscosity. The parallel-plate law holds
-for w << b: the aperture in it is capped at b, so that a bond opened wider than its
-crack (a point leaving the specimen) conducts at most like a channel of side b instead
-of adding a conductance that grows as w^3, which would make the permeability
-measurement ill-conditioned.
-
-Mesh data used (:class:`shared.mesh.Mesh`): ``facet_vertices`` (triangles),
-``facet_cells`` (the two cells of each triangle), ``centroids`` (C, and the flow
-length l_ij = |C_j - C_i| of the cubic law).
+A broken bond (:func:`shared.dem.bond_tension`) is open while its aperture w, its
+stretch beyond the stress-free contact, is positive; an open bond on an edge of the
+Delaunay mesh is a crack, a planar gap normal to the bond through
+p3 = x_a + n (r_a + w/2). Each facet around the edge is a patch of half-area
+1/2 |(C_i - p3) x (C_j - p3)| (Eq. 3.36, C the cell centroids) and trace width b.
+The crack is imbibed while its mean local suction is below the water-entry suction
+gamma / w (Eqs. 3.33, 3.38), gas-filled otherwise. A gas-filled crack scales its facets'
+water conductivity by eta (Eq. 3.34) and adds the cubic-law gas conductivity
+w^3 / (12 mu_gas) b / l_ij (Eq. 3.37), with w capped at b; an imbibed crack does the
+reverse with the water viscosity. Readings and details: docs/micro.md, "micro.cracks".
 """
 
 from __future__ import annotations

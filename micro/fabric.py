@@ -2,7 +2,7 @@
 
 Lambda = (1/N) sum_c a_c n_c (x) n_c, with n_c the unit vector along the bond of crack c
 (the crack plane is normal to it). A tensor, so opposite normals add up instead of
-cancelling as in Yade's vector sum (REFERENCE_NOTES section 3).
+cancelling as in Yade's vector sum (docs/yade.md §3).
 """
 
 from __future__ import annotations

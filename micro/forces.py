@@ -1,20 +1,13 @@
 """Hydro-mechanical forces on DEM points and point suctions (Caulk 2022, Sec. 3.3.5).
 
 Force of the pore fluid on the points, Eqs. 3.28-3.32 with Bishop's chi = S (as Yade):
-across each facet between cells i and j, the pressure jump S_i p_i - S_j p_j acts on the
-whole triangle, A_ij (S_i p_i - S_j p_j) n_ij with n_ij from i to j. Eq. 3.29 gives each
-vertex k the part A^k on its own sector of the triangle, and Eq. 3.31 shares the rest,
-A^f, in proportion to the sectors; together vertex k receives the fraction
-A^k / sum_x A^x of the facet force, with A^k = theta_k r_k^2 / 2 the sector of its
-interaction radius (theta_k the triangle's angle at k). A hull triangle of cell i sees
-the exterior value instead of S_j p_j. Interior facets cancel exactly for a uniform
-field, and the hull triangles then carry p A n to their vertices.
-
-Exterior value: Yade closes the mesh with boundary cells held at the imposed pressure,
-so a specimen in equilibrium with its boundary feels no net fluid force. To reproduce
-that, pass ``exterior_pressure = S(p_b) p_b`` of the imposed boundary pressure p_b; the
-default 0 (gas at the reference pressure outside) makes suction squeeze the specimen
-with S p A on every face instead.
+across each facet between cells i and j the jump S_i p_i - S_j p_j acts on the whole
+triangle, A_ij (S_i p_i - S_j p_j) n_ij, and vertex k receives the fraction
+A^k / sum_x A^x of it, A^k = theta_k r_k^2 / 2 the sector of its interaction radius
+(Eqs. 3.29, 3.31). A hull triangle sees ``exterior_pressure`` instead of S_j p_j (Yade's
+boundary cells at the imposed pressure: pass S(p_b) p_b). The specimen's hull loads per
+face (:func:`hull_face_loads`) can instead be shared by the outer points as a membrane
+would (:func:`membrane_forces`). Details: docs/micro.md, "micro.forces".
 """
 
 from __future__ import annotations
@@ -25,12 +18,14 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit, prange
 
-from shared.mesh import Mesh
+from shared.mesh import Mesh, face_planes
 
 __all__ = [
     "SectorWeights",
     "facet_vertex_weights",
+    "hull_face_loads",
     "hydromechanical_forces",
+    "membrane_forces",
     "point_suction",
     "sector_weights",
 ]
@@ -315,7 +310,7 @@ def point_suction(
     fallback
         Suction [Pa] (scalar or (n_points,)) of points without an incident cell (not
         triangulated, e.g. duplicates); None uses the volume-weighted mean of all
-        cells. Yade divides by zero there (REFERENCE_NOTES section 8, defect 10).
+        cells. Yade divides by zero there (docs/yade.md §8, defect 10).
 
     Returns
     -------
@@ -333,3 +328,48 @@ def point_suction(
     fallback = np.broadcast_to(np.asarray(fallback, dtype=np.float64), (n_points,))
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(weight > 0.0, weighted / weight, fallback)
+
+
+def hull_face_loads(mesh: Mesh, bishop_pressure: FloatArray) -> FloatArray:
+    """Resultant of the pore-fluid pull on the hull, per face of the specimen [N], (6, 3).
+
+    Each hull triangle carries chi p A n (chi p = S p of the cell it closes, air outside,
+    n outward; chi p < 0 pulls inward), summed over the triangles of each face
+    (:attr:`shared.mesh.Mesh.boundary_walls`, order of :data:`shared.mesh.WALLS`). The
+    six sum to -(resultant of the internal facet forces) exactly, so the specimen as a
+    whole carries no net force whatever the saturation field.
+    """
+    loads = bishop_pressure[mesh.boundary_cells, None] * mesh.boundary_areas[:, None] \
+        * mesh.boundary_normals
+    return np.stack([loads[mesh.boundary_walls == wall].sum(axis=0) for wall in range(6)])
+
+
+def membrane_forces(positions: FloatArray, face_loads: FloatArray, layer: float) -> FloatArray:
+    """Forces of six face loads shared by the outer points, as a membrane would [N].
+
+    Each face's load (a vector) is shared equally by the points within ``layer`` of
+    that face's plane (or beyond it); points on an edge or corner take a share from
+    each of their faces. The planes are :func:`shared.mesh.face_planes`, robust to a
+    point pushed out of a face.
+
+    Parameters
+    ----------
+    positions
+        (n, 3) point centres [m].
+    face_loads
+        (6, 3) load of each face [N], order of :data:`shared.mesh.WALLS` (x-, x+, y-,
+        ...), e.g. :func:`hull_face_loads`.
+    layer
+        Thickness of the loaded outer layer [m].
+    """
+    forces = np.zeros_like(positions)
+    lower, upper = face_planes(positions)
+    for wall in range(6):
+        axis, side = divmod(wall, 2)
+        if side == 0:
+            distance = positions[:, axis] - lower[axis]
+        else:
+            distance = upper[axis] - positions[:, axis]
+        loaded = distance <= layer
+        forces[loaded] += face_loads[wall] / loaded.sum()
+    return forces

@@ -1,25 +1,15 @@
 """Coupled hydration of a compacted bentonite pellet (Caulk 2022, Chap. 3), quasi-statically.
 
 The specimen is a cube of DEM points whose Delaunay tetrahedra are partially saturated
-finite volumes. Boundary suction is lowered through a list of checkpoints. At each
-checkpoint the model advances in staggered steps until hydraulic balance:
-
-1. one implicit flow step (water pressure, then explicit saturation; factor reused);
-2. point suction = volume-weighted suction of the incident cells, swelling strain
-   and radii r = r0 (1 + eps_v)^(1/3);
-3. hydro-mechanical forces and DEM relaxation to mechanical balance (unbalanced force
-   below a tolerance): the mechanics is quasi-static at the flow time scale;
-4. cell geometry from the moved points with the same connectivity, porosity from the
-   conserved solid volume of each cell; a Delaunay remesh when a cell inverts or
-   degenerates, with solid and water volumes conserved across it;
-5. the crack model: bonds that have separated, their aperture, imbibed or gas-filled
-   state, and their effect on the facet conductances.
-
-Flow time steps start at ``initial_time_step`` after each checkpoint and grow
-geometrically, since the suction front slows down as it diffuses inwards. Yade instead
-lowers the boundary suction by 10 Pa per 1e-9 s DEM step and stays far from balance
-(REFERENCE_NOTES section 10): the staggered quasi-static scheme is what lets the
-specimen reach each checkpoint's state.
+finite volumes. Boundary suction is lowered through a list of checkpoints; at each the
+model advances in staggered steps until hydraulic balance: (1) one implicit flow step;
+(2) point suction from the incident cells, swelling strain and radii
+r = r0 (1 + eps_v)^(1/3); (3) hydro-mechanical forces (:mod:`micro.forces`) and DEM
+relaxation to mechanical balance; (4) cell geometry and porosity from the moved points,
+a conservative Delaunay remesh when a cell inverts; (5) the crack model. Flow time steps
+grow geometrically from ``initial_time_step`` after each checkpoint. Yade instead lowers
+the boundary suction by 10 Pa per 1e-9 s DEM step and stays far from balance
+(docs/yade.md §10). The steps in full: docs/micro.md, "micro.hydration".
 """
 
 from __future__ import annotations
@@ -41,8 +31,8 @@ from micro.cracks import (
     crack_conductivity,
     crack_network,
 )
-from micro.forces import hydromechanical_forces, point_suction
-from shared.delaunay import update_delaunay
+from micro.forces import hull_face_loads, hydromechanical_forces, membrane_forces, point_suction
+from shared.delaunay import delaunay_tetrahedra, update_delaunay
 from shared.dem.contacts import held_points
 from shared.dem.integrator import limit_speed, stable_time_step, step, unbalanced_force
 from shared.dem.parameters import DEMParameters
@@ -62,8 +52,6 @@ from shared.mesh import (
     Mesh,
     boundary_cell_mask,
     cell_volumes,
-    delaunay_tetrahedra,
-    face_planes,
     mesh_from_tetrahedra,
     update_mesh,
 )
@@ -344,7 +332,7 @@ def triangulate(
     Returns
     -------
     tetrahedra, neighbours : ndarray of int64, shape (n_cells, 4)
-        As :func:`shared.mesh.delaunay_tetrahedra`, with -1 for no neighbour.
+        As :func:`shared.delaunay.delaunay_tetrahedra`, with -1 for no neighbour.
     """
     if previous is not None:
         repaired = update_delaunay(positions, previous.tetrahedra, previous.neighbours,
@@ -462,51 +450,6 @@ def update_cracks(state: PelletState, material: ClayParameters) -> None:
     )
 
 
-def hull_face_loads(mesh: Mesh, bishop_pressure: FloatArray) -> FloatArray:
-    """Resultant of the pore-fluid pull on the hull, per face of the specimen [N], (6, 3).
-
-    Each hull triangle carries chi p A n (chi p = S p of the cell it closes, air outside,
-    n outward; chi p < 0 pulls inward), summed over the triangles of each face
-    (:attr:`shared.mesh.Mesh.boundary_walls`, order of :data:`shared.mesh.WALLS`). The
-    six sum to -(resultant of the internal facet forces) exactly, so the specimen as a
-    whole carries no net force whatever the saturation field.
-    """
-    loads = bishop_pressure[mesh.boundary_cells, None] * mesh.boundary_areas[:, None] \
-        * mesh.boundary_normals
-    return np.stack([loads[mesh.boundary_walls == wall].sum(axis=0) for wall in range(6)])
-
-
-def membrane_forces(positions: FloatArray, face_loads: FloatArray, layer: float) -> FloatArray:
-    """Forces of six face loads shared by the outer points, as a membrane would [N].
-
-    Each face's load (a vector) is shared equally by the points within ``layer`` of
-    that face's plane (or beyond it); points on an edge or corner take a share from
-    each of their faces. The planes are :func:`shared.mesh.face_planes`, robust to a
-    point pushed out of a face.
-
-    Parameters
-    ----------
-    positions
-        (n, 3) point centres [m].
-    face_loads
-        (6, 3) load of each face [N], order of :data:`shared.mesh.WALLS` (x-, x+, y-,
-        ...), e.g. :func:`hull_face_loads`.
-    layer
-        Thickness of the loaded outer layer [m].
-    """
-    forces = np.zeros_like(positions)
-    lower, upper = face_planes(positions)
-    for wall in range(6):
-        axis, side = divmod(wall, 2)
-        if side == 0:
-            distance = positions[:, axis] - lower[axis]
-        else:
-            distance = upper[axis] - positions[:, axis]
-        loaded = distance <= layer
-        forces[loaded] += face_loads[wall] / loaded.sum()
-    return forces
-
-
 def swell(
     state: PelletState, material: ClayParameters, cracks: bool = False
 ) -> tuple[FloatArray, FloatArray]:
@@ -516,13 +459,10 @@ def swell(
     cell it closes, so the facet forces carry only the jumps of S p between cells; the
     pull of the pore fluid on the hull (Yade's hull forces with air outside) is applied
     instead face by face, each face's resultant shared by its outer layer of points
-    (:func:`hull_face_loads`, :func:`membrane_forces`). On a jittered cloud the hull
+    (:func:`micro.forces.hull_face_loads`, :func:`micro.forces.membrane_forces`). On a jittered cloud the hull
     has few large triangles, and hull forces would concentrate the whole face load on a
-    handful of points. A uniform stress (the area-weighted mean S p of the hull) on
-    every face, as before, left the specimen with a net force wherever S p varies over
-    the hull (78 N against a mean point load of 25 N on a 125-point specimen with a
-    porosity gradient): it never came to rest (unbalanced force stuck at 0.035, 5e-7
-    with the face resultants), and weakly bonded specimens crept apart. With
+    handful of points; a uniform stress on every face would leave the specimen with a
+    net force wherever S p varies over the hull, so that it never comes to rest. With
     ``cracks``, the capillary pull across the gas-filled cracks of ``state.cracks`` is
     removed (Eq. 3.35, :func:`micro.cracks.capillary_release_forces`).
     """

@@ -323,7 +323,7 @@ def measure_checkpoint(
     executor: Executor | None = None,
     background: bool = False,
 ) -> CheckpointMeasurement:
-    """Everything recorded at a checkpoint (DESIGN §2, ``results/micro``).
+    """Everything recorded at a checkpoint (docs/design.md §2, ``results/micro``).
 
     The crack network is updated here (the hydration goes on with it). ``executor`` (a
     worker process, :func:`micro.run.measurement_executor`) makes the eight independent

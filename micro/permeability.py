@@ -1,63 +1,19 @@
-"""Numerical permeability measurement of the frozen micro model (DESIGN.md section 3).
+"""Numerical permeability measurement of the frozen micro model (docs/design.md §3).
 
-Thesis Sec. 3.5.3 and Appendix .2 (``emulatePermeability``), with the corrections of
-REFERENCE_NOTES sections 4 and 10: saturation, porosity and the mesh are frozen, a
-pressure drop of ``drop_fraction`` (10 %) of the current suction is imposed along one
-axis, the steady problem is solved (no transient term), and the permeability follows
-from either
+Thesis Sec. 3.5.3 and Appendix .2 (``emulatePermeability``), corrected as in
+docs/yade.md §§4 and 10: saturation, porosity and mesh are frozen, a pressure drop of
+``drop_fraction`` of the suction is imposed along one axis, the steady problem is solved:
 
-* ``"wall_flux"``: Dirichlet cells on the two walls normal to the axis only, no flux
-  elsewhere; k = mu Q L / (A dP), Q the mean of the flux leaving the inlet layer and
-  entering the outlet layer, A = V / L the mean cross-section of the meshed volume V
-  over the length L between the wall planes; or
-* ``"velocity"``: Dirichlet cells on all six walls, as in the thesis script; cell
-  velocities v_i = (1/V_i) sum_f q_f (x_f - x_i) (exact for uniform flow); k =
-  mu |<v>| / |grad p| with <v> the volume average over the cells whose centroid lies in
-  the central ``inner_fraction`` of the box along every axis.
+* ``"wall_flux"``: Dirichlet cells on the two walls normal to the axis,
+  k = mu Q L / (A dP), A = V / L the mean cross-section;
+* ``"velocity"``: Dirichlet cells on all six walls, k = mu |<v>| / |grad p|, <v> the
+  volume average of v_i = (1/V_i) sum_f q_f (x_f - x_i) over the central cells;
+* the tensor (:func:`permeability_tensor`): velocity method for gradients along x, y and
+  z, K[:, j] = -mu <v> / (grad p)_j; :func:`principal_permeability` its symmetric part.
 
-The full tensor (:func:`permeability_tensor`, DESIGN §2 ``permeability_tensor``) uses the
-velocity method's boundary conditions and average for a gradient along x, y and z in
-turn, K[:, j] = -mu <v> / (grad p)_j, with one factorisation per phase serving the three
-right-hand sides; :func:`principal_permeability` derives its symmetric part, principal
-values and directions, and relative asymmetry. Its limitation: with every wall cell
-Dirichlet, a crack cluster that joins two wall cells carries, between their two imposed
-pressures, a flux proportional to its own conductance (gas cracks reach 1e16 times the
-clay's), and where it crosses the averaged region that flux dominates <v>; the tensor
-then has a large asymmetry and often a negative principal value (the whole tensor is
-then NaN). At 1000 points the inner 80 % begins one point spacing from the walls:
-in the default cracked specimen, such clusters made the gas tensor 1e3-1e6 times the
-wall-flux values from 20 MPa on, with asymmetries 0.05-0.4 against 0.002 without
-cracks. The wall-flux method does not see them (no-flux side walls, rates across the
-wall layers).
-
-The imposed pressure is the linear profile evaluated at each Dirichlet cell's
-circumcentre (its dual point). With the velocity method every boundary cell is
-Dirichlet and this linear field is the exact discrete solution of a homogeneous
-medium (the scheme reproduces linear fields), so the input permeability comes back to
-round-off. With the wall-flux method the jagged no-flux side walls break linearity
-anyway, an O(h/L) excess; there the circumcentres are clipped to the box, so that hull
-slivers, whose circumcentres lie far out, keep pressures between the two wall values,
-which reduces that excess.
-
-Zero conductances (e.g. the gas phase of a saturated region) would make isolated free
-cells singular: conductances are floored at ``conductance_floor`` times the largest
-one, a floor low enough to leave the clay's gas conductances alone although gas cracks
-reach 1e11 times them.
-
-A steady solve without storage does not depend on the mean pressure, so it is solved
-for the departure from ``mean_pressure``: with open gas cracks the conductances span
-twelve decades, and carrying a mean ten times the drop through that ill-conditioned
-system loses the digits the flux is made of. Near saturation a few gas-filled cracks
-conduct 1e16 times the clay's gas conductance: the flux across such a facet, computed
-in double precision, carries a round-off as large as a few per cent of the whole
-specimen's rate, whatever the solver's tolerance, and the clay's fluxes can be off as
-much. Inlet and outlet rates that differ by more than ``balance_tolerance`` (0.1 %) are
-then refined: the residual and the fluxes are computed in extended precision
-(``numpy.longdouble``) and the double-precision factor solves for the correction
-(mixed-precision iterative refinement). A wall flux that runs against the gradient, or that stays unbalanced
-after ``_REFINEMENTS`` sweeps, is a failed solve: it is reported as NaN with a warning
-rather than as a permeability. The measurements behind these choices are in
-``benchmarks/reference/README.md``.
+A wall flux against the gradient, or unbalanced after extended-precision refinement, is
+reported as NaN. Boundary values, floors, refinement and limits: docs/micro.md,
+"micro.permeability".
 """
 
 from __future__ import annotations
@@ -73,6 +29,7 @@ import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
+from micro.pool import gathered
 from shared.fv import (
     FlowPattern,
     assemble_matrix,
@@ -80,7 +37,6 @@ from shared.fv import (
     facet_divergence,
     facet_flux,
     solver_pattern,
-    steady_pressure,
 )
 from shared.materials import ClayParameters
 from shared.mesh import WALLS, Mesh, boundary_cell_mask
@@ -96,7 +52,7 @@ __all__ = [
     "measurement_pattern",
     "tensor_pattern",
     "permeability_tensor",
-    "permeability_tensor_axes",
+    "axis_permeabilities",
     "checkpoint_permeabilities",
     "principal_permeability",
 ]
@@ -116,23 +72,6 @@ INNER_FRACTION = 0.8
 _REFINEMENTS = 6
 
 
-def _called(calls: Sequence[Callable[[], object]]) -> list:
-    return [call() for call in calls]
-
-
-def _gathered(executor: Executor | None, calls: Sequence[Callable[[], object]]) -> list:
-    """Results of independent calls, in order: every other call on ``executor`` (one
-    task, so that a worker process receives the mesh they share once) while this thread
-    makes the others, or all of them here."""
-    if executor is None or len(calls) < 2:
-        return _called(calls)
-    remote = executor.submit(_called, calls[0::2])
-    results: list = [None] * len(calls)
-    results[1::2] = _called(calls[1::2])
-    results[0::2] = remote.result()
-    return results
-
-
 def _floored(conductance: FloatArray, floor: float) -> FloatArray | None:
     """Conductances raised to ``floor`` times the largest (isolated free cells would make
     the steady system singular); None if every conductance is 0."""
@@ -144,8 +83,7 @@ def _floored(conductance: FloatArray, floor: float) -> FloatArray | None:
 
 # Unknowns from which a measurement's solves use multigrid: at 1e-13 the hierarchy needs
 # about 18 iterations and hands some crack networks to the factor, so it pays off later
-# than for the flow steps (at 37.5k points, 250k unknowns, the measurements took 289 s
-# with multigrid against 252 s with the factor).
+# than for the flow steps (the measurements: benchmarks/reference/README.md).
 _MEASUREMENT_AMG_UNKNOWNS = 400_000
 
 
@@ -234,6 +172,36 @@ def _mean_velocity(
     return moment[cells].sum(axis=0) / mesh.volumes[cells].sum()
 
 
+def _steady_solve(
+    mesh: Mesh, pattern: FlowPattern, solver: SPDSolver, conductance: FloatArray,
+    profile: FloatArray, matrix: sp.csc_matrix,
+    rates: Callable[[npt.NDArray], tuple[float, float]] | None, tolerance: float,
+) -> tuple[npt.NDArray, float, float]:
+    """The steady solve every measurement makes: the departure from the mean pressure
+    with the linear ``profile`` imposed on the Dirichlet cells (and as the start of the
+    free ones), its facet fluxes [m3/s], and with ``rates`` the two rates of a region
+    (in and out), refined in extended precision (:func:`_refined_rates`) when they do not
+    balance to ``tolerance``. ``matrix`` is the steady matrix of ``conductance``; the
+    solver's factor of it serves every solve and refinement sweep."""
+    pressure = np.array(profile, dtype=np.float64)
+    free = pattern.free_cells
+    rhs = facet_divergence(mesh, conductance, pressure)[free]
+    pressure[free] += solver.solve(matrix, rhs, ordered=pattern.fill_reducing)
+    flux: npt.NDArray = facet_flux(mesh, conductance, pressure)
+    if rates is None:
+        return flux, float("nan"), float("nan")
+    entering, leaving = rates(flux)
+    if not _balanced(entering, leaving, tolerance):
+        entering, leaving, flux = _refined_rates(
+            mesh, pattern, solver, conductance, pressure, rates, tolerance, matrix)
+    return flux, entering, leaving
+
+
+def _steady_matrix(mesh: Mesh, pattern: FlowPattern, conductance: FloatArray) -> sp.csc_matrix:
+    """Lower triangle of the steady (storage-free) system of ``conductance``."""
+    return assemble_matrix(mesh, pattern, conductance, np.zeros(mesh.n_cells))
+
+
 def measure_permeability(
     mesh: Mesh,
     conductance: FloatArray,
@@ -308,15 +276,12 @@ def measure_permeability(
     elif not np.array_equal(pattern.dirichlet, dirichlet):
         raise ValueError(f"pattern: its Dirichlet cells are not those of the {method} "
                          f"method along axis {axis}")
+    matrix = _steady_matrix(mesh, pattern, floored)
     if layers is not None:
         inlet, outlet = layers
-        pressure = steady_pressure(mesh, pattern, solver, floored, departure, departure)
-        entering, leaving = _wall_rates(mesh, facet_flux(mesh, floored, pressure), inlet, outlet)
-        if not _balanced(entering, leaving, balance_tolerance):
-            entering, leaving, _ = _refined_rates(
-                mesh, pattern, solver, floored, pressure,
-                lambda flux: _wall_rates(mesh, flux, inlet, outlet), balance_tolerance,
-            )
+        _, entering, leaving = _steady_solve(
+            mesh, pattern, solver, floored, departure, matrix,
+            lambda flux: _wall_rates(mesh, flux, inlet, outlet), balance_tolerance)
         if not _balanced(entering, leaving, balance_tolerance):
             log.warning(
                 "axis %d at %.4g Pa: inlet and outlet rates %.4g and %.4g m3/s disagree "
@@ -326,8 +291,8 @@ def measure_permeability(
             return float("nan")
         area = mesh.volumes.sum() / length
         return viscosity * 0.5 * (entering + leaving) / (area * abs(gradient))
-    pressure = steady_pressure(mesh, pattern, solver, floored, departure, departure)
-    flux = facet_flux(mesh, floored, pressure)
+    flux, _, _ = _steady_solve(mesh, pattern, solver, floored, departure, matrix, None,
+                               balance_tolerance)
     inner = _inner_cells(mesh, pattern.dirichlet, inner_fraction)
     if not np.any(inner):
         raise ValueError("no free cell in the inner region: mesh too coarse")
@@ -393,7 +358,7 @@ def _refined_rates(
     return entering, leaving, flux
 
 
-def permeability_tensor_axes(
+def axis_permeabilities(
     mesh: Mesh,
     saturation: FloatArray,
     porosity: FloatArray,
@@ -440,8 +405,8 @@ def permeability_tensor_axes(
         ``x``, ``y``, ``z``.
     """
     phases = _phase_conductances(mesh, saturation, porosity, suction, material, conductances)
-    return _axes_result(_gathered(executor, _axes_calls(mesh, phases, suction, material,
-                                                        method, drop_fraction)))
+    return _axes_result(gathered(executor, _axes_calls(mesh, phases, suction, material,
+                                                       method, drop_fraction)))
 
 
 def _phase_conductances(
@@ -469,7 +434,7 @@ def _axes_calls(
     mesh: Mesh, phases: Mapping[str, FloatArray], suction: float, material: ClayParameters,
     method: Method, drop_fraction: float,
 ) -> list[Callable[[], float]]:
-    """The six solves of :func:`permeability_tensor_axes`, by axis then phase."""
+    """The six solves of :func:`axis_permeabilities`, by axis then phase."""
     # one pattern per axis for both phases; the velocity method's serves every axis
     patterns = [measurement_pattern(mesh, 0, method)]
     if method == "wall_flux":
@@ -620,23 +585,16 @@ def measure_permeability_tensor(
         return tensor
     solver = _measurement_solver() if solver is None else solver
     pattern = _pattern(mesh, dirichlet, solver) if pattern is None else pattern
-    matrix = assemble_matrix(mesh, pattern, floored, np.zeros(mesh.n_cells))
-    free = pattern.free_cells
+    matrix = _steady_matrix(mesh, pattern, floored)
     centre = 0.5 * (mesh.bounds[0] + mesh.bounds[1])
     for j in range(3):
         gradient = -pressure_drop / (mesh.bounds[1, j] - mesh.bounds[0, j])
-        pressure = gradient * (mesh.circumcentres[:, j] - centre[j])
         try:
             # the first solve factors the matrix; the next ones reuse the factor
-            rhs = facet_divergence(mesh, floored, pressure)[free]
-            pressure[free] += solver.solve(matrix, rhs, ordered=pattern.fill_reducing)
-            flux: npt.NDArray = facet_flux(mesh, floored, pressure)
-            entering, leaving = _region_rates(mesh, flux, inner)
-            if not _balanced(entering, leaving, balance_tolerance):
-                entering, leaving, flux = _refined_rates(
-                    mesh, pattern, solver, floored, pressure,
-                    lambda f: _region_rates(mesh, f, inner), balance_tolerance, matrix,
-                )
+            flux, entering, leaving = _steady_solve(
+                mesh, pattern, solver, floored,
+                gradient * (mesh.circumcentres[:, j] - centre[j]), matrix,
+                lambda f: _region_rates(mesh, f, inner), balance_tolerance)
         except SolverError as error:
             log.warning("%s: steady solve failed (%s); tensor set to NaN", label, error)
             return np.full((3, 3), np.nan)
@@ -701,7 +659,8 @@ def permeability_tensor(
     sealed: npt.NDArray[np.bool_] | None = None,
     executor: Executor | None = None,
 ) -> FloatArray:
-    """Water and gas permeability tensors of a frozen state (DESIGN §2, ``permeability_tensor``).
+    """Water and gas permeability tensors of a frozen state (docs/design.md §2,
+    ``permeability_tensor``).
 
     Three steady solves per phase with one factorisation
     (:func:`measure_permeability_tensor`).
@@ -716,7 +675,7 @@ def permeability_tensor(
         Porosity per cell [1], shape (n_cells,).
     suction
         Current (mean) suction of the specimen [Pa], > 0: the pressure drop across the
-        box is ``drop_fraction * suction``, as for :func:`permeability_tensor_axes`.
+        box is ``drop_fraction * suction``, as for :func:`axis_permeabilities`.
     material
         Clay parameters (viscosities, k_0, b_k, S_r, S_s, n).
     conductances
@@ -731,7 +690,7 @@ def permeability_tensor(
         :func:`measure_permeability_tensor`.
     executor
         Makes one phase's solves while this thread makes the other's, as in
-        :func:`permeability_tensor_axes`.
+        :func:`axis_permeabilities`.
 
     Returns
     -------
@@ -740,8 +699,8 @@ def permeability_tensor(
         entries (with a warning) where a solve failed.
     """
     phases = _phase_conductances(mesh, saturation, porosity, suction, material, conductances)
-    return np.stack(_gathered(executor, _tensor_calls(mesh, phases, suction, material,
-                                                      drop_fraction, inner_fraction, sealed)))
+    return np.stack(gathered(executor, _tensor_calls(mesh, phases, suction, material,
+                                                     drop_fraction, inner_fraction, sealed)))
 
 
 def _tensor_calls(
@@ -770,7 +729,7 @@ def checkpoint_permeabilities(
     sealed: npt.NDArray[np.bool_] | None = None,
     executor: Executor | None = None,
 ) -> tuple[dict[str, dict[str, float]], FloatArray]:
-    """A checkpoint's eight solves: :func:`permeability_tensor_axes` (wall-flux method)
+    """A checkpoint's eight solves: :func:`axis_permeabilities` (wall-flux method)
     and :func:`permeability_tensor` with their default fractions, in one gather.
 
     With ``executor``, the worker makes one phase's four solves and this thread the
@@ -779,24 +738,24 @@ def checkpoint_permeabilities(
     Parameters
     ----------
     mesh, saturation, porosity, suction, material, conductances
-        As for :func:`permeability_tensor_axes`: the frozen state [1, 1], the suction
+        As for :func:`axis_permeabilities`: the frozen state [1, 1], the suction
         [Pa], the clay parameters, optional facet conductances per phase [m3/(Pa s)].
     sealed
         Cells that stay free in the tensor's wall layers (crack mouths), as for
         :func:`permeability_tensor`.
     executor
-        A worker, as for :func:`permeability_tensor_axes`; the results do not depend on it.
+        A worker, as for :func:`axis_permeabilities`; the results do not depend on it.
 
     Returns
     -------
     axes : dict
-        ``{phase: {axis: permeability [m2]}}``, as :func:`permeability_tensor_axes`.
+        ``{phase: {axis: permeability [m2]}}``, as :func:`axis_permeabilities`.
     tensor : ndarray, shape (2, 3, 3)
         K[phase, i, j] [m2], as :func:`permeability_tensor`.
     """
     phases = _phase_conductances(mesh, saturation, porosity, suction, material, conductances)
     axes = _axes_calls(mesh, phases, suction, material, "wall_flux", DROP_FRACTION)
-    values = _gathered(executor, [*axes, *_tensor_calls(mesh, phases, suction, material,
+    values = gathered(executor, [*axes, *_tensor_calls(mesh, phases, suction, material,
                                                         DROP_FRACTION, INNER_FRACTION, sealed)])
     return _axes_result(values[:len(axes)]), np.stack(values[len(axes):])
 

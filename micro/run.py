@@ -3,7 +3,7 @@
 A case is a specimen (CT-informed or homogeneous porosity), a crack model switch and a
 confinement. After each checkpoint the whole state goes to a checkpoint file beside the
 output, so that a killed run resumes at its last checkpoint; the file is removed when
-the case finishes. The result is ``results/micro/<case>.nc`` (DESIGN §2) and a figure;
+the case finishes. The result is ``results/micro/<case>.nc`` (docs/design.md §2) and a figure;
 with ``micro.vtk_snapshots``, also ParaView snapshots in ``results/micro/<case>_vtk/``
 (:mod:`micro.vtk`).
 """

@@ -1,6 +1,6 @@
 """Studies over micro cases: convergence in the number of points, and scale (sub-regions).
 
-The studies are aggregates of finished cases (``results/micro/<case>.nc``, DESIGN §2):
+The studies are aggregates of finished cases (``results/micro/<case>.nc``, docs/design.md §2):
 
 - convergence (thesis Sec. 3.5.8): the per-checkpoint outputs of cases that differ in
   their number of points, stacked along a new dimension ``n_points`` (ascending);

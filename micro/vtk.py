@@ -1,28 +1,14 @@
 """VTK snapshots of the pellet state for ParaView (optional, ``micro.vtk_snapshots``).
 
 One snapshot is an unstructured grid (``.vtu``, written by meshio) of the DEM points and
-the Delaunay tetrahedra of the finite-volume mesh, with
-
-- cell data per tetrahedron: ``pressure_Pa`` (water pressure, negative under suction),
-  ``suction_Pa`` (max(-p, 0), the suction the swelling and crack laws use),
-  ``saturation`` [1] and ``porosity`` [1];
-- point data per DEM point: ``radius_m`` (current, swollen interaction radius) and
-  ``suction_Pa`` (volume-weighted mean of the incident cells,
-  :func:`micro.forces.point_suction`, the suction that swells the point);
-- cracks (open bonds on mesh edges, :class:`micro.cracks.CrackNetwork`) as a second cell
-  block of ``line`` cells between the bond's two points, with ``crack_aperture_m`` [m]
-  and ``crack_imbibed`` (1 water-filled, 0 gas-filled). VTK cell data covers every
-  block, so the tetrahedra carry ``crack_aperture_m`` = NaN and ``crack_imbibed`` = -1,
-  and the lines carry NaN in the four tetrahedron fields; in ParaView, *Threshold* on
-  ``crack_aperture_m`` shows the cracks alone.
-
-meshio 5.3's vtu writer drops field data, so the checkpoint's boundary suction is not in
-the file: time step i of the collection is ``suction(checkpoint=i)`` of the netCDF.
-
-A ``.pvd`` collection (a few lines of XML; meshio writes no collections) lists the
-snapshots of a run with the checkpoint index as time step, so that ParaView opens the
-series as one time-dependent data set. Every file is written to a temporary name in
-its directory and renamed.
+the Delaunay tetrahedra, with cell data ``pressure_Pa``, ``suction_Pa``, ``saturation``
+and ``porosity``, point data ``radius_m`` and ``suction_Pa``, and the cracks as a second
+block of ``line`` cells with ``crack_aperture_m`` and ``crack_imbibed`` (NaN and -1 on
+the tetrahedra, NaN in the tetrahedron fields on the lines). A ``.pvd`` collection lists
+the snapshots with the checkpoint index as time step (time step i is
+``suction(checkpoint=i)`` of the netCDF: meshio's vtu writer drops field data). Every
+file is written to a temporary name and renamed. Fields in full: docs/micro.md,
+"micro.vtk".
 """
 
 from __future__ import annotations

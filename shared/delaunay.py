@@ -1,28 +1,14 @@
-"""Delaunay tetrahedralisation of moved points, repaired from the previous one.
+"""Delaunay tetrahedralisation of points: from scratch, or repaired from a previous one.
 
-A coupled run remeshes points that moved a little since the last Delaunay mesh: most
-cells are still Delaunay. A tetrahedron is a cell of the Delaunay tetrahedralisation of
-the points if (and, for points in general position, only if) its circumsphere holds no
-other point, which a uniform grid of the points decides for each cell in O(1). So
-:func:`update_delaunay` keeps the previous cells whose circumsphere is still empty,
-triangulates only the vertices of the others (scipy/Qhull on that subset), and keeps
-the new cells whose circumsphere is empty among *all* the points. A point near a
-sphere is decided by the insphere determinant, and one within its rounding bound
-counts as inside, so that no cell is accepted by rounding. Every kept cell is then a
-Delaunay cell, and the union is the whole tetrahedralisation exactly when its volume
-equals the convex hull's (Qhull, cheap), which is checked, as is that no face has more
-than two cells: a near-cospherical configuration that the test cannot decide leaves a
-gap, and the caller then triangulates from scratch.
-
-Why the subset suffices: a Delaunay cell that is not a kept cell lies in the region the
-rejected previous cells tile, so its vertices are vertices of rejected cells, and a cell
-whose circumsphere is empty among all points is empty among the subset, hence a cell of
-the subset's tetrahedralisation. Where the hull moved, or cells inverted, the previous
-cells do not tile the hull: the cells that were on the hull and the hull's vertices
-join the subset (on three successive remeshes of a 150k-point run this covered every
-new cell). The subset's face-connected components are split into one group per numba
-thread, each triangulated on a thread of its own (Qhull releases the GIL): a new cell
-lies within one component.
+A tetrahedron is a Delaunay cell if (for points in general position, only if) its
+circumsphere holds no other point, which a uniform grid of the points decides per cell
+in O(1). :func:`update_delaunay` keeps the previous cells whose circumsphere is still
+empty (insphere determinant, points within its rounding bound count as inside),
+triangulates only the vertices of the others (scipy/Qhull, one thread per group of
+face-connected components), and keeps the new cells empty among all points. The union
+is the whole tetrahedralisation exactly when its volume equals the convex hull's and no
+face has more than two cells, which is checked; otherwise the caller triangulates from
+scratch. Why the subset suffices: docs/micro.md, "shared.delaunay".
 """
 
 from __future__ import annotations
@@ -38,9 +24,9 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, Delaunay, QhullError
 
 from shared.dem import point_bins
-from shared.mesh import cell_geometry
+from shared.tetrahedra import cell_geometry
 
-__all__ = ["same_cells", "update_delaunay"]
+__all__ = ["delaunay_tetrahedra", "qhull_delaunay", "same_cells", "update_delaunay"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -220,6 +206,56 @@ def _link_open_faces(
     flat[first] = second // 4
     flat[second] = first // 4
     return True
+
+
+def qhull_delaunay(points: FloatArray) -> Delaunay:
+    """Qhull's plain Delaunay tetrahedralisation of (n, 3) float64 points, as scipy's
+    object (for callers that also locate points in it, ``find_simplex``).
+
+    Raises
+    ------
+    ValueError
+        If Qhull fails (coplanar or duplicated points).
+    """
+    try:
+        return Delaunay(points)
+    except QhullError as error:
+        raise ValueError(f"Delaunay failed (coplanar or duplicated points?): {error}") from error
+
+
+def delaunay_tetrahedra(points: npt.ArrayLike) -> tuple[FloatArray, IntArray, IntArray]:
+    """Plain Delaunay tetrahedralisation of points (scipy/Qhull).
+
+    Parameters
+    ----------
+    points
+        Point coordinates [m], shape (n_points, 3), n_points >= 5, not coplanar.
+
+    Returns
+    -------
+    points : ndarray, shape (n_points, 3)
+        The points as contiguous float64 [m].
+    tetrahedra : ndarray of int64, shape (n_cells, 4)
+        Vertex indices of each cell.
+    neighbours : ndarray of int64, shape (n_cells, 4)
+        Cell across the face opposite each vertex, -1 on the hull.
+
+    Raises
+    ------
+    ValueError
+        If points are not finite, not of shape (n >= 5, 3), or all coplanar.
+    """
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 3 or points.shape[0] < 5:
+        raise ValueError(f"points must have shape (n >= 5, 3), got {points.shape}")
+    if not np.all(np.isfinite(points)):
+        raise ValueError("points contain NaN or inf")
+    triangulation = qhull_delaunay(points)
+    return (
+        points,
+        triangulation.simplices.astype(np.int64),
+        triangulation.neighbors.astype(np.int64),
+    )
 
 
 def update_delaunay(

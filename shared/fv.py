@@ -1,26 +1,17 @@
 """Partially saturated finite volumes on a tetrahedral mesh: conductances and systems.
 
-DESIGN.md section 3. Per free cell i, implicit in the water pressure p:
+docs/design.md §3. Per free cell i, implicit in the water pressure p:
 
     n_i V_i (dS/dp)_i (p_i - p_i^old) / dt = sum_j g_ij (p_j - p_i),
 
 with g_ij = k_M(phi_ij) k_r(S_ij) A_ij / (mu l_ij), phi_ij and S_ij the arithmetic means
-of the two cells' porosities and saturations. Cells marked Dirichlet hold an imposed
-pressure and are eliminated. The system is written for the increment
-delta = p - p* (p* = old pressures with the imposed values set on Dirichlet cells):
-
-    (C + L_ff) delta_f = sum_j g_ij (p*_j - p*_i),   C = diag(n V dS/dp / dt),
-
-symmetric positive definite as soon as every connected set of free cells has storage
-or touches a Dirichlet cell. Solving for the increment keeps the pressure change
-accurate when |p| (about 1e8 Pa) dwarfs it. Saturation then follows explicitly,
-S += dS/dp delta (thesis Eq. 3.19), clamped to [S_r, S_s]; with no-flux boundaries and
-no active clamp the water volume sum n V S is conserved to the solver tolerance.
-
-:class:`FlowPattern` holds the sparsity of the free-free matrix (lower triangle, CSC)
-and the positions where each facet and cell contribute, computed once per mesh and
-Dirichlet set, so that per-step assembly is one numba pass and the solver can keep its
-symbolic analysis.
+of the two cells' porosities and saturations. Dirichlet cells are eliminated and the
+system is solved for the increment delta = p - p* (p* the old pressures with the imposed
+values), (C + L_ff) delta_f = sum_j g_ij (p*_j - p*_i), C = diag(n V dS/dp / dt), SPD
+when every connected set of free cells has storage or touches a Dirichlet cell.
+Saturation follows explicitly, S += dS/dp delta (thesis Eq. 3.19), clamped to
+[S_r, S_s]. :class:`FlowPattern` holds the sparsity and assembly positions, computed
+once per mesh and Dirichlet set. Details: docs/micro.md, "shared.fv".
 """
 
 from __future__ import annotations
@@ -588,7 +579,7 @@ def transfer_cell_state(
     *,
     conserve_water: bool = True,
 ) -> TransferredState:
-    """Carry the cell state across a remesh (REFERENCE_NOTES sections 8.3 and 8.4).
+    """Carry the cell state across a remesh (docs/yade.md §§8.3 and 8.4).
 
     A remesh of moved points keeps most cells: a new cell with the same four vertices
     as an old one keeps that cell's state (its material moved with its vertices); the

@@ -3,7 +3,7 @@
 Every file of the chain goes through :func:`write_dataset`: it checks that each variable
 carries ``units`` and ``long_name``, turns attributes netCDF cannot store (bools, dicts,
 lists, None) into numbers and JSON strings, adds the provenance attributes of
-DESIGN.md section 2, compresses, and writes to a temporary name in the target folder
+docs/design.md §2, compresses, and writes to a temporary name in the target folder
 before renaming, so an interrupted run never leaves a readable but wrong file.
 """
 

@@ -1,38 +1,16 @@
 """Delaunay finite-volume mesh of DEM points: tetrahedra, facets, dual lengths, walls.
 
-Each tetrahedron of the (plain, unweighted) Delaunay tetrahedralisation of the points is
-a finite volume. Its dual point is the circumcentre, so that the two-point flux
-g_ij (p_j - p_i) between neighbours i, j uses the dual length
-l_ij = (c_j - c_i) . n_ij, c the circumcentres and n_ij the unit normal of the shared
-triangle from i to j. In a Delaunay mesh c_j - c_i is parallel to n_ij with a
-non-negative projection, so the scheme reproduces linear pressure fields exactly
-(evaluated at circumcentres) on any Delaunay mesh, jittered or not.
-
-Plain rather than regular (radius-weighted, Yade's choice) Delaunay: scipy's Qhull
-wrapper gives no power triangulation and a lifted 4-D hull would hide points; the
-flow law uses the points only as vertices, so plain Delaunay is the robust choice.
-
-Degenerate dual lengths: near-cospherical vertex sets (jittered grids) give
-circumcentre distances close to zero, and sliver tetrahedra on the hull give far or
-non-finite circumcentres. A dual length that is not finite or not larger than
-``min_dual_length_ratio`` times the centroid distance is replaced by the centroid
-distance; :attr:`Mesh.facet_length_fallback` flags those facets (the linear-field
-exactness is lost only there).
-
-Walls: a boundary (hull) facet belongs to the face of the points' bounding box
-nearest to its centroid, index ``2 * axis + side`` with side 0 for the lower and 1
-for the upper wall (:data:`WALLS` gives the names). Not to the face its normal points
-to most: on the jagged faces of a deformed specimen a hull triangle in the middle of
-the y- face can face -x, and a permeability measurement along x would impose the
-inlet pressure there, next to outlet cells. The hull of a packed or jittered point
-cloud has few, large triangles, so pressure boundary conditions use a boundary *layer*
-of cells (:func:`boundary_cell_mask`): cells with a vertex within half a point spacing
-of the wall plane, plus the cells owning the wall's hull triangles, whose centroids lie
-within one spacing of the plane.
-
-All loops over cells and facets run in serial numba kernels or vectorised numpy.
-:func:`update_mesh` recomputes only the geometry of moved points on the facet lists
-of a previous mesh (the per-step update of a coupled run).
+Each tetrahedron of the plain (unweighted) Delaunay tetrahedralisation of the points is
+a finite volume with its circumcentre as dual point, so that the two-point flux
+g_ij (p_j - p_i) uses the dual length l_ij = (c_j - c_i) . n_ij, which is non-negative
+on a Delaunay mesh: the scheme reproduces linear pressure fields exactly. A dual length
+that is not finite or below ``min_dual_length_ratio`` times the centroid distance is
+replaced by the centroid distance (:attr:`Mesh.facet_length_fallback`). A hull facet
+belongs to the wall (:data:`WALLS`, index ``2 * axis + side``) of the bounding-box face
+nearest its centroid; pressure conditions use a boundary layer of cells
+(:func:`boundary_cell_mask`). :func:`update_mesh` recomputes the geometry of moved
+points on the connectivity of a previous mesh. Why plain Delaunay, and the wall rules:
+docs/micro.md, "shared.mesh".
 """
 
 from __future__ import annotations
@@ -44,7 +22,9 @@ import numpy.typing as npt
 import xarray as xr
 from numba import njit, prange
 from scipy.interpolate import RegularGridInterpolator
-from scipy.spatial import Delaunay, QhullError
+
+from shared.delaunay import delaunay_tetrahedra
+from shared.tetrahedra import cell_geometry, cell_volumes
 
 __all__ = [
     "WALLS",
@@ -52,7 +32,6 @@ __all__ = [
     "build_mesh",
     "cell_geometry",
     "cell_volumes",
-    "delaunay_tetrahedra",
     "mesh_from_tetrahedra",
     "update_mesh",
     "wall_index",
@@ -145,71 +124,6 @@ class Mesh:
     def n_facets(self) -> int:
         """Number of internal facets."""
         return int(self.facet_cells.shape[0])
-
-
-@njit(cache=True, parallel=True)
-def _signed_volumes(points: FloatArray, tetrahedra: IntArray) -> FloatArray:
-    signed = np.empty(tetrahedra.shape[0])
-    for c in prange(tetrahedra.shape[0]):
-        o, p, q, r = tetrahedra[c, 0], tetrahedra[c, 1], tetrahedra[c, 2], tetrahedra[c, 3]
-        ux, uy, uz = points[p, 0] - points[o, 0], points[p, 1] - points[o, 1], \
-            points[p, 2] - points[o, 2]
-        vx, vy, vz = points[q, 0] - points[o, 0], points[q, 1] - points[o, 1], \
-            points[q, 2] - points[o, 2]
-        wx, wy, wz = points[r, 0] - points[o, 0], points[r, 1] - points[o, 1], \
-            points[r, 2] - points[o, 2]
-        signed[c] = (ux * (vy * wz - vz * wy) + uy * (vz * wx - vx * wz)
-                     + uz * (vx * wy - vy * wx)) / 6.0
-    return signed
-
-
-def cell_volumes(points: npt.ArrayLike, tetrahedra: npt.ArrayLike) -> FloatArray:
-    """Signed volumes of tetrahedra [m3]: positive for positively oriented cells.
-
-    Parameters
-    ----------
-    points
-        (n_points, 3) vertex coordinates [m].
-    tetrahedra
-        (n_cells, 4) vertex indices.
-    """
-    return _signed_volumes(np.ascontiguousarray(points, dtype=np.float64),
-                           np.ascontiguousarray(tetrahedra, dtype=np.int64))
-
-
-@njit(cache=True, parallel=True)
-def cell_geometry(
-    points: FloatArray, tetrahedra: IntArray
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Signed volumes [m3], centroids and circumcentres [m] of tetrahedra (NaN
-    circumcentres for flat cells), from (n_points, 3) coordinates [m] and (n_cells, 4)
-    vertex indices."""
-    n = tetrahedra.shape[0]
-    signed = np.empty(n)
-    centroids = np.empty((n, 3))
-    circumcentres = np.empty((n, 3))
-    for c in prange(n):
-        o, p, q, r = tetrahedra[c, 0], tetrahedra[c, 1], tetrahedra[c, 2], tetrahedra[c, 3]
-        ox, oy, oz = points[o, 0], points[o, 1], points[o, 2]
-        ux, uy, uz = points[p, 0] - ox, points[p, 1] - oy, points[p, 2] - oz
-        vx, vy, vz = points[q, 0] - ox, points[q, 1] - oy, points[q, 2] - oz
-        wx, wy, wz = points[r, 0] - ox, points[r, 1] - oy, points[r, 2] - oz
-        vw = (vy * wz - vz * wy, vz * wx - vx * wz, vx * wy - vy * wx)
-        wu = (wy * uz - wz * uy, wz * ux - wx * uz, wx * uy - wy * ux)
-        uv = (uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx)
-        edges = ((ux, vx, wx), (uy, vy, wy), (uz, vz, wz))
-        triple = ux * vw[0] + uy * vw[1] + uz * vw[2]
-        signed[c] = triple / 6.0
-        # A flat cell has no circumcentre; the caller rejects it.
-        inverse = np.nan if triple == 0.0 else 1.0 / (2.0 * triple)
-        uu = ux * ux + uy * uy + uz * uz
-        vv = vx * vx + vy * vy + vz * vz
-        ww = wx * wx + wy * wy + wz * wz
-        for d in range(3):
-            base = points[o, d]
-            centroids[c, d] = base + 0.25 * (edges[d][0] + edges[d][1] + edges[d][2])
-            circumcentres[c, d] = base + (uu * vw[d] + vv * wu[d] + ww * uv[d]) * inverse
-    return signed, centroids, circumcentres
 
 
 @njit(cache=True)
@@ -319,44 +233,6 @@ def _dual_lengths(
             lengths[f] = distance
             fallback[f] = True
     return lengths, fallback
-
-
-def delaunay_tetrahedra(points: npt.ArrayLike) -> tuple[FloatArray, IntArray, IntArray]:
-    """Plain Delaunay tetrahedralisation of points (scipy/Qhull).
-
-    Parameters
-    ----------
-    points
-        Point coordinates [m], shape (n_points, 3), n_points >= 5, not coplanar.
-
-    Returns
-    -------
-    points : ndarray, shape (n_points, 3)
-        The points as contiguous float64 [m].
-    tetrahedra : ndarray of int64, shape (n_cells, 4)
-        Vertex indices of each cell.
-    neighbours : ndarray of int64, shape (n_cells, 4)
-        Cell across the face opposite each vertex, -1 on the hull.
-
-    Raises
-    ------
-    ValueError
-        If points are not finite, not of shape (n >= 5, 3), or all coplanar.
-    """
-    points = np.ascontiguousarray(points, dtype=np.float64)
-    if points.ndim != 2 or points.shape[1] != 3 or points.shape[0] < 5:
-        raise ValueError(f"points must have shape (n >= 5, 3), got {points.shape}")
-    if not np.all(np.isfinite(points)):
-        raise ValueError("points contain NaN or inf")
-    try:
-        triangulation = Delaunay(points)
-    except QhullError as error:
-        raise ValueError(f"Delaunay failed (coplanar or duplicated points?): {error}") from error
-    return (
-        points,
-        triangulation.simplices.astype(np.int64),
-        triangulation.neighbors.astype(np.int64),
-    )
 
 
 def build_mesh(

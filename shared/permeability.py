@@ -1,9 +1,9 @@
 """Permeability laws of the clay: relative and intrinsic (porosity-dependent).
 
-DESIGN.md section 3 (thesis Eqs. 3.17, 3.18; the cubic law of cracks, Eq. 3.37, is in
+docs/design.md §3 (thesis Eqs. 3.17, 3.18; the cubic law of cracks, Eq. 3.37, is in
 :mod:`micro.cracks`). The effective saturation
-Se = (S - S_r)/(S_s - S_r) is clamped to [0, 1] (not floored at S_r: REFERENCE_NOTES
-section 8.8); the gas phase uses 1 - Se.
+Se = (S - S_r)/(S_s - S_r) is clamped to [0, 1] (not floored at S_r: docs/yade.md
+§8.8); the gas phase uses 1 - Se.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Van Genuchten water retention with porosity-dependent parameters.
 
-DESIGN.md section 3 (thesis Eqs. 3.15, 3.26, 3.27):
+docs/design.md §3 (thesis Eqs. 3.15, 3.26, 3.27):
 
     S(s) = [1 + (s / zeta)^(1 / (1 - lambda))]^(-lambda),
     zeta(phi) = zeta_0 exp(a (phi_0 - phi)),  lambda(phi) = lambda_0 exp(b (phi_0 - phi)).

@@ -1,8 +1,8 @@
-"""Suction-driven volumetric swelling of DEM points (DESIGN.md section 3, Eq. 3.21).
+"""Suction-driven volumetric swelling of DEM points (docs/design.md §3, Eq. 3.21).
 
 eps_v(s) = (beta/alpha) [exp(-alpha s) - exp(-alpha s_0)], positive (swelling) when the
 suction falls below s_0, with alpha and beta per Pa. A point's radius follows its volume,
-r = r_0 (1 + eps_v)^(1/3) (the reading DESIGN.md uses for the inconsistent Eq. 3.23).
+r = r_0 (1 + eps_v)^(1/3) (the reading docs/design.md uses for the inconsistent Eq. 3.23).
 """
 
 from __future__ import annotations

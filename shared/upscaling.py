@@ -1,6 +1,6 @@
 """The pellet permeability table: its contract, and the interpolator the macro model uses.
 
-``results/upscaling/pellet_permeability.nc`` (DESIGN §2) holds the micro model's pellet
+``results/upscaling/pellet_permeability.nc`` (docs/design.md §2) holds the micro model's pellet
 permeability against suction, per condition (free, confined), phase, axis, and as a
 tensor. Permeability spans orders of magnitude, so it is interpolated as log10 k against
 log10 suction, with a monotone cubic (PCHIP): exact at the nodes, no overshoot between

@@ -68,7 +68,7 @@ def small_config(**macro: Any) -> dict[str, Any]:
 
 
 def swelling(suction):
-    """Eq. 4.28 with the sign of DESIGN section 3, per Pa."""
+    """Eq. 4.28 with the sign of docs/design.md §3, per Pa."""
     pellet = CONFIG["materials"]["mixture_pellet"]
     a, b, s0 = pellet["swelling_alpha_per_pa"], pellet["swelling_beta_per_pa"], pellet["initial_suction_pa"]
     return b / a * (np.exp(-a * suction) - np.exp(-a * s0))

@@ -8,7 +8,7 @@ parameters and the run lengths; the few numbers set here are those of Appendix .
 that our model does not have (wall material, porosity clamps, swelling floor).
 
 What it does, after Caulk (2022) Appendix .2 with the corrections of
-REFERENCE_NOTES section 10:
+docs/yade.md §10:
 
 1. Spheres at the given points inside six static walls moved 1 mm away (free swelling),
    Hertz-Mindlin contacts, PartialSatClayEngine with Table 3.1 parameters, homogeneous

@@ -1,4 +1,4 @@
-"""The CT stage's results as the xarray datasets of the data contracts (DESIGN §2)."""
+"""The CT stage's results as the xarray datasets of the data contracts (docs/design.md §2)."""
 
 from __future__ import annotations
 
@@ -116,7 +116,7 @@ def porosity_dataset(
 def rev_dataset(
     rev: RevResult, calibrated: RevResult, chords: ChordResult, voxel_size: float
 ) -> xr.Dataset:
-    """REV statistics and chord-length distributions (DESIGN §2, ``results/rev``).
+    """REV statistics and chord-length distributions (docs/design.md §2, ``results/rev``).
 
     ``rev`` is the analysis of the binary pore image (the paper's porosity and interface),
     ``calibrated`` that of the calibrated voxel porosity (``calibrated_porosity_*``).

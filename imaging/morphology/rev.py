@@ -1,23 +1,14 @@
 """Representative elementary volume (REV) of porosity and solid-pore interface density.
 
-Two criteria are computed. Random windows: for cubic windows of growing edge at seeded
-random positions, the mean and standard deviation of porosity and of interface density
-(solid-pore area per unit volume); the REV edge is the smallest window from which the
-relative standard deviation stays below a tolerance. Centred window (Ferrage et al. 2015,
-Sec. V C): a window centred in the image and grown in all directions up to the whole
-image; the REV edge is the smallest window whose value stays within the tolerance of the
-whole image's for every larger window.
-
-Window sums come from summed-volume tables (one per field, one per face direction), so
-a window costs eight look-ups whatever its size: a million windows per edge take about a
-second, enough that the random-window curves do not depend on the seed (and every
-position is taken when there are fewer). The tables are built slab by slab along z
-(:mod:`.slabs`) and each window adds up its parts in the slabs it crosses, so memory is
-set by the slab whatever the image.
-
-Interface area is counted from voxel faces between unlike phases. For an isotropic
-surface, face counting overestimates the area by 3/2 (the mean of |n_x| + |n_y| + |n_z|
-over the sphere), so counted area is multiplied by 2/3.
+Random windows: for cubic windows of growing edge at seeded random positions, the mean
+and standard deviation of porosity and interface density (solid-pore area per unit
+volume); the REV edge is the smallest window from which the relative standard deviation
+stays below a tolerance. Centred window (Ferrage et al. 2015, Sec. V C): the smallest
+centred window whose value stays within the tolerance of the whole image's for every
+larger window. Window sums come from summed-volume tables built slab by slab
+(:mod:`.slabs`), eight look-ups per window. Interface area is counted from voxel faces
+between unlike phases times 2/3 (face counting overestimates an isotropic surface by
+3/2). Details: docs/imaging.md, "imaging.morphology.rev".
 """
 
 from __future__ import annotations

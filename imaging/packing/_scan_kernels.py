@@ -4,49 +4,15 @@ The ``scan`` contact mode; the ``exact`` mode (:mod:`._contact_kernels`) finds c
 on the disk shape itself. A particle is a flat elliptic disk: semi-axes (l_a, l_b) of its
 basal ellipse, half thickness h / 2, frame columns (l_a axis, l_b axis, normal).
 
-Contact scan (settling particle A over a bed particle B):
+Scan points of the settling particle A lie every delta_1 = sqrt(pi l_a l_b / n_sp) on
+its bottom face and edge rings; delta_z, the vertical distance of a point down to the
+bed particle B, is minimised over offsets of step delta_(n+1) = delta_n / 10 around the
+lowest points until delta_n < d_cont. A scan point inside B is an overlap; the overlap
+scan is the inverse, from B's basal faces in A's frame. Between scan points nothing is
+seen, so small overlaps remain (the paper's f_o, Table IV). Our readings of the
+procedure: docs/packing.md, "imaging.packing._scan_kernels".
 
-- scan points of A: a square grid of spacing delta_1 = sqrt(pi l_a l_b / n_sp) on the
-  bottom basal surface (the face whose normal points down; about n_sp points inside the
-  ellipse), and on the edge rings every delta_1 or less across the thickness, each with
-  points every delta_1 of perimeter (Fig. 2a-b; about 300 points for R = 0.1, n_sp = 150,
-  as the paper counts);
-- delta_z of a scan point: the vertical distance down to B's surface. Our reading: it is
-  exact (a vertical ray against B's faces and edge), where the paper polygonises B's edge
-  at B's own delta and refines it with the same /10 sequence; both end within d_cont;
-- refinement: the points with delta_z within delta_n of the lowest are moved, one
-  coordinate after the other (x then y on the basal face, perimeter then height on the
-  edge), to the position of least delta_z among offsets -delta_n .. +delta_n in steps of
-  delta_(n+1) = delta_n / 10 (the paper's ranges (-delta; +delta) "and/or" for each
-  coordinate), sweep after sweep while the point still moves; then the lowest point
-  searches the whole square of offsets ("and/or": both coordinates at once), again
-  while it moves, until delta_n is below d_cont. A contact on a sharp ridge of delta_z
-  oblique to the axes (a face over another particle's rim) stops the sweeps one
-  coordinate at a time short of the minimum (errors up to 9 d_cont); the square does not;
-- the fall: the paper repeats free falls of a random fraction of d_min, rescanning after
-  each, and retains the points with delta_z <= delta_n, so that its last scans are
-  refined ones made from just above the support. We scan once from where the particle
-  is, and retain the points within delta_n of the lowest: the same points, since
-  lowering a particle shortens every vertical gap alike. Retaining only points within
-  delta_n of the bed itself, from up to a particle's size above it, refines nothing
-  past the coarse grid, whose error (up to 50 d_cont on two crossing rims at n_sp = 500)
-  then leaves the particle inside its support: every later move of that particle is an
-  overlap, and a particle that enters upright stays upright;
-- a scan point of A inside B is an overlap;
-- the exact vertical gap bounds every scan point's from below: the fall
-  (:func:`._settle_kernels.fall`) scans its candidates by increasing exact gap and
-  stops where that bound passes the least scanned gap plus d_cont, and a pair it scans
-  is refined to the end whatever the fall's limit, so that the gap found does not
-  depend on the order in which the bed is visited (an earlier cut, a coarse gap beyond
-  the limit plus delta_1, did).
-
-Overlap scan (the inverse procedure): scan points on both basal faces of B at B's
-delta_1, in A's frame; points outside A's envelope enlarged by delta_n are dropped, the
-others refined as above towards A's interior until delta_n <= d_cont; a point inside A
-is an overlap.
-
-Between scan points nothing is seen: a particle may end slightly inside another, more
-so for small n_sp (the paper's f_o of 2e-6 to 6.9e-5, Table IV).
+Reference: E. Ferrage et al., Phys. Rev. E 91, 062210 (2015).
 """
 
 from __future__ import annotations

@@ -5,37 +5,10 @@ y, with a rigid floor at z = 0, fall vertically until their lowest gap reaches d
 then try ``n_cycles`` x ``attempts_per_cycle`` random moves (slide, swivel about the
 contact point, in-plane rotation), each accepted only if the barycentre descends and no
 overlap appears; amplitudes are halved between cycles. Particles in the bed never move.
-
-Contacts and overlaps are computed exactly on the convex particle shape by default (GJK
-on the support functions, see :mod:`._contact_kernels`): a fall stops at a vertical gap
-of d_cont/2 to the first obstacle, which the paper's multiscale scan of Sec. II.B only
-approaches to within d_cont. ``scan_points`` > 0 uses that scan instead
-(:mod:`._scan_kernels`), with its small overlaps.
-
-Readings of Sec. II.A used here:
-
-- moves refer to a pivot point: the contact point, or with two (or more) contacts the
-  foot of the altitude from the barycentre to the line through two of them;
-- a slide moves the particle horizontally away from the pivot; a swivel turns it about
-  the pivot: with one contact about the horizontal axis along which the barycentre
-  descends fastest (steepest descent), with two contacts about the line through them,
-  in the sense that lowers the barycentre: the only rotation that keeps both contacts,
-  the barycentre circling the paper's pivot point, the foot of the altitude (the
-  two-contact rolling of steepest-descent deposition, as we read Coelho et al. 1997,
-  whose algorithm the paper extends). An in-plane rotation turns the particle about its own
-  normal. The kind of move, its amplitude (uniform in (0, A)) and, for rotations, its
-  sign are random;
-- after a move the barycentre is put back at its previous altitude and the particle
-  falls vertically to a gap of d_cont/2; the move is rejected if the particle overlaps
-  the bed at that altitude or does not end lower than before.
-
-Alternatives kept as options, each a defensible reading of the text (config keys
-``two_contact_swivel``, ``slide_direction``, ``swivel_axis``):
-``contact_line_swivel=False`` swivels about the steepest horizontal axis through the
-two-contact pivot point too (the paper names a point, not an axis); ``steepest_slide``
-/ ``steepest_swivel`` set to False draw the slide direction or the swivel axis at random
-(the text gives the slide no direction). How far each alternative moves the beds from
-the paper is measured in the README (section "Packing stage").
+Contacts are exact on the convex shape by default (GJK, :mod:`._contact_kernels`), or
+the paper's multiscale scan with ``scan_points`` > 0 (:mod:`._scan_kernels`). Our
+readings of Sec. II.A and the alternatives kept as options: docs/packing.md,
+"imaging.packing.deposition".
 
 References
 ----------

@@ -2,7 +2,7 @@
 
 ``run(section, "results/packing/<name>.nc")`` samples the population, deposits it, runs
 the analyses of :mod:`.measures` and the REV and chord-length analyses of the voxel image
-(:mod:`imaging.morphology`), and writes the netCDF file of DESIGN.md section 2 through
+(:mod:`imaging.morphology`), and writes the netCDF file of docs/design.md §2 through
 :func:`shared.io.write_dataset`, with a figure ``<name>.png`` beside it.
 """
 
@@ -155,7 +155,7 @@ def _image_analysis_variables(
 def packing_dataset(
     packing: Packing, measures: PackingMeasures, store_image: bool = False
 ) -> xr.Dataset:
-    """The packing file's dataset (DESIGN.md section 2).
+    """The packing file's dataset (docs/design.md §2).
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
 """Entry point of the upscaling stage: micro results -> ``results/upscaling/pellet_permeability``.
 
-Writes the netCDF table (the only thing macro reads from micro, DESIGN §2), its CSV
+Writes the netCDF table (the only thing macro reads from micro, docs/design.md §2), its CSV
 export (condition, suction, phase, axis, k) for users of other tools, and a figure. The
 table is checked before anything is written, and every file is replaced atomically, so
 a refused source leaves no partial table.

@@ -53,7 +53,7 @@ def upscaling_table(
     sources: Mapping[str, Sequence[tuple[str, xr.Dataset]]],
     suction_range: tuple[float, float],
 ) -> xr.Dataset:
-    """Condense micro results into the pellet permeability table (DESIGN §2).
+    """Condense micro results into the pellet permeability table (docs/design.md §2).
 
     Parameters
     ----------

@@ -58,7 +58,7 @@ def contact_forces(
     contact-point velocities equal, so it creates no shear force.
 
     Both stiffnesses are evaluated from the current radii at every call, so swelling
-    updates them; Yade freezes them at contact creation (REFERENCE_NOTES section 8,
+    updates them; Yade freezes them at contact creation (docs/yade.md §8,
     defect 11). Separated pairs lose their shear history, as a deleted Yade
     interaction does.
 

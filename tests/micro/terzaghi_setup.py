@@ -1,6 +1,6 @@
 """Saturated poroelastic coupling of DEM points and their Delaunay finite volumes (DEM-PFV).
 
-Verification setup of ``test_terzaghi.py`` (Terzaghi consolidation, DESIGN 5.1): no
+Verification setup of ``test_terzaghi.py`` (Terzaghi consolidation, docs/design.md §5.1): no
 stage runs it, so it lives beside its test, not in :mod:`micro`.
 
 The scheme of Catalano, Chareyre & Barthelemy (2014) for an incompressible pore fluid
@@ -11,7 +11,7 @@ in every free (undrained) cell i
 
 and the pressures push on the points. Drained cells (Dirichlet) hold the drainage
 pressure p_D. A saturated medium has no retention storage, so this volume balance is
-what delays the settlement (Terzaghi consolidation, REFERENCE_NOTES section 9).
+what delays the settlement (Terzaghi consolidation, docs/yade.md §9).
 
 Forces. With B = dV/dx (n_cells x 3 n_points) the fluid force on the points is
 B^T (p - p_D): each triangle's force (p_i - p_j) A n shared equally by its three

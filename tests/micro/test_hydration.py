@@ -13,11 +13,11 @@ import xarray as xr
 from micro import hydration
 from micro import run as micro_run
 from micro.checkpoint import load_checkpoint, save_checkpoint
+from micro.forces import membrane_forces
 from micro.hydration import (
     DivergenceError,
     FlowSystem,
     advance_to_balance,
-    membrane_forces,
     triangulate,
     update_geometry,
 )

@@ -1,4 +1,4 @@
-"""Terzaghi consolidation of the coupled DEM + flow solver (DESIGN 5.1, REFERENCE_NOTES 9).
+"""Terzaghi consolidation of the coupled DEM + flow solver (docs/design.md §5.1, docs/yade.md §9).
 
 Set-up. An oedometric column of DEM points on a face-centred cubic lattice (the points
 of a cubic grid of spacing s whose indices add up to an even number: 12 neighbours at
