@@ -112,7 +112,7 @@ def bond_tension(
     overlap beyond delta0 (:func:`contact_forces`). Why bonds at all: the thesis's
     points are cohesionless, and a cohesionless quasi-static assembly opens bonds
     wherever the Bishop confinement S s of the compacted state relaxes, with or
-    without a porosity field (README, Micro stage), which contradicts the thesis's
+    without a porosity field (docs/micro.md, "Initial state and bonds"), which contradicts the thesis's
     Sec. 3.5.5. With sigma_t > 0 only differential loads (a porosity
     field's differences of S s, hydration fronts) break bonds.
     """

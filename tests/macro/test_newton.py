@@ -110,7 +110,7 @@ def test_free_pellet_swells_as_eq_4_28():
         got, pressure, _, _ = solve_pressure_volume(problem, MATERIAL, SETTINGS, previous)
         # the radius follows Eqs. 4.28-4.30 at the suction the pellet takes (the
         # retention curve's porosity dependence allows more than one such suction
-        # for one water mass: see README)
+        # for one water mass)
         reached = swelling(-pressure[0])
         assert np.cbrt(3 * got[0] / (4 * np.pi)) == pytest.approx(r0 * (1 + reached) ** (1 / 3), rel=1e-3)
         previous = got

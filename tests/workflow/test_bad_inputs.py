@@ -745,7 +745,7 @@ def test_snakemake_reports_a_bad_input_in_one_line(case, tmp_path):
 
 
 def test_snakemake_refuses_an_undefined_case_as_target(tmp_path):
-    """Documented in the README: a target naming no configured case has no rule."""
+    """Documented in docs/howto-inspect-outputs.md: a target naming no configured case has no rule."""
     result, workdir = _snakemake(tmp_path, copy.deepcopy(TINY), "results/micro/nowhere.nc")
     assert result.returncode != 0
     assert "results/micro/nowhere.nc" in result.stderr

@@ -1,5 +1,5 @@
 # Upscaling: the micro cases' permeability curves -> the pellet permeability table that
-# the macro model reads (DESIGN section 2).
+# the macro model reads (docs/design.md §2).
 
 
 rule upscaling_table:
