@@ -18,6 +18,7 @@ from macro.mixture import (
     solid_angles,
 )
 from macro.settings import MacroSettings
+from shared.delaunay import qhull_delaunay
 from shared.mesh import Mesh, mesh_from_tetrahedra
 
 FloatArray = npt.NDArray[np.float64]
@@ -98,13 +99,13 @@ class Geometry:
         (V_0 = V_s / (1 - phi_powder)), its suction is the water-weighted mean of its
         donors' (the next local solve corrects it); held cells are re-selected and reset.
         """
-        from scipy.spatial import Delaunay, cKDTree
+        from scipy.spatial import cKDTree
 
         n_p = self.n_pellets
         old = slice(n_p, None)
         interior_before = self.interior_water()
         vertices = self.vertex_positions()
-        triangulation = Delaunay(vertices)
+        triangulation = qhull_delaunay(vertices)
         mesh = mesh_from_tetrahedra(triangulation.points, triangulation.simplices, triangulation.neighbors)
         omega = solid_angles(mesh.points, mesh.tetrahedra)
         voids = cell_voids(mesh, self.clay_radii(), omega, VOID_FLOOR)
