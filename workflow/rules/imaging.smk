@@ -6,7 +6,7 @@ rule imaging_phantom:
     output:
         "results/phantom/{sample}.tif",
     params:
-        code=IMAGING_CODE,
+        code=script_code("imaging_phantom.py"),
         phantom=config["phantom"],
         sample=get_sample_config,
         # the phantom maps density to grey with the anchors that calibration inverts
@@ -33,7 +33,7 @@ rule imaging_porosity:
         porosity="results/porosity/{sample}.nc",
         figure="results/porosity/{sample}.png",
     params:
-        code=IMAGING_CODE,
+        code=script_code("imaging_porosity.py"),
         sample=get_sample_config,
         imaging=sample_settings(
             "calibration",
@@ -73,7 +73,7 @@ rule imaging_rev:
         rev="results/rev/{sample}.nc",
         figure="results/rev/{sample}.png",
     params:
-        code=IMAGING_CODE,
+        code=script_code("imaging_rev.py"),
         sample=get_sample_config,
         settings=sample_settings(
             "rev", "chords", "chunk_mb", "workers", "memory_limit_gb", "dask_scheduler"

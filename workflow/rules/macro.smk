@@ -8,7 +8,7 @@ rule macro_case:
         result="results/macro/{macro_case}.nc",
         figure="results/macro/{macro_case}.png",
     params:
-        code=MACRO_CODE,
+        code=script_code("macro_case.py"),
         macro=get_macro_case_config,
         materials=get_macro_materials,
     conda:
@@ -27,7 +27,7 @@ rule macro_comparison:
     output:
         figure="results/macro/comparison.png",
     params:
-        code=MACRO_CODE,
+        code=script_code("macro_comparison.py"),
     conda:
         "../envs/claychain.yaml"
     log:
@@ -45,7 +45,7 @@ rule macro_ensemble:
         result="results/macro/ensemble_{ensemble}.nc",
         figure="results/macro/ensemble_{ensemble}.png",
     params:
-        code=ENSEMBLE_CODE,
+        code=script_code("macro_ensemble.py"),
         ensemble=get_ensemble_config,
     conda:
         "../envs/claychain.yaml"

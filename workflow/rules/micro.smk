@@ -8,7 +8,7 @@ rule micro_case:
         result="results/micro/{case}.nc",
         figure="results/micro/{case}.png",
     params:
-        code=MICRO_CODE,
+        code=script_code("micro_case.py"),
         micro=get_micro_case_config,
         materials=get_micro_materials,
     threads: get_micro_threads
@@ -28,7 +28,7 @@ rule micro_compare:
     output:
         figure="results/micro/comparison.png",
     params:
-        code=MICRO_CODE,
+        code=script_code("micro_compare.py"),
     conda:
         "../envs/claychain.yaml"
     log:
@@ -46,7 +46,7 @@ rule micro_convergence:
         result="results/studies/convergence.nc",
         figure="results/studies/convergence.png",
     params:
-        code=STUDIES_CODE,
+        code=script_code("micro_convergence.py"),
         cases=config["micro"]["studies"]["convergence"],
     conda:
         "../envs/claychain.yaml"
@@ -65,7 +65,7 @@ rule micro_scale_realization:
         result="results/studies/scale/{realization}.nc",
         figure="results/studies/scale/{realization}.png",
     params:
-        code=MICRO_CODE,
+        code=script_code("micro_case.py"),
         micro=get_scale_realization_config,
         materials=get_micro_materials,
     group:
@@ -87,7 +87,7 @@ rule micro_scale:
         result="results/studies/scale.nc",
         figure="results/studies/scale.png",
     params:
-        code=STUDIES_CODE,
+        code=script_code("micro_scale.py"),
         layout=get_scale_layout,
     localrule: True
     conda:

@@ -7,7 +7,7 @@ rule packing_deposit:
         result="results/packing/{packing}.nc",
         figure="results/packing/{packing}.png",
     params:
-        code=PACKING_CODE,
+        code=script_code("packing_deposit.py"),
         section=get_packing_config,
     conda:
         "../envs/claychain.yaml"

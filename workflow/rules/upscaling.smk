@@ -10,7 +10,7 @@ rule upscaling_table:
         csv="results/upscaling/pellet_permeability.csv",
         figure="results/upscaling/pellet_permeability.png",
     params:
-        code=UPSCALING_CODE,
+        code=script_code("upscaling_table.py"),
         upscaling=config["upscaling"],
     conda:
         "../envs/claychain.yaml"
