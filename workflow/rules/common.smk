@@ -46,7 +46,8 @@ wildcard_constraints:
 
 def script_code(script):
     """sha256 of the sources of our modules that a rule's script imports, transitively
-    (shared.imports), a param: an edit of that code reruns the rule, other edits do not."""
+    (shared.imports), a param: an edit of that code reruns the rule, other edits do not.
+    """
     return script_sha256(workflow.source_path(f"../scripts/{script}"))
 
 
