@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -44,9 +46,24 @@ def test_the_macro_case_follows_the_shared_laws_it_imports():
     assert "macro.ensemble" not in modules and not any(m.startswith("micro") for m in modules)
 
 
-def test_the_upscaling_table_follows_the_micro_studies():
+def test_the_upscaling_table_follows_its_table_code_and_not_the_micro_model():
     modules = imported_sources(ROOT / "workflow/scripts/upscaling_table.py", ROOT)
-    assert "micro.studies" in modules
+    assert {"micro.upscaling.run", "micro.upscaling.table", "shared.upscaling"} <= set(modules)
+    assert "micro.run" not in modules
+
+
+@pytest.mark.parametrize("module", ["macro.run", "micro.upscaling.run", "imaging.ct.run",
+                                    "imaging.packing.run"])
+def test_the_static_walk_covers_what_python_imports(module, tmp_path):
+    """Every module of ours that importing the entry point loads is in the hash."""
+    script = tmp_path / "script.py"
+    script.write_text(f"import {module}\n")
+    code = (f"import sys, {module}\n"
+            "print(' '.join(m for m in sys.modules if m.split('.')[0] in "
+            "('imaging', 'micro', 'macro', 'shared')))")
+    loaded = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                            text=True, check=True, timeout=300).stdout.split()
+    assert set(loaded) <= set(imported_sources(script, ROOT))
 
 
 def test_editing_shared_retention_reruns_the_macro_case(tree):

@@ -1,18 +1,17 @@
 # Shared helpers of the rules: validation, sample sheet, code hash, input functions.
 import sys
 
-from imaging.ct.io import ImageError, slice_files
 from imaging.packing.config import check_packings
-from macro.ensemble import check_ensembles, ensemble_cases, ensemble_members
+from macro.config import check_ensembles, ensemble_cases, ensemble_members
 from macro.laws import case_materials
-from micro.run import MATERIAL_KEYS
-from micro.upscaling.run import source_names
-from micro.studies import (
+from micro.config import (
+    MATERIAL_KEYS,
     case_edge_length,
     check_studies,
     convergence_cases,
     realization_case,
     scale_realizations,
+    source_names,
 )
 from shared.config import ConfigError, load_schema, sample_imaging, validate_config
 from shared.provenance import script_sha256
@@ -87,6 +86,9 @@ def get_slice_files(wildcards):
     entry = config["samples"][wildcards.sample]
     if entry["source"] != "slices":
         return []
+    # imported here: the reader's libraries (OpenCV, dask) only for a slice-folder sample
+    from imaging.ct.io import ImageError, slice_files
+
     try:
         return [str(path) for path in slice_files(entry["path"])]
     except ImageError:  # the job itself refuses the folder, in one line
