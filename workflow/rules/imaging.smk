@@ -3,6 +3,7 @@
 
 
 rule imaging_phantom:
+    """Synthetic pellet scan (greyscale TIFF) for a sample of source phantom."""
     output:
         "results/phantom/{sample}.tif",
     params:
@@ -25,13 +26,19 @@ rule imaging_phantom:
 
 
 rule imaging_porosity:
+    """CT scan -> specimen mask -> calibrated density -> porosity grid and figure."""
     input:
         scan=get_scan,
         slices=get_slice_files,
     output:
         image="results/images/{sample}.nc",
         porosity="results/porosity/{sample}.nc",
-        figure="results/porosity/{sample}.png",
+        figure=report(
+            "results/porosity/{sample}.png",
+            caption="../report/porosity.rst",
+            category="1. CT imaging",
+            subcategory="{sample}",
+        ),
     params:
         code=script_code("imaging_porosity.py"),
         sample=get_sample_config,
@@ -64,6 +71,7 @@ rule imaging_porosity:
 
 
 rule imaging_rev:
+    """REV of porosity and interface density, and chord lengths, of a sample's scan."""
     input:
         scan=get_scan,
         slices=get_slice_files,
@@ -71,7 +79,12 @@ rule imaging_rev:
         porosity="results/porosity/{sample}.nc",
     output:
         rev="results/rev/{sample}.nc",
-        figure="results/rev/{sample}.png",
+        figure=report(
+            "results/rev/{sample}.png",
+            caption="../report/rev.rst",
+            category="1. CT imaging",
+            subcategory="{sample}",
+        ),
     params:
         code=script_code("imaging_rev.py"),
         sample=get_sample_config,
