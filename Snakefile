@@ -9,6 +9,9 @@ min_version("9.0")
 configfile: "config/config.yaml"
 
 
+report: "workflow/report/workflow.rst"
+
+
 include: "workflow/rules/common.smk"
 include: "workflow/rules/imaging.smk"
 include: "workflow/rules/micro.smk"
@@ -18,6 +21,7 @@ include: "workflow/rules/macro.smk"
 
 
 rule all:
+    """Every product of the configured run (config/config.yaml by default)."""
     input:
         get_final_outputs(),
     default_target: True

@@ -21,16 +21,11 @@ import xarray as xr
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from shared.config import ConfigError
 from shared.figures import new_figure, save_figure
 from shared.io import read_dataset, write_dataset
 
 __all__ = [
     "QUANTITIES",
-    "member_name",
-    "ensemble_members",
-    "ensemble_cases",
-    "check_ensembles",
     "ensemble_statistics",
     "plot_ensemble",
     "ensemble_figure",
@@ -42,62 +37,6 @@ QUANTITIES = ("sensor_pressure", "axial_pressure_upper", "axial_pressure_lower",
 """The member variables an ensemble reduces, each over ``time`` and its other dimensions."""
 OPTIONAL = ("axial_pressure_lower",)
 """Quantities reduced only when every member has them."""
-
-
-def member_name(ensemble: str, seed: int) -> str:
-    """The case name of an ensemble's member: ``<ensemble>_s<seed>``."""
-    return f"{ensemble}_s{seed}"
-
-
-def ensemble_members(macro: Mapping[str, Any], ensemble: str) -> list[str]:
-    """The case names of an ensemble's members, in the order of its seeds."""
-    return [member_name(ensemble, seed) for seed in macro["ensembles"][ensemble]["seeds"]]
-
-
-def ensemble_cases(macro: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
-    """Every member of the validated ``macro.ensembles`` as a case entry: its ensemble's
-    case with the member's seed."""
-    return {
-        member_name(name, seed): {**macro["cases"][entry["case"]], "seed": seed}
-        for name, entry in macro["ensembles"].items()
-        for seed in entry["seeds"]
-    }
-
-
-def check_ensembles(config: Mapping[str, Any]) -> None:
-    """An ensemble runs a declared case; its members' names and output name no case.
-
-    Raises
-    ------
-    ConfigError
-        Naming the key of ``macro.ensembles`` at fault.
-    """
-    macro = config.get("macro")
-    if not macro:
-        return
-    cases = macro["cases"]
-    for name, entry in macro["ensembles"].items():
-        key = f"macro.ensembles.{name}"
-        if entry["case"] not in cases:
-            raise ConfigError(
-                f"config key '{key}.case': {entry['case']!r} is not a case of macro.cases "
-                f"(cases: {', '.join(sorted(cases))})"
-            )
-        taken = sorted(set(ensemble_members(macro, name)) & set(cases))
-        if taken:
-            raise ConfigError(
-                f"config key '{key}.seeds': member {taken[0]!r} is also a case of macro.cases"
-            )
-        if f"ensemble_{name}" in cases:
-            raise ConfigError(
-                f"config key '{key}': the case ensemble_{name} would have the ensemble's "
-                f"output (results/macro/ensemble_{name}.nc); rename one of them"
-            )
-        low, high = entry["band_quantiles"]
-        if not low < high:
-            raise ConfigError(
-                f"config key '{key}.band_quantiles': need low < high, got {[low, high]}"
-            )
 
 
 def _common_times(members: Mapping[str, xr.Dataset], points: int) -> FloatArray:

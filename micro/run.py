@@ -49,15 +49,14 @@ from micro.pellet import (
 )
 from micro.permeability import principal_permeability
 from shared.config import ConfigError
-from shared.dem.parameters import DEM_MATERIAL_KEYS, DEMParameters, dem_parameters
+from shared.dem.parameters import DEMParameters, dem_parameters
 from shared.io import read_dataset, write_dataset
-from shared.materials import CLAY_CONFIG_KEYS, ClayParameters, clay_parameters
+from shared.materials import ClayParameters, clay_parameters
 from shared.mesh import mesh_from_tetrahedra
 from shared.progress import ConvergenceProgress, PhaseClock, Progress
 from shared.provenance import config_sha256
 
 __all__ = [
-    "MATERIAL_KEYS",
     "phase_wall_times",
     "run",
     "case_settings",
@@ -66,8 +65,6 @@ __all__ = [
     "case_parameters",
 ]
 
-MATERIAL_KEYS = (*CLAY_CONFIG_KEYS.values(), *DEM_MATERIAL_KEYS)
-"""Keys of ``materials.pellet`` the micro model reads (its rules' params hold these)."""
 MEASUREMENT_PROCESS_CELLS = 100_000
 """Cells from which a worker process makes the permeability solves (:func:`measurement_executor`)."""
 WORKER_NICENESS = 10

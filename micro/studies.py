@@ -5,37 +5,30 @@ The studies are aggregates of finished cases (``results/micro/<case>.nc``, docs/
 - convergence (thesis Sec. 3.5.8): the per-checkpoint outputs of cases that differ in
   their number of points, stacked along a new dimension ``n_points`` (ascending);
 - scale (thesis Sec. 3.5.9): sub-cubes of volume fraction f of a reference case's cube,
-  at seeded random positions inside it (:func:`scale_realizations`), each hydrated as a
+  at seeded random positions inside it (:func:`micro.config.scale_realizations`), each hydrated as a
   specimen of its own with the reference's point spacing; per realization and, grouped
   by ``domain_fraction``, the mean and the sample standard deviation (``ddof=1``) over
   the realizations, per checkpoint. The reference itself is domain fraction 1, a single
   realization whose standard deviation is NaN (undefined for one sample), not 0.
 
-The studies are declared in ``micro.studies`` of the configuration; :func:`check_studies`
-refuses a study that names an unknown case. The functions here do no file I/O.
+The studies are declared in ``micro.studies`` of the configuration; their configuration
+helpers (:func:`micro.config.check_studies`, :func:`micro.config.scale_realizations`) are
+in :mod:`micro.config`. The functions here do no file I/O.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import xarray as xr
 
+from micro.config import Realization
 from micro.run import phase_wall_times
-from shared.config import ConfigError
 
 __all__ = [
-    "Realization",
-    "check_studies",
-    "convergence_cases",
-    "scale_realizations",
-    "realization_case",
-    "case_edge_length",
-    "case_n_points",
     "convergence_dataset",
     "scale_dataset",
 ]
@@ -51,170 +44,6 @@ _CASE_ATTRS = {
 # quantities whose relative change between successive point counts the convergence
 # study reports (thesis Sec. 3.5.8 tracks the first three)
 _TRACKED = ("saturation", "eps_v", "permeability", "porosity_mean", "crack_count", "crack_volume")
-
-
-# ---------------------------------------------------------------------------------------
-# configuration
-# ---------------------------------------------------------------------------------------
-
-
-def case_edge_length(config: Mapping[str, Any], case: str) -> float:
-    """Cube edge [m] of a case: its ``specimen_size_m``, else ``micro.specimen_size_m``."""
-    micro = config["micro"]
-    return float(micro["cases"][case].get("specimen_size_m", micro["specimen_size_m"]))
-
-
-def case_n_points(config: Mapping[str, Any], case: str) -> int:
-    """Configured number of points of a case: its ``n_points``, else ``micro.n_points``."""
-    micro = config["micro"]
-    return int(micro["cases"][case].get("n_points", micro["n_points"]))
-
-
-def convergence_cases(config: Mapping[str, Any]) -> list[str]:
-    """Cases of the convergence study (empty: no study)."""
-    return list(config["micro"].get("studies", {}).get("convergence", []))
-
-
-@dataclass(frozen=True)
-class Realization:
-    """One sub-region of the scale study.
-
-    Attributes
-    ----------
-    name
-        Job name, ``f<fraction>_r<index>`` (``f0p25_r03``).
-    domain_fraction
-        Sub-cube volume over the reference cube's [1].
-    edge_length
-        Cube edge [m].
-    n_points
-        Number of points: the reference's density, at least ``min_points`` [1].
-    offset
-        Centre of the sub-cube from the scanned specimen's centre [m].
-    """
-
-    name: str
-    domain_fraction: float
-    edge_length: float
-    n_points: int
-    offset: tuple[float, float, float]
-
-
-def _scale_section(config: Mapping[str, Any]) -> Mapping[str, Any]:
-    return config["micro"].get("studies", {}).get("scale", {})
-
-
-def scale_realizations(config: Mapping[str, Any]) -> list[Realization]:
-    """The realizations of the scale study of a validated configuration (none if undeclared).
-
-    Positions lie on the lattice of the reference's point spacing, centred in the
-    reference cube, so that every sub-cube lies inside it and no two realizations of one
-    fraction coincide; a fraction's realizations are the first ones of a permutation of
-    its lattice seeded by (``seed``, fraction), so that adding realizations keeps the
-    earlier ones.
-
-    Raises
-    ------
-    ConfigError
-        If a fraction has fewer distinct positions than ``realizations``.
-    """
-    scale = _scale_section(config)
-    reference = scale.get("reference")
-    if reference is None or not scale.get("fractions"):
-        return []
-    edge = case_edge_length(config, reference)
-    count = case_n_points(config, reference)
-    spacing = edge / count ** (1.0 / 3.0)
-    centre = np.asarray(config["micro"]["cases"][reference]["offset_m"], dtype=float)
-    realizations = []
-    for fraction in sorted(float(f) for f in scale["fractions"]):
-        sub_edge = edge * fraction ** (1.0 / 3.0)
-        per_axis = int(np.floor((edge - sub_edge) / spacing + 1e-9)) + 1
-        if per_axis**3 < scale["realizations"]:
-            raise ConfigError(
-                f"config key 'micro.studies.scale.realizations': {scale['realizations']} "
-                f"realizations, but a {fraction:g} sub-cube has only {per_axis**3} distinct "
-                f"positions one point spacing ({spacing:.3g} m) apart in {reference!r}"
-            )
-        lattice = spacing * (np.arange(per_axis) - 0.5 * (per_axis - 1))
-        rng = np.random.default_rng([scale["seed"], int(round(fraction * 1e12))])
-        picks = rng.permutation(per_axis**3)[: scale["realizations"]]
-        label = f"{fraction:.6g}".replace(".", "p")
-        points = max(scale["min_points"], int(round(count * fraction)))
-        for index, pick in enumerate(picks):
-            shift = lattice[np.array(np.unravel_index(pick, (per_axis,) * 3))]
-            realizations.append(Realization(
-                name=f"f{label}_r{index:02d}", domain_fraction=fraction, edge_length=sub_edge,
-                n_points=points, offset=tuple(float(v) for v in centre + shift),
-            ))
-    return realizations
-
-
-def realization_case(config: Mapping[str, Any], realization: Realization) -> dict[str, Any]:
-    """The micro case of a realization: the reference case on the realization's cube."""
-    entry = dict(config["micro"]["cases"][_scale_section(config)["reference"]])
-    entry.update(n_points=realization.n_points, specimen_size_m=realization.edge_length,
-                 offset_m=list(realization.offset))
-    return entry
-
-
-def check_studies(config: Mapping[str, Any]) -> None:
-    """Check the ``micro.studies`` section of a validated configuration.
-
-    Raises
-    ------
-    ConfigError
-        Naming the key, if a study names a case that is not in ``micro.cases``, if two
-        convergence cases have the same number of points, if the scale study has
-        fractions but no reference (or a reference and no fractions), a homogeneous
-        reference, or more realizations than a fraction has distinct positions.
-    """
-    micro = config["micro"]
-    studies = micro.get("studies", {})
-    known = micro["cases"]
-
-    def _known(key: str, names: list[str]) -> None:
-        for name in names:
-            if name not in known:
-                raise ConfigError(
-                    f"config key '{key}': {name!r} is not a case of micro.cases "
-                    f"(cases: {', '.join(sorted(known))})"
-                )
-
-    convergence = list(studies.get("convergence", []))
-    _known("micro.studies.convergence", convergence)
-    seen: dict[int, str] = {}
-    for name in convergence:
-        count = case_n_points(config, name)
-        if count in seen:
-            raise ConfigError(
-                f"config key 'micro.studies.convergence': cases {seen[count]!r} and {name!r} "
-                f"have the same number of points ({count})"
-            )
-        seen[count] = name
-
-    scale = studies.get("scale", {})
-    reference = scale.get("reference")
-    fractions = list(scale.get("fractions", []))
-    if fractions and reference is None:
-        raise ConfigError(
-            "config key 'micro.studies.scale.reference': required when "
-            "micro.studies.scale.fractions is not empty"
-        )
-    if reference is None:
-        return
-    if not fractions:
-        raise ConfigError(
-            "config key 'micro.studies.scale.fractions': empty, but a reference "
-            f"({reference!r}) is given"
-        )
-    _known("micro.studies.scale.reference", [reference])
-    if known[reference]["porosity"] != "ct":
-        raise ConfigError(
-            f"config key 'micro.studies.scale.reference': {reference!r} has a homogeneous "
-            "porosity; sub-regions of it would all be alike"
-        )
-    scale_realizations(config)
 
 
 # ---------------------------------------------------------------------------------------
@@ -363,7 +192,7 @@ def scale_dataset(
     reference_edge_m
         Its cube edge [m].
     realizations
-        Each realization (:func:`scale_realizations`) with its micro output; all share
+        Each realization (:func:`micro.config.scale_realizations`) with its micro output; all share
         the reference's checkpoints.
 
     Returns

@@ -8,14 +8,17 @@ instead unless the user chose otherwise; the policy is read when OpenMP starts, 
 is set here, before any kernel runs. numba itself prefers TBB to OpenMP wherever a TBB
 library is installed (Debian's ``yade`` package brings one), and the micro runs of the
 test suite then took two to three times longer: OpenMP is put first unless the user
-chose a threading layer.
+chose a threading layer. Both go through the environment, which numba reads when it is
+imported (and again before compiling when it changed), so that importing ``shared`` does
+not import numba: the workflow's configuration helpers stay light.
 """
 
 import os
+import sys
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-import numba.core.config  # noqa: E402  (after the policy, before any kernel runs)
-
 if not {"NUMBA_THREADING_LAYER", "NUMBA_THREADING_LAYER_PRIORITY"} & set(os.environ):
-    numba.core.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
+    os.environ["NUMBA_THREADING_LAYER_PRIORITY"] = "omp workqueue tbb"
+    if "numba.core.config" in sys.modules:  # numba came first: set its loaded value too
+        sys.modules["numba.core.config"].THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]

@@ -18,6 +18,7 @@ __all__ = [
     "file_sha256",
     "folder_sha256",
     "inputs_record",
+    "script_sha256",
 ]
 
 _REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -113,3 +114,33 @@ def inputs_record(paths: Iterable[str | Path]) -> str:
             digest, count = folder_sha256(path)
             records.append({"path": str(path), "sha256": digest, "files": count})
     return json.dumps(records)
+
+
+def script_sha256(script: str | Path, root: str | Path = _REPO_ROOT) -> str:
+    """Return one sha256 over the sources of our modules that a script imports.
+
+    The modules are those of :func:`shared.imports.imported_sources` (the import graph
+    read from the sources, transitively); the hash covers each module's name and bytes, so
+    it does not depend on where the tree lies. A rule passes it as a parameter: an edit of
+    the code its script runs reruns it, an edit of other code does not.
+
+    Parameters
+    ----------
+    script
+        The rule's script.
+    root
+        The folder that holds the packages (the repository root by default).
+
+    Returns
+    -------
+    str
+        The hex digest.
+    """
+    from shared.imports import imported_sources
+
+    digest = hashlib.sha256()
+    for module, source in imported_sources(script, root).items():
+        digest.update(module.encode())
+        digest.update(b"\0")
+        digest.update(source.read_bytes())
+    return digest.hexdigest()

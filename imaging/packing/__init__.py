@@ -11,26 +11,36 @@ Reference implementation of Ferrage et al., Phys. Rev. E 91, 062210 (2015):
   conversion of a config entry, netCDF file with the REV and chord lengths of
   :mod:`imaging.morphology`, and figure). They are not imported here, to keep xarray and
   matplotlib out of the import of the numerical API: ``from imaging.packing.run import run``.
+
+The names below are imported from their submodule on first use (PEP 562), so that
+importing a light submodule (:mod:`.config` for the workflow's checks) does not compile
+the numba kernels.
 """
 
-from imaging.packing.analysis import (
-    OrderParameters,
-    basal_contact_area,
-    legendre_order,
-    linear_zone,
-    order_parameters,
-    order_profile,
-    order_tensor,
-    porosity_profile,
-    rocking_curve,
-    surface_areas,
-    zone_porosity,
-)
-from imaging.packing.deposition import DepositionParameters, Packing, deposit
-from imaging.packing.measures import PackingMeasures, measure_packing
-from imaging.packing.orientation import euler_angles, normals, rotation_matrices
-from imaging.packing.population import Population, equivalent_diameter, sample_semi_axes, volumes
-from imaging.packing.voxels import VoxelImage, overlap_fraction, voxel_counts, voxelize
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from imaging.packing.analysis import (
+        OrderParameters,
+        basal_contact_area,
+        legendre_order,
+        linear_zone,
+        order_parameters,
+        order_profile,
+        order_tensor,
+        porosity_profile,
+        rocking_curve,
+        surface_areas,
+        zone_porosity,
+    )
+    from imaging.packing.deposition import DepositionParameters, Packing, deposit
+    from imaging.packing.measures import PackingMeasures, measure_packing
+    from imaging.packing.orientation import euler_angles, normals, rotation_matrices
+    from imaging.packing.population import Population, equivalent_diameter, sample_semi_axes, volumes
+    from imaging.packing.voxels import VoxelImage, overlap_fraction, voxel_counts, voxelize
 
 __all__ = [
     "DepositionParameters",
@@ -61,3 +71,43 @@ __all__ = [
     "volumes",
     "zone_porosity",
 ]
+
+# public name -> its submodule
+_EXPORTS = {
+    "OrderParameters": "analysis",
+    "basal_contact_area": "analysis",
+    "legendre_order": "analysis",
+    "linear_zone": "analysis",
+    "order_parameters": "analysis",
+    "order_profile": "analysis",
+    "order_tensor": "analysis",
+    "porosity_profile": "analysis",
+    "rocking_curve": "analysis",
+    "surface_areas": "analysis",
+    "zone_porosity": "analysis",
+    "DepositionParameters": "deposition",
+    "Packing": "deposition",
+    "deposit": "deposition",
+    "PackingMeasures": "measures",
+    "measure_packing": "measures",
+    "euler_angles": "orientation",
+    "normals": "orientation",
+    "rotation_matrices": "orientation",
+    "Population": "population",
+    "equivalent_diameter": "population",
+    "sample_semi_axes": "population",
+    "volumes": "population",
+    "VoxelImage": "voxels",
+    "overlap_fraction": "voxels",
+    "voxel_counts": "voxels",
+    "voxelize": "voxels",
+}
+
+
+def __getattr__(name: str) -> Any:
+    """Import a public name from its submodule on first use."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(f"{__name__}.{_EXPORTS[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from imaging.packing.deposition import DepositionParameters
 from imaging.packing.population import Population
 from shared.config import ConfigError
+
+if TYPE_CHECKING:
+    from imaging.packing.deposition import DepositionParameters
 
 __all__ = ["check_packing", "check_packings", "population_of", "parameters_of"]
 
@@ -118,6 +120,9 @@ def population_of(section: Mapping[str, Any]) -> Population:
 
 def parameters_of(section: Mapping[str, Any]) -> DepositionParameters:
     """Deposition parameters of a validated packing entry (angles converted to radians)."""
+    # imported here: the checks above serve the workflow's DAG, which compiles no kernel
+    from imaging.packing.deposition import DepositionParameters
+
     return DepositionParameters(
         box_width=float(section["box_width_m"]),
         contact_distance=float(section["contact_distance_m"]),

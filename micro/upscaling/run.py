@@ -16,34 +16,14 @@ from typing import Any
 
 import xarray as xr
 
-from micro.studies import scale_realizations
 from micro.upscaling.figures import table_figure
 from micro.upscaling.table import SOURCE_VARIABLES, table_rows, upscaling_table
 from shared.config import ConfigError
 from shared.io import OutputError, atomic_write, read_dataset, write_dataset
 
-__all__ = ["run", "source_names"]
+__all__ = ["run"]
 
 log = logging.getLogger("micro.upscaling")
-
-
-def source_names(config: Mapping[str, Any]) -> dict[str, list[tuple[str, str]]]:
-    """Per condition of ``upscaling.conditions``, its sources as (kind, name) pairs.
-
-    ``kind`` is ``case`` (a micro case) or ``realization`` (a scale-study realization of
-    the named domain fraction).
-    """
-    sources: dict[str, list[tuple[str, str]]] = {}
-    for condition, source in config["upscaling"]["conditions"].items():
-        if isinstance(source, Mapping):
-            sources[condition] = [
-                ("realization", r.name) for r in scale_realizations(config)
-                if abs(r.domain_fraction - source["scale_fraction"]) < 1e-9
-            ]
-        else:
-            sources[condition] = [("case", name)
-                                  for name in ([source] if isinstance(source, str) else source)]
-    return sources
 
 
 def _write_csv(table: xr.Dataset, path: Path) -> None:

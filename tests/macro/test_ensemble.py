@@ -10,9 +10,8 @@ import xarray as xr
 from tests._macro_cases import small_config
 
 from macro import ensemble
+from macro.config import check_ensembles, ensemble_cases
 from macro.ensemble import (
-    check_ensembles,
-    ensemble_cases,
     ensemble_figure,
     ensemble_statistics,
     plot_ensemble,

@@ -13,13 +13,8 @@ import pytest
 import xarray as xr
 import yaml
 
-from micro.studies import (
-    Realization,
-    check_studies,
-    convergence_dataset,
-    scale_dataset,
-    scale_realizations,
-)
+from micro.config import Realization, check_studies, scale_realizations
+from micro.studies import convergence_dataset, scale_dataset
 from shared.config import ConfigError, validate_config
 from shared.io import read_dataset, write_dataset
 

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from micro.config import source_names
 from micro.upscaling import run as upscaling_run
 from micro.upscaling import upscaling_table
 from shared.config import ConfigError, default_config, validate_config
@@ -134,7 +135,7 @@ def test_a_scale_fraction_source_is_that_fractions_realizations():
     config = copy.deepcopy(default_config())
     scale = config["micro"]["studies"]["scale"]
     config["upscaling"]["conditions"]["free"] = {"scale_fraction": 0.25}
-    sources = upscaling_run.source_names(validate_config(config))
+    sources = source_names(validate_config(config))
     assert sources["free"] == [("realization", f"f0p25_r{k:02d}")
                                for k in range(scale["realizations"])]
     assert sources["confined"] == [("case", config["upscaling"]["conditions"]["confined"])]

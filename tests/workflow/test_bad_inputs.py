@@ -36,7 +36,7 @@ from imaging.ct.phantom import pellet_phantom
 from imaging.packing.config import check_packings
 from micro import run as micro_run
 from micro.hydration import DivergenceError
-from micro.studies import check_studies
+from micro.config import check_studies
 from shared.config import ConfigError, default_config, load_config, validate_config
 from shared.io import OutputError, write_dataset
 

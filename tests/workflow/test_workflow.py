@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import html as html_module
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -322,3 +324,59 @@ def test_editing_one_slice_reruns_its_sample_and_is_in_the_provenance(two_sample
     stats = dry.stdout.split("Job stats:")[1].split("total")[0]
     assert "imaging_porosity" in stats and "imaging_rev" in stats
     assert "sample=sliced" in dry.stdout and "sample=pellet" not in dry.stdout
+
+
+def _caption_phrases(caption: Path) -> list[str]:
+    """The caption's sentences without a Jinja field, whitespace collapsed."""
+    text = " ".join(caption.read_text().split())
+    return [s for s in re.split(r"(?<=\.) ", text) if "{{" not in s and len(s.split()) > 5]
+
+
+@pytest.fixture(scope="module")
+def imaged(tmp_path_factory):
+    """The CT stage of the tiny configuration, finished (the cheapest run with figures)."""
+    workdir = _workdir(tmp_path_factory.mktemp("wf_ct"), TINY)
+    result = _snakemake(workdir, "results/rev/pellet.png")
+    assert result.returncode == 0, result.stderr[-3000:]
+    return workdir
+
+
+def test_every_figure_is_a_report_item_with_a_caption():
+    rules = "".join(p.read_text() for p in (ROOT / "workflow/rules").glob("*.smk"))
+    figures = re.findall(r"figure=(\S*)\s*\n\s*(\"[^\"]+\.png\")", rules)
+    assert len(figures) == 12
+    assert all(call == "report(" for call, _ in figures), figures
+    for caption in re.findall(r'caption="\.\./report/(\w+\.rst)"', rules):
+        assert _caption_phrases(ROOT / "workflow/report" / caption), caption
+
+
+def test_the_report_holds_the_figures_with_their_captions(imaged):
+    """``snakemake --report`` on a finished run: each figure with its caption rendered."""
+    result = _snakemake(imaged, "--report", "report.html", "results/rev/pellet.png")
+    assert result.returncode == 0, result.stderr[-3000:]
+    text = (imaged / "report.html").read_text()
+    text = " ".join(html_module.unescape(text).replace("\\n", " ").split())
+    for name in ("workflow", "porosity", "rev"):
+        for phrase in _caption_phrases(ROOT / "workflow/report" / f"{name}.rst"):
+            assert phrase in text, (name, phrase)
+    assert "CT stage, sample pellet:" in text  # the caption's wildcard filled in
+    for figure in ("results/porosity/pellet.png", "results/rev/pellet.png"):
+        assert f'"{figure}": {{"name": "pellet.png"' in text, figure
+
+
+def test_an_overlay_from_the_command_line_plans_the_reruns_of_its_key(imaged, tmp_path):
+    """``--set imaging.rev.n_sizes=6`` as the launcher passes it: REV reruns, nothing else."""
+    overlay = tmp_path / "overrides.yaml"
+    made = subprocess.run(
+        [sys.executable, "-m", "shared.overrides", "--output", str(overlay),
+         "--configfile", str(imaged / "config/config.yaml"), "--set", "imaging.rev.n_sizes=6"],
+        capture_output=True, text=True, timeout=120)
+    assert made.returncode == 0, made.stderr
+    target = "results/rev/pellet.png"
+    result = _snakemake(imaged, "-n", target, "--configfile", "config/config.yaml", str(overlay))
+    assert result.returncode == 0, result.stderr[-3000:]
+    planned = set(re.findall(r"^rule (\w+):", result.stdout, re.MULTILINE))
+    assert planned == {"imaging_rev"}, result.stdout[-3000:]
+    assert "params" in result.stdout.lower()
+    unchanged = _snakemake(imaged, "-n", target, "--configfile", "config/config.yaml")
+    assert "Nothing to be done" in unchanged.stdout + unchanged.stderr

@@ -1,23 +1,20 @@
 # Shared helpers of the rules: validation, sample sheet, code hash, input functions.
 import sys
-from pathlib import Path
 
-import macro
-from imaging.ct.io import ImageError, slice_files
 from imaging.packing.config import check_packings
-from macro.ensemble import check_ensembles, ensemble_cases, ensemble_members
+from macro.config import check_ensembles, ensemble_cases, ensemble_members
 from macro.laws import case_materials
-from micro.run import MATERIAL_KEYS
-from micro.upscaling.run import source_names
-from micro.studies import (
+from micro.config import (
+    MATERIAL_KEYS,
     case_edge_length,
     check_studies,
     convergence_cases,
     realization_case,
     scale_realizations,
+    source_names,
 )
 from shared.config import ConfigError, load_schema, sample_imaging, validate_config
-from shared.provenance import code_sha256
+from shared.provenance import script_sha256
 
 SCHEMA = load_schema(workflow.source_path("../schemas/config.schema.yaml"))
 try:
@@ -46,9 +43,11 @@ wildcard_constraints:
     ensemble="|".join(ENSEMBLES) or "(?!)",
 
 
-def code_hash(*packages):
-    """sha256 of our packages' sources, a param so that package edits rerun the rule."""
-    return code_sha256(*packages)
+def script_code(script):
+    """sha256 of the sources of our modules that a rule's script imports, transitively
+    (shared.imports), a param: an edit of that code reruns the rule, other edits do not.
+    """
+    return script_sha256(workflow.source_path(f"../scripts/{script}"))
 
 
 def get_sample_config(wildcards):
@@ -87,6 +86,9 @@ def get_slice_files(wildcards):
     entry = config["samples"][wildcards.sample]
     if entry["source"] != "slices":
         return []
+    # imported here: the reader's libraries (OpenCV, dask) only for a slice-folder sample
+    from imaging.ct.io import ImageError, slice_files
+
     try:
         return [str(path) for path in slice_files(entry["path"])]
     except ImageError:  # the job itself refuses the folder, in one line
@@ -288,66 +290,3 @@ def get_final_outputs():
         + packing
         + get_macro_outputs()
     )
-
-
-# The sources each stage's rules run; their hash is a param so that edits rerun the rules.
-# CT rules: imaging/ct and imaging/morphology with the shared modules they import.
-IMAGING_CODE = code_hash(
-    "imaging/__init__.py",
-    "imaging/ct",
-    "imaging/morphology",
-    "shared/io.py",
-    "shared/provenance.py",
-    "shared/figures.py",
-)
-MICRO_CODE = code_hash("micro", "shared")
-STUDIES_CODE = code_hash(
-    "micro/studies.py",
-    "micro/figures.py",
-    "shared/io.py",
-    "shared/provenance.py",
-    "shared/figures.py",
-    "shared/config.py",
-)
-# Packing rule: imaging/packing and imaging/morphology (a CT edit reruns no packing).
-PACKING_CODE = code_hash(
-    "imaging/__init__.py",
-    "imaging/packing",
-    "imaging/morphology",
-    "shared/config.py",
-    "shared/io.py",
-    "shared/provenance.py",
-)
-UPSCALING_CODE = code_hash(
-    "micro/upscaling",
-    "shared/upscaling.py",
-    "shared/io.py",
-    "shared/provenance.py",
-    "shared/figures.py",
-    "shared/config.py",
-)
-# Case rules: the macro package but its ensemble statistics (their edits rerun no case).
-MACRO_FOLDER = Path(macro.__file__).parent
-MACRO_CODE = code_hash(
-    *(
-        f"macro/{path.relative_to(MACRO_FOLDER)}"
-        for path in MACRO_FOLDER.rglob("*.py")
-        if path.name != "ensemble.py"
-    ),
-    "shared/upscaling.py",
-    "shared/mesh.py",
-    "shared/dem",
-    "shared/io.py",
-    "shared/provenance.py",
-    "shared/figures.py",
-    "shared/progress.py",
-    "shared/config.py",
-)
-ENSEMBLE_CODE = code_hash(
-    "macro/__init__.py",
-    "macro/ensemble.py",
-    "shared/config.py",
-    "shared/io.py",
-    "shared/provenance.py",
-    "shared/figures.py",
-)

@@ -3,10 +3,11 @@
 
 
 rule imaging_phantom:
+    """Synthetic pellet scan (greyscale TIFF) for a sample of source phantom."""
     output:
         "results/phantom/{sample}.tif",
     params:
-        code=IMAGING_CODE,
+        code=script_code("imaging_phantom.py"),
         phantom=config["phantom"],
         sample=get_sample_config,
         # the phantom maps density to grey with the anchors that calibration inverts
@@ -25,15 +26,21 @@ rule imaging_phantom:
 
 
 rule imaging_porosity:
+    """CT scan -> specimen mask -> calibrated density -> porosity grid and figure."""
     input:
         scan=get_scan,
         slices=get_slice_files,
     output:
         image="results/images/{sample}.nc",
         porosity="results/porosity/{sample}.nc",
-        figure="results/porosity/{sample}.png",
+        figure=report(
+            "results/porosity/{sample}.png",
+            caption="../report/porosity.rst",
+            category="1. CT imaging",
+            subcategory="{sample}",
+        ),
     params:
-        code=IMAGING_CODE,
+        code=script_code("imaging_porosity.py"),
         sample=get_sample_config,
         imaging=sample_settings(
             "calibration",
@@ -64,6 +71,7 @@ rule imaging_porosity:
 
 
 rule imaging_rev:
+    """REV of porosity and interface density, and chord lengths, of a sample's scan."""
     input:
         scan=get_scan,
         slices=get_slice_files,
@@ -71,9 +79,14 @@ rule imaging_rev:
         porosity="results/porosity/{sample}.nc",
     output:
         rev="results/rev/{sample}.nc",
-        figure="results/rev/{sample}.png",
+        figure=report(
+            "results/rev/{sample}.png",
+            caption="../report/rev.rst",
+            category="1. CT imaging",
+            subcategory="{sample}",
+        ),
     params:
-        code=IMAGING_CODE,
+        code=script_code("imaging_rev.py"),
         sample=get_sample_config,
         settings=sample_settings(
             "rev", "chords", "chunk_mb", "workers", "memory_limit_gb", "dask_scheduler"

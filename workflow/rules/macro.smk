@@ -2,13 +2,19 @@
 
 
 rule macro_case:
+    """Run one macro mock-up case (or ensemble member) on the permeability table."""
     input:
         table="results/upscaling/pellet_permeability.nc",
     output:
         result="results/macro/{macro_case}.nc",
-        figure="results/macro/{macro_case}.png",
+        figure=report(
+            "results/macro/{macro_case}.png",
+            caption="../report/macro_case.rst",
+            category="4. Macro",
+            subcategory="cases",
+        ),
     params:
-        code=MACRO_CODE,
+        code=script_code("macro_case.py"),
         macro=get_macro_case_config,
         materials=get_macro_materials,
     conda:
@@ -22,12 +28,18 @@ rule macro_case:
 
 
 rule macro_comparison:
+    """The macro cases' pressures and suction on one figure."""
     input:
         cases=expand("results/macro/{macro_case}.nc", macro_case=MACRO_CASES),
     output:
-        figure="results/macro/comparison.png",
+        figure=report(
+            "results/macro/comparison.png",
+            caption="../report/macro_comparison.rst",
+            category="4. Macro",
+            subcategory="cases",
+        ),
     params:
-        code=MACRO_CODE,
+        code=script_code("macro_comparison.py"),
     conda:
         "../envs/claychain.yaml"
     log:
@@ -39,13 +51,19 @@ rule macro_comparison:
 
 
 rule macro_ensemble:
+    """Statistics (mean, quantile band) over a seed ensemble's members."""
     input:
         members=get_ensemble_members,
     output:
         result="results/macro/ensemble_{ensemble}.nc",
-        figure="results/macro/ensemble_{ensemble}.png",
+        figure=report(
+            "results/macro/ensemble_{ensemble}.png",
+            caption="../report/macro_ensemble.rst",
+            category="4. Macro",
+            subcategory="ensembles",
+        ),
     params:
-        code=ENSEMBLE_CODE,
+        code=script_code("macro_ensemble.py"),
         ensemble=get_ensemble_config,
     conda:
         "../envs/claychain.yaml"

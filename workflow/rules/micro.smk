@@ -2,13 +2,19 @@
 
 
 rule micro_case:
+    """Hydrate one micro case (pellet on the porosity grid): permeability, cracks."""
     input:
         porosity=get_micro_porosity,
     output:
         result="results/micro/{case}.nc",
-        figure="results/micro/{case}.png",
+        figure=report(
+            "results/micro/{case}.png",
+            caption="../report/micro_case.rst",
+            category="2. Micro",
+            subcategory="cases",
+        ),
     params:
-        code=MICRO_CODE,
+        code=script_code("micro_case.py"),
         micro=get_micro_case_config,
         materials=get_micro_materials,
     threads: get_micro_threads
@@ -23,12 +29,18 @@ rule micro_case:
 
 
 rule micro_compare:
+    """Permeability against saturation of all micro cases on one figure."""
     input:
         expand("results/micro/{case}.nc", case=CASES),
     output:
-        figure="results/micro/comparison.png",
+        figure=report(
+            "results/micro/comparison.png",
+            caption="../report/micro_comparison.rst",
+            category="2. Micro",
+            subcategory="cases",
+        ),
     params:
-        code=MICRO_CODE,
+        code=script_code("micro_compare.py"),
     conda:
         "../envs/claychain.yaml"
     log:
@@ -40,13 +52,19 @@ rule micro_compare:
 
 
 rule micro_convergence:
+    """Convergence study: the convergence cases stacked over their number of points."""
     input:
         get_convergence_cases,
     output:
         result="results/studies/convergence.nc",
-        figure="results/studies/convergence.png",
+        figure=report(
+            "results/studies/convergence.png",
+            caption="../report/micro_convergence.rst",
+            category="2. Micro",
+            subcategory="convergence study",
+        ),
     params:
-        code=STUDIES_CODE,
+        code=script_code("micro_convergence.py"),
         cases=config["micro"]["studies"]["convergence"],
     conda:
         "../envs/claychain.yaml"
@@ -59,13 +77,19 @@ rule micro_convergence:
 
 
 rule micro_scale_realization:
+    """Scale study: hydrate one sub-cube (realization) of the reference case."""
     input:
         porosity=get_micro_porosity,
     output:
         result="results/studies/scale/{realization}.nc",
-        figure="results/studies/scale/{realization}.png",
+        figure=report(
+            "results/studies/scale/{realization}.png",
+            caption="../report/micro_scale_realization.rst",
+            category="2. Micro",
+            subcategory="scale study",
+        ),
     params:
-        code=MICRO_CODE,
+        code=script_code("micro_case.py"),
         micro=get_scale_realization_config,
         materials=get_micro_materials,
     group:
@@ -81,13 +105,19 @@ rule micro_scale_realization:
 
 
 rule micro_scale:
+    """Scale study: mean and spread over the realizations per domain fraction."""
     input:
         unpack(get_scale_inputs),
     output:
         result="results/studies/scale.nc",
-        figure="results/studies/scale.png",
+        figure=report(
+            "results/studies/scale.png",
+            caption="../report/micro_scale.rst",
+            category="2. Micro",
+            subcategory="scale study",
+        ),
     params:
-        code=STUDIES_CODE,
+        code=script_code("micro_scale.py"),
         layout=get_scale_layout,
     localrule: True
     conda:

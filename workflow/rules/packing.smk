@@ -3,11 +3,16 @@
 
 
 rule packing_deposit:
+    """Build, analyse and write one virtual clay packing (sequential deposition)."""
     output:
         result="results/packing/{packing}.nc",
-        figure="results/packing/{packing}.png",
+        figure=report(
+            "results/packing/{packing}.png",
+            caption="../report/packing.rst",
+            category="5. Packing",
+        ),
     params:
-        code=PACKING_CODE,
+        code=script_code("packing_deposit.py"),
         section=get_packing_config,
     conda:
         "../envs/claychain.yaml"

@@ -3,14 +3,19 @@
 
 
 rule upscaling_table:
+    """Pellet permeability table (per condition, against suction) from the micro cases."""
     input:
         unpack(get_upscaling_sources),
     output:
         table="results/upscaling/pellet_permeability.nc",
         csv="results/upscaling/pellet_permeability.csv",
-        figure="results/upscaling/pellet_permeability.png",
+        figure=report(
+            "results/upscaling/pellet_permeability.png",
+            caption="../report/upscaling.rst",
+            category="3. Upscaling",
+        ),
     params:
-        code=UPSCALING_CODE,
+        code=script_code("upscaling_table.py"),
         upscaling=config["upscaling"],
     conda:
         "../envs/claychain.yaml"
