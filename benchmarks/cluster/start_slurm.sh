@@ -92,6 +92,7 @@ SchedulerType=sched/backfill
 AccountingStorageType=accounting_storage/slurmdbd
 AccountingStorageHost=localhost
 AccountingStorageEnforce=associations,limits
+AccountingStoreFlags=job_comment
 ReturnToService=2
 MinJobAge=300
 KillWait=10
