@@ -1,6 +1,7 @@
 """Integration check of the SLURM route on a single-node SLURM on this machine.
 
     python benchmarks/cluster/check_slurm.py [--full] [--workdir DIR] [--no-start]
+                                             [--skip-local] [--compare-only]
 
 1. starts munge, mariadb, slurmdbd, slurmctld and slurmd (start_slurm.sh, as root);
 2. lays the committed tree (git archive HEAD) twice under DIR (default
@@ -111,8 +112,13 @@ def main():
     parser.add_argument("--no-start", action="store_true", help="SLURM is already up")
     parser.add_argument("--skip-local", action="store_true",
                         help="reuse DIR/local from an earlier check")
+    parser.add_argument("--compare-only", action="store_true",
+                        help="only compare the netCDFs of DIR/local and DIR/cluster")
     args = parser.parse_args()
     work = args.workdir
+    if args.compare_only:
+        print("check: netCDF data variables, local vs cluster:")
+        sys.exit(1 if compare(work / "local", work / "cluster") else 0)
     if not args.no_start:
         subprocess.run(["bash", str(REPO / "benchmarks/cluster/start_slurm.sh")], check=True)
     for name in ("cluster",) + (() if args.skip_local else ("local",)):
