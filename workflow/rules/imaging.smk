@@ -60,6 +60,7 @@ rule imaging_porosity:
             for key in ("dry_density_kg_m3", "reference_porosity")
         },
         micro_spacing=[config["micro"]["specimen_size_m"], config["micro"]["n_points"]],
+    threads: lambda wildcards: sample_settings("workers")(wildcards)["workers"]
     conda:
         "../envs/claychain.yaml"
     log:
@@ -91,6 +92,7 @@ rule imaging_rev:
         settings=sample_settings(
             "rev", "chords", "chunk_mb", "workers", "memory_limit_gb", "dask_scheduler"
         ),
+    threads: lambda wildcards: sample_settings("workers")(wildcards)["workers"]
     conda:
         "../envs/claychain.yaml"
     log:
