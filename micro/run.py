@@ -404,7 +404,8 @@ def run(
                 save(system, None)
             if vtk_dir is not None:
                 with clock.phase("output"):
-                    vtk.write_checkpoint_snapshot(vtk_dir, output.stem, index, state)
+                    vtk.write_checkpoint_snapshot(vtk_dir, output.stem, index, state,
+                                                  checkpoints)
             progress.update(index + 1)
         record_pending()
     ds = _dataset(records, checkpoints)

@@ -20,8 +20,13 @@ meshio 5.3's vtu writer drops field data, so the checkpoint's boundary suction i
 the file: time step i of the collection is ``suction(checkpoint=i)`` of the netCDF.
 
 A ``.pvd`` collection (a few lines of XML; meshio writes no collections) lists the
-snapshots of a run with the checkpoint index as time step, so that ParaView opens the
-series as one time-dependent data set. Every file is written to a temporary name in
+snapshots of a run, so that ParaView opens the series as one time-dependent data set.
+Its time step is the hydration progress in decades of suction,
+``log10(s_0 / s_i)`` with ``s_0`` the first checkpoint's suction and ``s_i`` the
+snapshot's (0 at 132 MPa, 1 at 13.2 MPa, 2 at 1.32 MPa...): ParaView needs increasing
+times and the suction decreases, and the micro model's own clock (``time`` in the
+netCDF) is a relaxation pseudo-time a reader cannot interpret. The suction itself is
+``s_0 * 10**(-t)``, or ``suction(checkpoint=i)`` of the netCDF. Every file is written to a temporary name in
 its directory and renamed.
 """
 
@@ -39,7 +44,7 @@ from micro.hydration import PelletState
 from shared.io import atomic_write
 from shared.vtk import write_collection
 
-__all__ = ["snapshot_mesh", "write_snapshot", "write_checkpoint_snapshot",
+__all__ = ["snapshot_mesh", "write_snapshot", "write_checkpoint_snapshot", "suction_progress",
            "clear_snapshots", "snapshot_name"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -142,14 +147,34 @@ def _snapshots(directory: Path) -> list[tuple[int, str]]:
     return sorted(found)
 
 
+def suction_progress(suctions: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """The collection's time steps: hydration progress ``log10(s_0 / s_i)`` [decades].
+
+    Parameters
+    ----------
+    suctions
+        Checkpoint suctions [Pa], decreasing, the first the initial one.
+
+    Returns
+    -------
+    numpy.ndarray
+        0 for the first checkpoint, increasing by one per decade of suction relieved.
+    """
+    s = np.asarray(suctions, dtype=float)
+    return np.log10(s[0] / s)
+
+
 def write_checkpoint_snapshot(
-    directory: str | Path, name: str, index: int, state: PelletState
+    directory: str | Path, name: str, index: int, state: PelletState,
+    suctions: npt.ArrayLike | None = None,
 ) -> Path:
     """Snapshot of checkpoint ``index`` and the run's collection ``<name>.pvd``.
 
     The collection lists every ``checkpoint_*.vtu`` up to ``index`` in ``directory``
     (a resumed run keeps the snapshots written before it was killed), time step =
-    checkpoint index.
+    the hydration progress ``log10(suctions[0] / suctions[i])`` in decades of suction
+    (:func:`suction_progress`; increasing, as ParaView needs), or the checkpoint index
+    when ``suctions`` is not given.
 
     Parameters
     ----------
@@ -161,6 +186,8 @@ def write_checkpoint_snapshot(
         Checkpoint index.
     state
         Pellet state after the checkpoint was measured (cracks up to date).
+    suctions
+        Suctions [Pa] of all the run's checkpoints (``micro.checkpoints_suction_pa``).
 
     Returns
     -------
@@ -169,7 +196,9 @@ def write_checkpoint_snapshot(
     """
     directory = Path(directory)
     written = write_snapshot(directory / snapshot_name(index), state)
-    entries = [(i, file) for i, file in _snapshots(directory) if i <= index]
+    progress = None if suctions is None else suction_progress(suctions)
+    entries = [(float(i) if progress is None else float(progress[i]), file)
+               for i, file in _snapshots(directory) if i <= index]
     write_collection(directory / f"{name}.pvd", entries)
     return written
 
