@@ -1,0 +1,27 @@
+"""The micro figures read: labelled log ticks, legends off the data, the mean defined."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from tests._figures import check_figure, kept_figures  # noqa: F401
+from tests.micro.test_outputs import SUCTIONS, _records
+
+from micro.figures import case_figure, comparison_figure
+from micro.run import _dataset
+
+
+def test_case_figure(tmp_path: Path, kept_figures) -> None:  # noqa: F811
+    ds = _dataset(_records(3), SUCTIONS)
+    case_figure(ds, "c", tmp_path / "c.png")
+    labels = check_figure(kept_figures[-1])
+    assert {"permeability [m2]", "boundary suction [Pa]", "saturation [-]"} <= labels
+
+
+def test_comparison_figure_defines_its_mean(tmp_path: Path, kept_figures) -> None:  # noqa: F811
+    cases = {"a": _dataset(_records(3), SUCTIONS), "b": _dataset(_records(3), SUCTIONS * 0.9)}
+    comparison_figure(cases, tmp_path / "cmp.png")
+    fig = kept_figures[-1]
+    labels = check_figure(fig)
+    assert {"mean water permeability (m²)", "mean gas permeability (m²)"} <= labels
+    assert all("arithmetic mean" in ax.get_title() for ax in fig.get_axes())
+    assert len(fig.legends) == 1
