@@ -150,11 +150,11 @@ def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
     path
         Target PNG.
     """
-    panels = (("permeability_geomean", {"phase": "water"}, "k_w [m2]", True),
-              ("permeability_geomean", {"phase": "gas"}, "k_g [m2]", True),
-              ("crack_volume_fraction", {}, "crack volume / volume [-]", False),
-              ("eps_v", {}, "eps_v [-]", False),
-              ("saturation", {}, "saturation [-]", False))
+    panels = (("permeability_geomean", {"phase": "water"}, "water permeability (m²)", True),
+              ("permeability_geomean", {"phase": "gas"}, "gas permeability (m²)", True),
+              ("crack_volume_fraction", {}, "crack volume fraction (-)", False),
+              ("eps_v", {}, "volumetric strain (-)", False),
+              ("saturation", {}, "saturation (-)", False))
     fig, axes = new_figure(2, len(panels), width=3.6)
     fraction = ds["domain_fraction"].values
     levels = np.unique(np.linspace(0, ds.sizes["checkpoint"] - 1, n_levels).round().astype(int))
@@ -169,13 +169,13 @@ def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
                 if log:
                     values = np.where(values > 0, values, np.nan)
                 axes[row, column].plot(fraction, values, "o-", ms=3, color=colour, label=legend)
-        for row, stat in enumerate(("mu", "sigma")):
+        for row, stat in enumerate(("mean", "standard deviation of")):
             ax = axes[row, column]
             ax.set(xscale="log", yscale="log" if log else "linear",
-                   xlabel="domain fraction [-]", ylabel=f"{stat} of {label}")
-            ax.set_xticks(fraction, labels=[f"{f:.3g}" for f in fraction])
-            ax.xaxis.set_minor_locator(plt.NullLocator())
+                   xlabel="domain fraction [-]", ylabel=f"{stat} {label}")
     outside_legend(axes[0, 0])
     counts = ", ".join(f"{f:.3g}: {int(n)}" for f, n in zip(fraction, ds["n_realizations"].values))
-    fig.suptitle(f"scale study, realizations per domain fraction ({counts})", fontsize="small")
+    fig.suptitle(f"scale study: mean and standard deviation over the realizations of a domain "
+                 f"fraction (permeability: geometric mean of k_x, k_y, k_z); realizations per "
+                 f"domain fraction ({counts})", fontsize="small")
     return save_figure(fig, path)

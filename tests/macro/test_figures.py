@@ -8,7 +8,7 @@ import numpy as np
 import xarray as xr
 from tests._figures import check_figure, kept_figures  # noqa: F401
 
-from macro.figures import case_figure
+from macro.figures import case_figure, comparison_figure
 
 
 def _case() -> xr.Dataset:
@@ -40,3 +40,18 @@ def test_case_figure(tmp_path: Path, kept_figures) -> None:  # noqa: F811
     pressures = fig.get_axes()[0]
     assert pressures.get_xscale() == "log"
     assert all("e" not in t.get_text() for t in pressures.get_xticklabels())
+
+
+def test_comparison_figure(tmp_path: Path, kept_figures) -> None:  # noqa: F811
+    cases = {}
+    for name, factor in (("weibull", 1.0), ("homogeneous", 0.8)):
+        ds = _case()
+        ds["sensor_pressure"] = ds["sensor_pressure"] * factor
+        ds["mean_suction"] = (("time", "material"),
+                              np.stack([ds["suction_profile"].values[:, 0]] * 2, axis=1))
+        ds = ds.assign_coords(material=["pellet", "powder"])
+        ds.attrs["powder_heterogeneity"] = name
+        cases[name] = ds
+    comparison_figure(cases, tmp_path / "cmp.png")
+    labels = check_figure(kept_figures[-1])
+    assert {"time [d]", "axial pressure [MPa]", "mean pellet suction [MPa]"} <= labels
