@@ -43,3 +43,19 @@ def test_rev_figure(tmp_path: Path, kept_figures) -> None:  # noqa: F811
     legend_texts = [t.get_text() for ax in fig.get_axes() if ax.get_legend()
                     for t in ax.get_legend().get_texts()]
     assert any("REV tolerance" in text for text in legend_texts)
+
+
+def test_porosity_figure(tmp_path: Path, kept_figures) -> None:  # noqa: F811
+    from imaging.ct.figures import porosity_figure
+
+    rng = np.random.default_rng(2)
+    axis = np.linspace(0.0, 4e-3, 8)
+    image = xr.Dataset({"grey_preview": (("z_preview", "y_preview", "x_preview"),
+                                         rng.integers(0, 60000, (8, 8, 8)))},
+                       coords={"z_preview": axis, "y_preview": axis, "x_preview": axis})
+    porosity = xr.Dataset({"porosity": (("z", "y", "x"), rng.uniform(0.2, 0.4, (8, 8, 8))),
+                           "density": (("z", "y", "x"), rng.uniform(1600, 2000, (8, 8, 8)))},
+                          coords={"z": axis, "y": axis, "x": axis})
+    porosity_figure(image, porosity, tmp_path / "p.png")
+    labels = check_figure(kept_figures[-1])
+    assert {"x [mm]", "porosity [-]", "density [kg/m3]"} <= labels
