@@ -11,7 +11,7 @@ import xarray as xr
 from matplotlib.axes import Axes
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
-from shared.figures import new_figure, save_figure
+from shared.figures import new_figure, outside_legend, plain_number, save_figure
 
 __all__ = ["case_figure", "comparison_figure"]
 
@@ -36,18 +36,19 @@ def case_figure(ds: xr.Dataset, path: str | Path) -> Path:
     wanted = np.array([0.0, 0.01, 0.1, 1.0 / 3.0, 1.0]) * days[-1]
     picks = np.unique(np.abs(days[None, :] - wanted[:, None]).argmin(axis=1))
     for i in picks:
-        label = f"{days[i]:.2g} d"
+        label = f"{plain_number(days[i])} d"
         axes[1].plot(z, ds["suction_profile"].values[i] / 1e6, label=label)
         axes[2].plot(z, ds["swelling_profile"].values[i], label=label)
     axes[1].set_xlabel("height [cm]")
     axes[1].set_ylabel("suction [MPa]")
-    axes[1].legend(fontsize=6)
+    outside_legend(axes[1], title="time")
     axes[1].set_title("suction along the axis")
     axes[2].set_xlabel("height [cm]")
     axes[2].set_ylabel("swelling strain V/V0 - 1 [1]")
     axes[2].set_title("swelling along the axis")
-    axes[3].semilogy(ds["permeability_time"].values / 86400.0, ds["column_permeability"].values, "o-")
-    axes[3].set_xlabel("time [d]")
+    k_days = ds["permeability_time"].values / 86400.0
+    axes[3].semilogy(k_days, ds["column_permeability"].values, "o-")
+    _days_axis(axes[3], k_days)
     axes[3].set_ylabel("permeability [m2]")
     axes[3].set_title("column along its axis")
     return save_figure(fig, path)
@@ -90,5 +91,5 @@ def _days_axis(ax: Axes, days: np.ndarray) -> None:
     ax.set_xlim(start, end)
     subs = (1.0, 2.0, 5.0) if end / start <= 1e3 else (1.0,)
     ax.xaxis.set_major_locator(LogLocator(base=10.0, subs=subs))
-    ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: plain_number(value)))
     ax.xaxis.set_minor_formatter(NullFormatter())

@@ -14,7 +14,7 @@ the powder:
 Snapshots are taken when the simulated time first passes each of ``vtk_snapshots``
 times spaced geometrically from 100 s to ``max_time_s`` and at the end, into
 ``results/macro/<case>_vtk/step_<step>.vtu``; ``<case>.pvd`` lists them with the
-simulated time [s] as time step.
+simulated time in days as time step (ParaView's time readout is then in days).
 """
 
 from __future__ import annotations
@@ -27,6 +27,9 @@ import numpy as np
 from macro.model import MacroModel
 from shared.io import atomic_write
 from shared.vtk import write_collection
+
+DAY = 86400.0
+"""Seconds per day: the collection's time unit."""
 
 __all__ = ["snapshot_mesh", "SnapshotSeries"]
 
@@ -95,15 +98,16 @@ class SnapshotSeries:
         mesh = snapshot_mesh(model)
         atomic_write(self.directory / name, lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
         self.entries = [e for e in self.entries if e[1] != name] + [(model.time, name)]
-        write_collection(self.collection, self.entries)
+        write_collection(self.collection, [(t / DAY, f) for t, f in self.entries])
 
 
 def _listed(directory: Path) -> list[tuple[float, str]]:
-    """(time, file) of the snapshots a collection lists (a resumed run appends to them)."""
+    """(time [s], file) of the snapshots a collection lists, its time steps being in days
+    (a resumed run appends to them)."""
     import xml.etree.ElementTree as ET
 
     found = list(directory.glob("*.pvd"))
     if not found:
         return []
     root = ET.parse(found[0]).getroot()
-    return [(float(d.get("timestep", "0")), str(d.get("file"))) for d in root.iter("DataSet")]
+    return [(float(d.get("timestep", "0")) * DAY, str(d.get("file"))) for d in root.iter("DataSet")]

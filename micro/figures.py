@@ -9,7 +9,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
-from shared.figures import new_figure, save_figure
+from shared.figures import new_figure, outside_legend, save_figure
 
 __all__ = ["case_figure", "comparison_figure", "convergence_figure", "scale_figure"]
 
@@ -29,10 +29,10 @@ def _permeability_panel(ax, ds: xr.Dataset, abscissa: str, label: str = "") -> N
 
 def case_figure(ds: xr.Dataset, case: str, path: str | Path) -> Path:
     """Permeability vs saturation and suction, crack fabric, porosity histograms of a case."""
-    fig, axes = new_figure(2, 2, width=5.0)
+    fig, axes = new_figure(2, 2, width=6.5)
     _permeability_panel(axes[0, 0], ds, "saturation")
     axes[0, 0].set(xlabel="saturation [-]", title=f"{case}: permeability vs saturation")
-    axes[0, 0].legend(fontsize="x-small", ncol=2)
+    outside_legend(axes[0, 0], ncol=2)
     _permeability_panel(axes[0, 1], ds, "suction")
     axes[0, 1].set(xscale="log", xlabel="boundary suction [Pa]", title="permeability vs suction")
     axes[0, 1].invert_xaxis()
@@ -47,7 +47,7 @@ def case_figure(ds: xr.Dataset, case: str, path: str | Path) -> Path:
     twin.set_ylabel("cracks [-]")
     axes[1, 0].set(xlabel="saturation [-]", ylabel="fabric component [m2]",
                    title="crack fabric (diagonal) and count")
-    axes[1, 0].legend(fontsize="x-small", ncol=2)
+    outside_legend(axes[1, 0], ncol=2, bbox_to_anchor=(1.3, 1.0))
     bins = ds["bin"].values
     colours = np.linspace(0.1, 0.9, ds.sizes["checkpoint"])
     for index, shade in enumerate(colours):
@@ -56,12 +56,14 @@ def case_figure(ds: xr.Dataset, case: str, path: str | Path) -> Path:
                         label=f"S = {saturation[index]:.2f}")
     axes[1, 1].set(xlabel="porosity [-]", ylabel="volume fraction [-]",
                    title="porosity distribution through hydration")
-    axes[1, 1].legend(fontsize="x-small")
+    outside_legend(axes[1, 1])
     return save_figure(fig, path)
 
 
 def comparison_figure(cases: Mapping[str, xr.Dataset], path: str | Path) -> Path:
-    """Water and gas permeability (x axis) vs saturation across cases (Figs. 3.11, 3.13)."""
+    """Water and gas permeability vs saturation across cases (Figs. 3.11, 3.13): the
+    mean permeability is the arithmetic mean of the three directional permeabilities
+    k_x, k_y, k_z of a checkpoint (one case, one realization)."""
     fig, axes = new_figure(1, 2, width=5.0)
     # tab20 keeps up to twenty cases (default + convergence + scale presets) apart
     colours = plt.get_cmap("tab10" if len(cases) <= 10 else "tab20").colors
@@ -70,8 +72,9 @@ def comparison_figure(cases: Mapping[str, xr.Dataset], path: str | Path) -> Path
             k = ds["permeability"].sel(phase=phase).mean("axis").values
             ax.plot(ds["saturation"].values, np.where(k > 0, k, np.nan), marker="o", ms=3,
                     label=name, color=colours[index % len(colours)])
-        ax.set(yscale="log", xlabel="saturation [-]", ylabel="mean permeability [m2]",
-               title=f"{phase} permeability, all cases")
+        ax.set(yscale="log", xlabel="saturation [-]",
+               ylabel=f"mean {phase} permeability (m²)",
+               title=f"{phase} permeability: arithmetic mean of\nk_x, k_y, k_z per checkpoint")
     fig.legend(*axes[0][0].get_legend_handles_labels(), loc="outside right upper",
                fontsize="small")
     return save_figure(fig, path)
@@ -112,7 +115,7 @@ def convergence_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 4) -> P
                                      color=colour, label=legend)
         axes[0, column].set(xscale="log", yscale="log" if log else "linear",
                             xlabel="number of points", ylabel=label)
-    axes[0, 0].legend(fontsize="x-small")
+    outside_legend(axes[0, 0])
     for column in (0, 1):
         axes[1, column].set(xscale="log", yscale="log", xlabel="number of points",
                             ylabel=f"relative change of {top[column][0]}")
@@ -121,7 +124,7 @@ def convergence_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 4) -> P
                         color=_PHASE_COLOUR[phase], label=f"{phase}, largest over checkpoints")
     axes[1, 2].set(xscale="log", yscale="log", xlabel="number of points",
                    ylabel="relative change of k (largest axis)")
-    axes[1, 2].legend(fontsize="x-small")
+    outside_legend(axes[1, 2])
     last = ds.isel(checkpoint=-1)
     axes[1, 3].plot(n, last["crack_count"].values, "ko-", ms=3, label="cracks (last checkpoint)")
     axes[1, 3].set(xscale="log", xlabel="number of points", ylabel="cracks [-]")
@@ -147,11 +150,11 @@ def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
     path
         Target PNG.
     """
-    panels = (("permeability_geomean", {"phase": "water"}, "k_w [m2]", True),
-              ("permeability_geomean", {"phase": "gas"}, "k_g [m2]", True),
-              ("crack_volume_fraction", {}, "crack volume / volume [-]", False),
-              ("eps_v", {}, "eps_v [-]", False),
-              ("saturation", {}, "saturation [-]", False))
+    panels = (("permeability_geomean", {"phase": "water"}, "water permeability (m²)", True),
+              ("permeability_geomean", {"phase": "gas"}, "gas permeability (m²)", True),
+              ("crack_volume_fraction", {}, "crack volume fraction (-)", False),
+              ("eps_v", {}, "volumetric strain (-)", False),
+              ("saturation", {}, "saturation (-)", False))
     fig, axes = new_figure(2, len(panels), width=3.6)
     fraction = ds["domain_fraction"].values
     levels = np.unique(np.linspace(0, ds.sizes["checkpoint"] - 1, n_levels).round().astype(int))
@@ -166,13 +169,13 @@ def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
                 if log:
                     values = np.where(values > 0, values, np.nan)
                 axes[row, column].plot(fraction, values, "o-", ms=3, color=colour, label=legend)
-        for row, stat in enumerate(("mu", "sigma")):
+        for row, stat in enumerate(("mean", "standard deviation of")):
             ax = axes[row, column]
             ax.set(xscale="log", yscale="log" if log else "linear",
-                   xlabel="domain fraction [-]", ylabel=f"{stat} of {label}")
-            ax.set_xticks(fraction, labels=[f"{f:.3g}" for f in fraction])
-            ax.xaxis.set_minor_locator(plt.NullLocator())
-    axes[0, 0].legend(fontsize="x-small")
+                   xlabel="domain fraction [-]", ylabel=f"{stat} {label}")
+    outside_legend(axes[0, 0])
     counts = ", ".join(f"{f:.3g}: {int(n)}" for f, n in zip(fraction, ds["n_realizations"].values))
-    fig.suptitle(f"scale study, realizations per domain fraction ({counts})", fontsize="small")
+    fig.suptitle(f"scale study: mean and standard deviation over the realizations of a domain "
+                 f"fraction (permeability: geometric mean of k_x, k_y, k_z); realizations per "
+                 f"domain fraction ({counts})", fontsize="small")
     return save_figure(fig, path)

@@ -155,7 +155,6 @@ def _dataset(records: list[dict[str, Any]], checkpoints: np.ndarray) -> xr.Datas
     for name, (units, long_name) in _SCALARS.items():
         data[name] = ("checkpoint", np.array([r[name] for r in records], dtype=float),
                       {"units": units, "long_name": long_name})
-    data["suction"] = ("checkpoint", suction, {"units": "Pa", "long_name": "boundary suction"})
     data["permeability"] = (
         ("checkpoint", "phase", "axis"), np.stack([r["permeability"] for r in records]),
         {"units": "m2", "long_name": "intrinsic x relative permeability, measured by a steady "
@@ -174,6 +173,9 @@ def _dataset(records: list[dict[str, Any]], checkpoints: np.ndarray) -> xr.Datas
     centres = 0.5 * (POROSITY_BINS[1:] + POROSITY_BINS[:-1])
     coords = {
         "checkpoint": ("checkpoint", np.arange(len(records)), {"units": "1", "long_name": "checkpoint index"}),
+        # a non-index coordinate along checkpoint: ds.swap_dims(checkpoint="suction") and
+        # .plot(x="suction") work, and checkpoint stays the dimension
+        "suction": ("checkpoint", suction, {"units": "Pa", "long_name": "boundary suction"}),
         "phase": ("phase", np.array(["water", "gas"]), {"long_name": "fluid phase"}),
         "axis": ("axis", np.array(["x", "y", "z"]), {"long_name": "direction (z: compaction axis)"}),
         "i": ("i", np.arange(3), {"units": "1", "long_name": "tensor row (x, y, z)"}),
@@ -399,7 +401,8 @@ def run(
                 save(system, None)
             if vtk_dir is not None:
                 with clock.phase("output"):
-                    vtk.write_checkpoint_snapshot(vtk_dir, output.stem, index, state)
+                    vtk.write_checkpoint_snapshot(vtk_dir, output.stem, index, state,
+                                                  checkpoints)
             progress.update(index + 1)
         record_pending()
     ds = _dataset(records, checkpoints)

@@ -151,8 +151,8 @@ def convergence_dataset(cases: Mapping[str, xr.Dataset]) -> xr.Dataset:
                 data[var].dims, change,
                 {"units": "1", "long_name": f"|change| of {var} from the previous n_points, "
                                            "relative to its value (NaN for the first)"})
-    data["suction"] = base["suction"].variable.copy()
     coords: dict[str, Any] = _shared_coords(base)
+    coords["suction"] = base["suction"].variable.copy()
     coords["n_points"] = ("n_points", np.array([counts[name] for name in order], dtype=np.int64),
                           {"units": "1", "long_name": "number of DEM points of the case"})
     if phases:
@@ -256,8 +256,8 @@ def scale_dataset(
     data["realization_offset_m"] = (("realization", "xyz"), np.array([m[3] for m in members]),
                                     {"units": "m", "long_name": "centre of the sub-cube from the "
                                      "scanned specimen's centre (NaN: the reference)"})
-    data["suction"] = base["suction"].variable.copy()
     coords: dict[str, Any] = _shared_coords(base)
+    coords["suction"] = base["suction"].variable.copy()
     coords["domain_fraction"] = ("domain_fraction", np.array(levels), {
         "units": "1", "long_name": "sub-specimen volume / reference specimen volume"})
     coords["realization"] = ("realization", np.array([m[0] for m in members]),

@@ -5,10 +5,10 @@ the Delaunay tetrahedra, with cell data ``pressure_Pa``, ``suction_Pa``, ``satur
 and ``porosity``, point data ``radius_m`` and ``suction_Pa``, and the cracks as a second
 block of ``line`` cells with ``crack_aperture_m`` and ``crack_imbibed`` (NaN and -1 on
 the tetrahedra, NaN in the tetrahedron fields on the lines). A ``.pvd`` collection lists
-the snapshots with the checkpoint index as time step (time step i is
-``suction(checkpoint=i)`` of the netCDF: meshio's vtu writer drops field data). Every
-file is written to a temporary name and renamed. Fields in full: docs/micro.md,
-"micro.vtk".
+the snapshots; its time step is the hydration progress in decades of suction,
+``log10(s_0 / s_i)`` (0 at 132 MPa, 1 at 13.2 MPa: ParaView needs increasing times, the
+suction decreases, and the model's own clock is a relaxation pseudo-time). Every file is
+written to a temporary name and renamed. Fields in full: docs/micro.md, "micro.vtk".
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from micro.hydration import PelletState
 from shared.io import atomic_write
 from shared.vtk import write_collection
 
-__all__ = ["snapshot_mesh", "write_snapshot", "write_checkpoint_snapshot",
+__all__ = ["snapshot_mesh", "write_snapshot", "write_checkpoint_snapshot", "suction_progress",
            "clear_snapshots", "snapshot_name"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -128,14 +128,34 @@ def _snapshots(directory: Path) -> list[tuple[int, str]]:
     return sorted(found)
 
 
+def suction_progress(suctions: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """The collection's time steps: hydration progress ``log10(s_0 / s_i)`` [decades].
+
+    Parameters
+    ----------
+    suctions
+        Checkpoint suctions [Pa], decreasing, the first the initial one.
+
+    Returns
+    -------
+    numpy.ndarray
+        0 for the first checkpoint, increasing by one per decade of suction relieved.
+    """
+    s = np.asarray(suctions, dtype=float)
+    return np.log10(s[0] / s)
+
+
 def write_checkpoint_snapshot(
-    directory: str | Path, name: str, index: int, state: PelletState
+    directory: str | Path, name: str, index: int, state: PelletState,
+    suctions: npt.ArrayLike | None = None,
 ) -> Path:
     """Snapshot of checkpoint ``index`` and the run's collection ``<name>.pvd``.
 
     The collection lists every ``checkpoint_*.vtu`` up to ``index`` in ``directory``
     (a resumed run keeps the snapshots written before it was killed), time step =
-    checkpoint index.
+    the hydration progress ``log10(suctions[0] / suctions[i])`` in decades of suction
+    (:func:`suction_progress`; increasing, as ParaView needs), or the checkpoint index
+    when ``suctions`` is not given.
 
     Parameters
     ----------
@@ -147,6 +167,8 @@ def write_checkpoint_snapshot(
         Checkpoint index.
     state
         Pellet state after the checkpoint was measured (cracks up to date).
+    suctions
+        Suctions [Pa] of all the run's checkpoints (``micro.checkpoints_suction_pa``).
 
     Returns
     -------
@@ -155,7 +177,9 @@ def write_checkpoint_snapshot(
     """
     directory = Path(directory)
     written = write_snapshot(directory / snapshot_name(index), state)
-    entries = [(i, file) for i, file in _snapshots(directory) if i <= index]
+    progress = None if suctions is None else suction_progress(suctions)
+    entries = [(float(i) if progress is None else float(progress[i]), file)
+               for i, file in _snapshots(directory) if i <= index]
     write_collection(directory / f"{name}.pvd", entries)
     return written
 

@@ -47,6 +47,7 @@ class Progress:
         self.trend = trend
         self.start = time.monotonic()
         self._last = -float("inf")
+        self._logged: float | None = None
         self._reports: list[tuple[float, float]] = [(self.done_before, self.start)]
 
     def eta(self, done: float) -> float:
@@ -65,13 +66,21 @@ class Progress:
         return max(self.total - done, 0.0) / rate if rate > 0 else float("nan")
 
     def update(self, done: float, force: bool = False) -> None:
-        """Report ``done`` units finished; logs only when the interval has elapsed."""
+        """Report ``done`` units finished; logs only when the interval has elapsed.
+
+        ``force`` logs regardless of the interval, unless the last line logged already
+        reported ``done`` (a final forced report right after the first update of a
+        one-chunk pass would print the same line twice).
+        """
         now = time.monotonic()
         if self.trend and done > self._reports[-1][0]:
             self._reports.append((done, now))
+        if force and self._logged == done:
+            return
         if not force and now - self._last < self.interval:
             return
         self._last = now
+        self._logged = done
         fraction = min(max(done / self.total, 0.0), 1.0) if self.total > 0 else 1.0
         self.log.info(
             "%s: %g/%g (%.0f %%), elapsed %.1f s, ETA %.1f s",

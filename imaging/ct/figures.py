@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from shared.figures import new_figure, save_figure
+from shared.figures import new_figure, outside_legend, save_figure
 
 __all__ = ["porosity_figure", "rev_figure"]
 
@@ -38,7 +38,7 @@ def porosity_figure(image: xr.Dataset, porosity: xr.Dataset, path: str | Path) -
     axes[1, 2].hist(values, bins=40, color="tab:blue")
     axes[1, 2].axvline(values.mean(), color="k", ls="--", label=f"mean {values.mean():.3f}")
     axes[1, 2].set(title="porosity of grid blocks", xlabel="porosity [-]", ylabel="blocks")
-    axes[1, 2].legend()
+    outside_legend(axes[1, 2])
     density = porosity["density"].values
     axes[0, 2].hist(density[np.isfinite(density)], bins=40, color="tab:brown")
     axes[0, 2].set(title="block dry density", xlabel="density [kg/m3]", ylabel="blocks")
@@ -48,7 +48,7 @@ def porosity_figure(image: xr.Dataset, porosity: xr.Dataset, path: str | Path) -
 def rev_figure(rev: xr.Dataset, path: str | Path) -> Path:
     """REV curves (random windows mean +- std, band clipped at 0, and the centred window;
     the calibrated porosity beside the binary one) and chord-length distributions r f(r)."""
-    fig, axes = new_figure(2, 2)
+    fig, axes = new_figure(2, 2, width=6.0)
     window_mm = rev["window"].values * 1e3
     centred_mm = rev["window_centred"].values * 1e3
     for ax, name, unit in ((axes[0, 0], "porosity", "-"), (axes[0, 1], "interface", "1/m")):
@@ -61,19 +61,25 @@ def rev_figure(rev: xr.Dataset, path: str | Path) -> Path:
         if name == "porosity":
             ax.plot(window_mm, rev["calibrated_porosity_mean"].values, "^-", color="tab:gray",
                     label="calibrated porosity, mean")
+        tolerance = float(rev.attrs.get("rev_tolerance", np.nan))
+        total = float(rev[f"{name}_total"]) if f"{name}_total" in rev else np.nan
+        if np.isfinite(tolerance) and np.isfinite(total):
+            ax.axhspan(total * (1 - tolerance), total * (1 + tolerance), color="k", alpha=0.08,
+                       label=f"whole cube +-{100 * tolerance:.3g} % (REV tolerance)")
         w_rev = float(rev[f"w_rev_{name}_centred"])
         if np.isfinite(w_rev):
             ax.axvline(w_rev * 1e3, color="k", ls=":", label=f"REV (centred) {w_rev * 1e3:.2g} mm")
         ax.set(xscale="log", xlabel="window edge [mm]", ylabel=f"{name} [{unit}]", title=f"REV: {name}")
         ax.set_ylim(bottom=0.0)
-        ax.legend(fontsize="small")
-    length_um = rev["length"].values * 1e6
+        outside_legend(ax)
+    # chords in mm as the windows: one length unit across the figure
+    length_mm = rev["length"].values * 1e3
     for ax, phase in ((axes[1, 0], "pore"), (axes[1, 1], "solid")):
         for direction in rev["direction"].values:
             f = rev[f"chord_{phase}"].sel(direction=direction).values
-            ax.plot(length_um, rev["length"].values * f, label=f"{direction}")
+            ax.plot(length_mm, rev["length"].values * f, label=f"{direction}")
         ratio = float(rev["R_p" if phase == "pore" else "R_s"])
-        ax.set(xscale="log", xlabel="chord length r [um]", ylabel="r f(r) [-]",
+        ax.set(xscale="log", xlabel="chord length r [mm]", ylabel="r f(r) [-]",
                title=f"{phase} chords (R = {ratio:.3g})")
-        ax.legend()
+        outside_legend(ax, title="direction")
     return save_figure(fig, path)

@@ -530,11 +530,52 @@ def rev(
                   seed=rev_settings["seed"], inputs=[scan, image_input, porosity_input],
                   rule=rule, references="Ferrage et al. (2015), Phys. Rev. E 91, 062210, Sec. V.C")
     figures.rev_figure(ds, figure_output)
-    log.info("%s: REV edges (centred / random windows) of the binary porosity %.4f: "
-             "%.3g / %.3g m, of its interface: %.3g / %.3g m, of the calibrated porosity "
-             "%.4f: %.3g / %.3g m; R_p %.3g, R_s %.3g", sample, result.porosity_total,
-             result.w_rev_porosity_centred, result.w_rev_porosity,
-             result.w_rev_interface_centred, result.w_rev_interface,
-             calibrated.porosity_total, calibrated.w_rev_porosity_centred,
-             calibrated.w_rev_porosity, chords.R_p, chords.R_s)
+    log.info("%s", rev_summary(sample, result, calibrated, chords.R_p, chords.R_s))
     return ds
+
+
+def rev_edge(edge: float) -> str:
+    """An REV edge for the log: ``"0.0068 m"``, or ``"not reached"`` when the windows
+    never settled within the tolerance (NaN).
+
+    Parameters
+    ----------
+    edge
+        REV edge [m], NaN if not reached.
+
+    Returns
+    -------
+    str
+        The edge in metres, or "not reached".
+    """
+    return "not reached" if not np.isfinite(edge) else f"{edge:.3g} m"
+
+
+def rev_summary(sample: str, result: Any, calibrated: Any, r_p: float, r_s: float) -> str:
+    """The log line of the REV analysis: centred / random-window REV edges of the binary
+    porosity, its interface and the calibrated porosity (an unconverged one reads "not
+    reached"), and the chord ratios.
+
+    Parameters
+    ----------
+    sample
+        Sample name.
+    result, calibrated
+        REV results of the binary image and of the calibrated porosity (attributes
+        ``porosity_total``, ``w_rev_porosity_centred``, ``w_rev_porosity``, and for
+        ``result`` ``w_rev_interface_centred``, ``w_rev_interface``) [m].
+    r_p, r_s
+        Chord ratios R_p and R_s [1].
+
+    Returns
+    -------
+    str
+        One line.
+    """
+    return (f"{sample}: REV edges (centred / random windows) of the binary porosity "
+            f"{result.porosity_total:.4f}: {rev_edge(result.w_rev_porosity_centred)} / "
+            f"{rev_edge(result.w_rev_porosity)}, of its interface: "
+            f"{rev_edge(result.w_rev_interface_centred)} / {rev_edge(result.w_rev_interface)}, "
+            f"of the calibrated porosity {calibrated.porosity_total:.4f}: "
+            f"{rev_edge(calibrated.w_rev_porosity_centred)} / "
+            f"{rev_edge(calibrated.w_rev_porosity)}; R_p {r_p:.3g}, R_s {r_s:.3g}")

@@ -13,6 +13,7 @@ import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
 from imaging.packing.voxels import VoxelImage  # noqa: E402
+from shared.figures import outside_legend, save_figure  # noqa: E402
 
 __all__ = ["packing_figure"]
 
@@ -46,7 +47,7 @@ def packing_figure(ds: xr.Dataset, image: VoxelImage, path: str | Path) -> Path:
         ax.annotate(name, (0.02, float(ds[name]) * micron), va="bottom", fontsize=8)
     ax.set(xlabel="porosity, S_part", ylabel="z (um)",
            title=f"porosity {float(ds['porosity']):.3f}, S_part {float(ds['S_part']):.3f}")
-    ax.legend(fontsize=8)
+    outside_legend(ax)
     ax = axes[0, 1]
     ax.plot(np.degrees(ds["theta"].values), ds["rocking_curve"].values, "o", ms=3)
     ax.set(xlabel="theta (degree)", ylabel="I_c (sr-1)", yscale="log",
@@ -61,6 +62,4 @@ def packing_figure(ds: xr.Dataset, image: VoxelImage, path: str | Path) -> Path:
                       extent=extent_xy + extent_xy)
     axes[1, 1].set(xlabel="x (um)", ylabel="y (um)", title="voxel slice at mid-height")
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)  # labelled log ticks (shared.figures.log_ticks)

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from shared.figures import new_figure, save_figure
+from shared.figures import new_figure, outside_legend, save_figure
 from shared.upscaling import PermeabilityTable
 
 __all__ = ["table_figure"]
@@ -21,7 +21,7 @@ def table_figure(table: xr.Dataset, path: str | Path) -> Path:
     geometric mean between them, and the ensemble band (+-1 std of log10 k) if any;
     below, saturation and strain against suction."""
     conditions = [str(c) for c in table["condition"].values]
-    fig, axes = new_figure(2, len(conditions), width=4.6)
+    fig, axes = new_figure(2, len(conditions), width=6.0)
     suction = table["suction"].values
     fine = np.geomspace(suction[0], suction[-1], 200)
     for column, condition in enumerate(conditions):
@@ -41,10 +41,10 @@ def table_figure(table: xr.Dataset, path: str | Path) -> Path:
                     label=f"{phase}, interpolated mean")
         ax.set(xscale="log", yscale="log", xlabel="suction [Pa]", ylabel="permeability [m2]",
                title=f"{condition} pellet (n = {int(view['n_realizations'])})")
-        ax.legend(fontsize="x-small", ncol=2)
+        outside_legend(ax)
         low = axes[1, column]
         low.plot(suction, view["saturation"].values, "k-o", ms=3, label="saturation")
         low.plot(suction, view["eps_v"].values, "g-s", ms=3, label="eps_v")
-        low.set(xscale="log", xlabel="suction [Pa]", ylabel="[-]", title="saturation and swelling")
-        low.legend(fontsize="x-small")
+        low.set(xscale="log", xlabel="suction [Pa]", ylabel="saturation, volumetric strain [-]", title="saturation and swelling")
+        outside_legend(low)
     return save_figure(fig, path)

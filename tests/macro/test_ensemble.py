@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 import xarray as xr
+from tests._figures import check_figure, kept_figures  # noqa: F401
 from tests._macro_cases import small_config
 
 from macro import ensemble
@@ -148,7 +149,7 @@ def test_the_figure_has_log_days_and_its_legends_outside_the_data(tmp_path):
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_run_writes_the_product_from_the_members_files(tmp_path):
+def test_run_writes_the_product_from_the_members_files(tmp_path, kept_figures):  # noqa: F811
     paths = []
     for name, ds in _members().items():
         paths.append(write_dataset(ds, tmp_path / f"{name}.nc", stage="macro", title=name))
@@ -162,3 +163,4 @@ def test_run_writes_the_product_from_the_members_files(tmp_path):
     assert json.loads(ds.attrs["config_json"])["band_quantiles"] == [0.1, 0.9]
     assert len(json.loads(ds.attrs["inputs"])) == 8
     assert (tmp_path / "ensemble_e.png").stat().st_size > 0
+    assert "time [d]" in check_figure(kept_figures[-1])

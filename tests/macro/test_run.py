@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 import xarray as xr
+from tests._figures import check_figure, kept_figures  # noqa: F401
 from tests._macro_cases import small_config, swelling, synthetic_table, write_table
 
 from macro.laws import mixture_parameters
@@ -19,7 +20,7 @@ from shared.provenance import file_sha256
 from shared.upscaling import PermeabilityTable
 
 
-def test_run_writes_the_contract(tmp_path, table_path):
+def test_run_writes_the_contract(tmp_path, table_path, kept_figures):  # noqa: F811
     config = small_config()
     config["macro"]["numerics"]["max_steps"] = 4
     out = tmp_path / "small.nc"
@@ -42,6 +43,7 @@ def test_run_writes_the_contract(tmp_path, table_path):
     assert ds.attrs["table_lookups"] > 0 and "table_clamped_lookups" in ds.attrs
     assert 0.4 < ds.attrs["packing_fraction"] < 0.6
     assert (tmp_path / "small.png").stat().st_size > 0
+    assert {"time [d]", "pressure [MPa]", "height [cm]"} <= check_figure(kept_figures[-1])
 
 
 def _mirrored_model(table_path):

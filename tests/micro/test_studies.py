@@ -31,7 +31,6 @@ def _case(rng: np.random.Generator, n_points: int, suctions: np.ndarray = SUCTIO
         "eps_v": ("checkpoint", rng.normal(0.0, 0.1, n), scalar),
         "crack_count": ("checkpoint", rng.integers(0, 50, n).astype(float), scalar),
         "crack_volume": ("checkpoint", rng.uniform(0, 1e-12, n), {"units": "m3", "long_name": "V_c"}),
-        "suction": ("checkpoint", suctions.copy(), {"units": "Pa", "long_name": "boundary suction"}),
         "permeability": (("checkpoint", "phase", "axis"), 10.0 ** rng.uniform(-24, -19, (n, 2, 3)),
                          {"units": "m2", "long_name": "permeability"}),
         "crack_fabric": (("checkpoint", "i", "j"), rng.uniform(0, 1e-8, (n, 3, 3)),
@@ -41,6 +40,7 @@ def _case(rng: np.random.Generator, n_points: int, suctions: np.ndarray = SUCTIO
     }
     coords = {
         "checkpoint": ("checkpoint", np.arange(n), {"units": "1", "long_name": "checkpoint index"}),
+        "suction": ("checkpoint", suctions.copy(), {"units": "Pa", "long_name": "boundary suction"}),
         "phase": ("phase", np.array(["water", "gas"]), {"long_name": "fluid phase"}),
         "axis": ("axis", np.array(["x", "y", "z"]), {"long_name": "direction"}),
         "i": ("i", np.arange(3), {"units": "1", "long_name": "tensor row"}),
@@ -80,7 +80,7 @@ def test_convergence_stacks_the_phase_times_that_cases_record(rng):
     assert list(ds["run_phase"].values) == ["flow", "relaxation", "remesh"]
     np.testing.assert_array_equal(ds["wall_time_phase"].values,
                                   [[np.nan] * 3, [2.0, 3.0, np.nan], [5.0, np.nan, 1.0]])
-    assert ds["suction"].dims == ("checkpoint",)
+    assert ds["suction"].dims == ("checkpoint",) and "suction" in ds.coords
 
 
 def test_convergence_refuses_equal_point_counts_and_other_checkpoints(rng):

@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from tests._figures import check_figure, kept_figures  # noqa: F401
+
 from micro.config import source_names
 from micro.upscaling import run as upscaling_run
 from micro.upscaling import upscaling_table
@@ -87,7 +89,7 @@ def _write(ds, path):
     return path
 
 
-def test_run_writes_table_csv_and_figure_and_nothing_on_refusal(tmp_path):
+def test_run_writes_table_csv_and_figure_and_nothing_on_refusal(tmp_path, kept_figures):  # noqa: F811
     section = {"conditions": {"free": ["a", "b"], "confined": "c"}, "suction_range_pa": list(RANGE)}
     inputs = {"free": [_write(_micro(1), tmp_path / "a.nc"), _write(_micro(2), tmp_path / "b.nc")],
               "confined": [_write(_micro(3), tmp_path / "c.nc")]}
@@ -106,6 +108,8 @@ def test_run_writes_table_csv_and_figure_and_nothing_on_refusal(tmp_path):
                               suction=float(row["suction_pa"]))
     assert float(row["k_m2"]) == pytest.approx(float(expected), rel=1e-9)
     assert out.with_suffix(".png").stat().st_size > 0
+    labels = check_figure(kept_figures[-1])
+    assert {"suction [Pa]", "permeability [m2]", "saturation, volumetric strain [-]"} <= labels
     curve = PermeabilityTable.from_file(out.with_suffix(".nc"), "confined")
     assert curve.permeability(1e5, "water", "x") == pytest.approx(
         float(table["k"].sel(condition="confined", phase="water", axis="x", suction=1e5)), rel=1e-12)

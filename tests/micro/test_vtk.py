@@ -112,6 +112,18 @@ def test_collection_lists_the_snapshots_in_order_and_a_fresh_run_clears_them(sta
     assert not any(directory.iterdir())
 
 
+def test_collection_times_are_the_decades_of_suction_relieved(state, tmp_path):
+    """With the checkpoint suctions, time step i is log10(s_0 / s_i): increasing."""
+    directory = tmp_path / "case_vtk"
+    suctions = [132.0e6, 13.2e6, 1.32e6]
+    for index in (0, 1, 2):
+        vtk.write_checkpoint_snapshot(directory, "case", index, state, suctions)
+    root = ET.parse(directory / "case.pvd").getroot()
+    times = [float(d.get("timestep")) for d in root.iter("DataSet")]
+    np.testing.assert_allclose(times, [0.0, 1.0, 2.0], atol=1e-12)
+    assert np.all(np.diff(times) > 0)
+
+
 def _config(**micro):
     config = {"samples": {"p": {"source": "phantom", "voxel_size_m": 3e-4}},
               "micro": {"sample": "p", **micro}}

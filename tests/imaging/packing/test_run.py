@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import xarray as xr
 import yaml
+from tests._figures import check_figure, kept_figures  # noqa: F401
 
 from imaging.packing.config import population_of
 from imaging.packing.population import sample_semi_axes
@@ -26,12 +27,14 @@ CONTRACT = ["center", "semi_axes", "euler", "normal", "porosity_profile", "order
             "overlap_fraction", "rocking_curve"]
 
 
-def test_run_writes_the_contract(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+def test_run_writes_the_contract(tmp_path: Path, caplog: pytest.LogCaptureFixture,
+                                 kept_figures) -> None:  # noqa: F811
     with caplog.at_level(logging.INFO, logger="imaging.packing"):
         ds = run(packing_section({**TINY, "store_voxel_image": True}), tmp_path / "tiny.nc")
     assert any("ETA" in record.message for record in caplog.records)
     back = read_dataset(tmp_path / "tiny.nc", required=CONTRACT)
     assert (tmp_path / "tiny.png").stat().st_size > 10_000
+    assert {"z (um)", "I_c (sr-1)"} <= check_figure(kept_figures[-1])
     for name, var in back.variables.items():
         if var.dtype.kind in "iuf":
             assert {"units", "long_name"} <= set(var.attrs), name
