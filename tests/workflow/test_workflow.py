@@ -28,6 +28,14 @@ TINY = {
     },
     "upscaling": {"conditions": {"free": "het", "confined": "hom"},
                   "suction_range_pa": [60.0e6, 132.0e6]},
+    # the small column of tests/_macro_cases.py (about 70 pellets), 10 steps: the macro rule
+    # runs on the tiny table, its physics is tested in tests/macro
+    "macro": {
+        "cylinder_height_m": 0.05, "cylinder_radius_m": 0.015, "pellet_radius_m": 4.0e-3,
+        "sensors": {name: {"height_m": height, "band_width_m": 0.008}
+                    for name, height in (("S10", 0.01), ("S25", 0.025), ("S40", 0.04))},
+        "numerics": {"packing_iterations": 1500, "max_steps": 10},
+    },
 }
 
 
@@ -217,6 +225,14 @@ def test_micro_products(finished):
     # k0 = 1e-20 m2 times k_r = Se^2 with Se about 0.5 and exp(2 (phi - 0.25)) near 1
     assert 1e-22 < float(het["permeability"].sel(phase="water").isel(checkpoint=0).mean()) < 1e-20
     assert (finished / "results/micro/comparison.png").stat().st_size > 10_000
+
+
+def test_macro_product_ran_the_configured_steps(finished):
+    """The macro rule read the tiny table and stopped at the max_steps guard."""
+    log = (finished / "results/logs/macro_case/weibull.log").read_text()
+    assert "case weibull: 66 pellets" in log and "stopped (max_steps)" in log
+    assert (finished / "results/macro/weibull.nc").stat().st_size > 0
+    assert (finished / "results/macro/weibull.png").stat().st_size > 10_000
 
 
 def test_bad_packing_key_is_named(tmp_path):
