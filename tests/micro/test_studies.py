@@ -13,7 +13,13 @@ import pytest
 import xarray as xr
 import yaml
 
-from micro.config import Realization, check_studies, scale_realizations
+from micro.config import (
+    Realization,
+    case_n_points,
+    check_studies,
+    convergence_cases,
+    scale_realizations,
+)
 from micro.studies import convergence_dataset, scale_dataset
 from shared.config import ConfigError, validate_config
 from shared.io import read_dataset, write_dataset
@@ -183,8 +189,19 @@ def test_studies_default_to_none():
 
 
 def test_declared_studies_pass_the_check():
-    check_studies(_config({"convergence": ["p125", "het"],
-                           "scale": {"reference": "het", "fractions": [0.25], "realizations": 3}}))
+    """The check accepts the studies, and what it read is what was declared: the cases'
+    point counts (het takes micro.n_points = 1000) and 3 sub-cubes of a quarter of het's
+    7 mm cube, inside it."""
+    config = _config({"convergence": ["p125", "het"],
+                      "scale": {"reference": "het", "fractions": [0.25], "realizations": 3}})
+    check_studies(config)
+    assert [case_n_points(config, name) for name in convergence_cases(config)] == [125, 1000]
+    realizations = scale_realizations(config)
+    assert [r.domain_fraction for r in realizations] == [0.25] * 3
+    edge = 7e-3 * 0.25 ** (1 / 3)
+    for r in realizations:
+        assert r.edge_length == pytest.approx(edge, rel=1e-12)
+        assert np.all(np.abs(r.offset) + edge / 2 <= 3.5e-3 * (1 + 1e-12))
 
 
 @pytest.mark.parametrize(

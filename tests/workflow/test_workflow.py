@@ -30,6 +30,14 @@ TINY = {
     },
     "upscaling": {"conditions": {"free": "het", "confined": "hom"},
                   "suction_range_pa": [60.0e6, 132.0e6]},
+    # the small column of tests/_macro_cases.py (about 70 pellets), 10 steps: the macro rule
+    # runs on the tiny table, its physics is tested in tests/macro
+    "macro": {
+        "cylinder_height_m": 0.05, "cylinder_radius_m": 0.015, "pellet_radius_m": 4.0e-3,
+        "sensors": {name: {"height_m": height, "band_width_m": 0.008}
+                    for name, height in (("S10", 0.01), ("S25", 0.025), ("S40", 0.04))},
+        "numerics": {"packing_iterations": 1500, "max_steps": 10},
+    },
 }
 
 
@@ -97,6 +105,10 @@ def micro_finished(tmp_path_factory):
                *(f"results/micro/{case}.nc" for case in TINY["micro"]["cases"])]
     result = _snakemake(workdir, *targets)
     assert result.returncode == 0, result.stderr[-3000:]
+    # before any edit, no output's params differ (checked once for every edit below)
+    unchanged = _snakemake(workdir, "--list-changes", "params")
+    assert unchanged.returncode == 0, unchanged.stderr[-3000:]
+    assert not [line for line in unchanged.stdout.splitlines() if line.startswith("results/")]
     return workdir
 
 
@@ -141,14 +153,11 @@ def test_a_config_edit_changes_the_params_of_its_readers_only(
     nothing. A dry run
     (``-n``) would also list the jobs downstream of those (they rerun because their
     inputs change), so it cannot tell a rule that reads the key from one that consumes
-    the reader's file. The unedited copy lists nothing, so the recorded params are those
-    of the current rules.
+    the reader's file. The unedited run lists nothing (checked once, in the fixture), so
+    the recorded params are those of the current rules.
     """
     workdir = tmp_path / "wf"
     shutil.copytree(micro_finished, workdir, symlinks=True)
-    unchanged = _snakemake(workdir, "--list-changes", "params")
-    assert unchanged.returncode == 0, unchanged.stderr[-3000:]
-    assert not [line for line in unchanged.stdout.splitlines() if line.startswith("results/")]
     config_path = workdir / "config" / "config.yaml"
     config = yaml.safe_load(config_path.read_text())
     *sections, name = key.split(".")
@@ -219,6 +228,14 @@ def test_micro_products(finished):
     # k0 = 1e-20 m2 times k_r = Se^2 with Se about 0.5 and exp(2 (phi - 0.25)) near 1
     assert 1e-22 < float(het["permeability"].sel(phase="water").isel(checkpoint=0).mean()) < 1e-20
     assert (finished / "results/micro/comparison.png").stat().st_size > 10_000
+
+
+def test_macro_product_ran_the_configured_steps(finished):
+    """The macro rule read the tiny table and stopped at the max_steps guard."""
+    log = (finished / "results/logs/macro_case/weibull.log").read_text()
+    assert "case weibull: 66 pellets" in log and "stopped (max_steps)" in log
+    assert (finished / "results/macro/weibull.nc").stat().st_size > 0
+    assert (finished / "results/macro/weibull.png").stat().st_size > 10_000
 
 
 def test_bad_packing_key_is_named(tmp_path):

@@ -165,10 +165,12 @@ def test_flat_entry_and_free_moves_give_an_ordered_bed() -> None:
 @pytest.mark.slow
 def test_freedom_and_entry_angle_order_the_porosity() -> None:
     """Fig. 4-5 of the paper: low freedom (series 1) gives looser, less ordered beds than
-    high freedom with flat entry (series 3)."""
+    high freedom with flat entry (series 3). 150 disks per bed (formerly 300, half the
+    run time): porosities 0.617 and 0.509, orders 0.80 and 0.99 in the linear zone, so
+    the margins (0.05, 0.1) hold with room; equal freedoms would fail both."""
     def porosity_and_order(theta_max: float, slide: float, swivel: float) -> tuple[float, float]:
         rng = np.random.default_rng(21)
-        semi = np.tile([0.5e-6, 0.5e-6, 0.05e-6], (300, 1))
+        semi = np.tile([0.5e-6, 0.5e-6, 0.05e-6], (150, 1))
         params = DepositionParameters(4e-6, 5e-10, theta_max, True, slide, swivel, swivel)
         bed = deposit(semi, params, rng)
         z = bed.centers[:, 2]

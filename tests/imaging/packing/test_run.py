@@ -106,14 +106,26 @@ def test_box_narrower_than_the_largest_possible_particle_fails_at_validation(
         packing_section(section)
 
 
+def _largest_sampled_diameter(section: dict, n: int = 1_000_000) -> float:
+    """2 l_a of the largest of n particles drawn from the entry's laws [m]."""
+    semi_axes = sample_semi_axes(population_of(section), n, np.random.default_rng(1))
+    return float(2 * semi_axes[:, 0].max())
+
+
 def test_unbounded_laws_are_left_to_the_sampled_check() -> None:
     """Without a cap (or with a spread axis ratio) the largest particle is not known before
-    sampling: the configuration checks accept the box, run checks the sampled particles."""
-    packing_section({"box_width_m": 2.9e-6, "basal_surface_sigma": 0.5})
-    packing_section({"box_width_m": 2.9e-6, "basal_surface_sigma": 0.5, "axis_ratio_sigma": 0.3,
-                     "basal_surface_max_m2": np.pi / 4 * 9e-12})
-    packing_section({"box_width_m": 3.1e-6, "basal_surface_sigma": 0.5,
-                     "basal_surface_max_m2": np.pi / 4 * 9e-12})
+    sampling: the configuration checks accept the box, and a large enough draw holds a
+    particle wider than it (so only run's check on the sampled particles can refuse it).
+    With the capped surface and a fixed axis ratio, the accepted box holds every draw."""
+    for unbounded in ({"box_width_m": 2.9e-6, "basal_surface_sigma": 0.5},
+                      {"box_width_m": 2.9e-6, "basal_surface_sigma": 0.5, "axis_ratio_sigma": 0.3,
+                       "basal_surface_max_m2": np.pi / 4 * 9e-12}):
+        section = packing_section(unbounded)
+        assert section["box_width_m"] == unbounded["box_width_m"]
+        assert _largest_sampled_diameter(section) > section["box_width_m"]
+    capped = packing_section({"box_width_m": 3.1e-6, "basal_surface_sigma": 0.5,
+                              "basal_surface_max_m2": np.pi / 4 * 9e-12})
+    assert 2.5e-6 < _largest_sampled_diameter(capped) <= 3.0e-6 * (1 + 1e-12)
 
 
 def test_box_narrower_than_the_largest_sampled_particle(tmp_path: Path) -> None:
