@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from micro.forces import hydromechanical_forces, point_suction, sector_weights
 from benchmarks.parameters import DEM
+from micro.forces import hydromechanical_forces, point_suction, sector_weights
 from shared.dem import (
     contact_forces,
     cube_points,

@@ -637,7 +637,7 @@ def porosity_order_figure(rows: Iterable[Mapping[str, Any]], path: Path,
                     textcoords="offset points", xytext=(4, 4), fontsize=6)
     if sweep is not None:
         points = sorted((r["S_part"], r["porosity"]) for r in sweep["rows"])
-        ax.plot(*zip(*points), "^", color="C2", ms=4,
+        ax.plot(*zip(*points, strict=False), "^", color="C2", ms=4,
                 label=f"ours, freedom sweep (N = {sweep['n_particles']}, R = 0.1)")
     ax.plot([], [], "o", color="C0", label="ours, Table II series (o full, x scaled)")
     ax.plot([], [], "o", color="C3", label="ours, fractions (o full, x scaled)")

@@ -375,14 +375,14 @@ def bench_solver_crossover(
             for method in ("direct", "amg"):
                 solver = SPDSolver(method=method)
 
-                def fresh(solver: SPDSolver = solver) -> None:
+                def fresh(solver: SPDSolver = solver, matrix=matrix, rhs=rhs, offset=offset) -> None:
                     solver.reset()
                     solver.solve(matrix, rhs, ordered=True, offset=offset)
 
-                def reused(solver: SPDSolver = solver) -> None:
+                def reused(solver: SPDSolver = solver, drifted=drifted, rhs=rhs, offset=offset) -> None:
                     solver.solve(drifted, rhs, ordered=True, offset=offset)
 
-                def refresh(solver: SPDSolver = solver) -> None:
+                def refresh(solver: SPDSolver = solver, matrix=matrix, rhs=rhs, offset=offset) -> None:
                     solver.solve(matrix, rhs, ordered=True, offset=offset,
                                  force_refactor=True)
 

@@ -62,7 +62,7 @@ from scipy.spatial import Delaunay
 from benchmarks.dem import bench_dem
 from benchmarks.flow import bench_flow
 from benchmarks.parameters import CLAY, DEM
-from micro.permeability import measure_permeability, axis_permeabilities
+from micro.permeability import axis_permeabilities, measure_permeability
 from shared.dem.points import cube_points
 from shared.fv import facet_conductance, transfer_cell_state
 from shared.mesh import Mesh, build_mesh
@@ -170,7 +170,7 @@ def _curve_points() -> list[dict[str, float]]:
     suctions = np.array(CURVE_SUCTIONS_PA)
     values = saturation(suctions, material.reference_porosity, material)
     return [
-        {"suction_pa": float(s), "saturation": float(w)} for s, w in zip(suctions, values)
+        {"suction_pa": float(s), "saturation": float(w)} for s, w in zip(suctions, values, strict=False)
     ]
 
 

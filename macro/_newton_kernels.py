@@ -251,7 +251,8 @@ def solve_systems(water, solid, v0, stress, msolid, vmax, fixed, previous_volume
         sat = min(m / (rho * (v - vs)), 1.0)
         s = min(max(_inverse_retention(sat, _porosity(v, vs, fixed[i]), law), 1e-6 * smax),
                 (1.0 - 1e-6) * smax)
-        if fixed[i] == fixed[i] and _gap(smax * (1.0 - 1e-9), m, vs, v0[i], stress[i], msolid[i], vm, fixed[i], rho, law) < 0.0:
+        driest = smax * (1.0 - 1e-9)
+        if fixed[i] == fixed[i] and _gap(driest, m, vs, v0[i], stress[i], msolid[i], vm, fixed[i], rho, law) < 0.0:
             s = smax * (1.0 - 1e-9)
             volume[i], suction[i] = _clipped_volume(s, m, vs, v0[i], stress[i], msolid[i], vm, fixed[i], rho, law), s
             status[i] = DRIEST

@@ -5,8 +5,9 @@ look-up counters; it is pickled whole (with the trial time step of the implicit 
 and every counter), so that a resumed run continues bit for bit as the uninterrupted
 one would (``tests/macro/test_checkpoint.py``). A snapshot carries the hash of what
 decides the run (the case's configuration, the table's sha256 and the sources of macro/
-and shared/): a snapshot written under another configuration or code is ignored (logged). Files are written to a temporary name and
-renamed; the run removes its snapshot when it has written its output.
+and shared/): a snapshot written under another configuration or code is ignored (logged).
+Files are written to a temporary name and renamed; the run removes its snapshot when it
+has written its output.
 """
 
 from __future__ import annotations

@@ -180,13 +180,13 @@ def plot_ensemble(ds: xr.Dataset, title: str = "") -> Figure:
     for ax, ylabel, heading in zip(
         axes,
         ("radial wall pressure [MPa]", "axial pressure [MPa]", "mean saturation [1]"),
-        ("wall sensors", "plates", "hydration"),
+        ("wall sensors", "plates", "hydration"), strict=False,
     ):
         ax.set_xscale("log")
         ax.set_xlabel("time [d]")
         ax.set_ylabel(ylabel)
         ax.set_title(heading)
-        pairs, labels = zip(*handles[ax])
+        pairs, labels = zip(*handles[ax], strict=False)
         ax.legend(pairs, labels, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16),
                   ncol=3)
     fig.suptitle(f"{title + ': ' if title else ''}mean over {ds.sizes['member']} members "

@@ -23,7 +23,7 @@ def case_figure(ds: xr.Dataset, path: str | Path) -> Path:
     axes = grid[0]  # type: ignore[index]
     ax = axes[0]
     days = ds["time"].values / 86400.0
-    for name, z in zip(ds["sensor"].values, ds["sensor_height"].values):
+    for name, z in zip(ds["sensor"].values, ds["sensor_height"].values, strict=True):
         ax.plot(days, ds["sensor_pressure"].sel(sensor=name).values / 1e6, label=f"{name} ({1e3 * z:.0f} mm)")
     ax.plot(days, ds["axial_pressure_upper"].values / 1e6, "k--", label="axial, upper plate")
     ax.plot(days, ds["axial_pressure_lower"].values / 1e6, "k:", label="axial, lower plate")
@@ -68,7 +68,7 @@ def comparison_figure(cases: dict[str, xr.Dataset], path: str | Path) -> Path:
         axes[1].plot(days, ds["axial_pressure_upper"].values / 1e6, label=label)
         axes[2].plot(days, ds["mean_suction"].sel(material="pellet").values / 1e6, label=label)
     for ax, what in zip(axes, ("mean radial sensor pressure [MPa]", "axial pressure [MPa]",
-                               "mean pellet suction [MPa]")):
+                               "mean pellet suction [MPa]"), strict=False):
         _days_axis(ax, np.concatenate([ds["time"].values / 86400.0 for ds in cases.values()]))
         ax.set_ylabel(what)
     axes[0].legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.22))

@@ -142,7 +142,8 @@ class MacroModel(Geometry, Hydraulics, PressureVolume, Mechanics, WallReadings):
         model.spins = np.zeros_like(packing.positions)
         model._wall_plastic = np.zeros((n_p, 3))
         if settings.pellet_permeability == "tensor":
-            model.pellet_frames = Rotation.random(n_p, random_state=np.random.default_rng(settings.seed + 2)).as_matrix()
+            frames = Rotation.random(n_p, random_state=np.random.default_rng(settings.seed + 2))
+            model.pellet_frames = frames.as_matrix()
         model._hold_boundary()
         model._update_geometry()
         model._readings = model.relax(0)

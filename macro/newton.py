@@ -162,8 +162,8 @@ def solve_pressure_volume(
              else np.asarray(pb.retention_porosity, dtype=np.float64))
     if previous_suction is None:
         sat = pb.water_mass / (pb.density * np.maximum(previous_volume - pb.solid_volume, 1e-300))
-        previous_suction = np.clip(np.nan_to_num(suction(np.clip(sat, 1e-300, 1.0), pb.porosity(previous_volume), material),
-                                                 nan=0.5 * pb.max_suction),
+        estimate = suction(np.clip(sat, 1e-300, 1.0), pb.porosity(previous_volume), material)
+        previous_suction = np.clip(np.nan_to_num(estimate, nan=0.5 * pb.max_suction),
                                    1e-6 * pb.max_suction, pb.max_suction)
     m = material
     law = np.array([m.zeta0, m.lambda0, m.retention_a, m.retention_b, m.reference_porosity,

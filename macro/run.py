@@ -27,9 +27,9 @@ from macro.checkpoint import load_snapshot, save_snapshot
 from macro.column_permeability import column_permeability
 from macro.laws import case_materials, mixture_parameters
 from macro.model import MacroModel
-from macro.settings import MacroSettings, macro_settings
 from macro.newton import NewtonError
 from macro.packing import pack_cylinder
+from macro.settings import MacroSettings, macro_settings
 from macro.stopping import DAY, MONITORED, RunProgress, stop_distance
 from macro.vtk import SnapshotSeries
 from shared.io import write_dataset

@@ -28,8 +28,8 @@ from micro.hydration import BalanceProgress, FlowSystem, PelletState, update_cra
 from shared.dem.state import ContactList, DEMState
 from shared.dem.walls import Walls
 from shared.fv import FlowPattern
-from shared.materials import ClayParameters
 from shared.io import atomic_write
+from shared.materials import ClayParameters
 from shared.mesh import Mesh
 from shared.solver import SPDSolver
 

@@ -39,7 +39,7 @@ def case_figure(ds: xr.Dataset, case: str, path: str | Path) -> Path:
     saturation = ds["saturation"].values
     for suffix, colour in (("_imbibed", "tab:blue"), ("_gas", "tab:red")):
         fabric = ds[f"crack_fabric{suffix}"].values
-        for index, style in zip(range(3), ("-", "--", ":")):
+        for index, style in zip(range(3), ("-", "--", ":"), strict=False):
             axes[1, 0].plot(saturation, fabric[:, index, index], style, color=colour, marker="o", ms=3,
                             label=f"{suffix[1:]} {'xyz'[index]}{'xyz'[index]}")
     twin = axes[1, 0].twinx()
@@ -67,7 +67,7 @@ def comparison_figure(cases: Mapping[str, xr.Dataset], path: str | Path) -> Path
     fig, axes = new_figure(1, 2, width=5.0)
     # tab20 keeps up to twenty cases (default + convergence + scale presets) apart
     colours = plt.get_cmap("tab10" if len(cases) <= 10 else "tab20").colors
-    for ax, phase in zip(axes[0], ("water", "gas")):
+    for ax, phase in zip(axes[0], ("water", "gas"), strict=False):
         for index, (name, ds) in enumerate(cases.items()):
             k = ds["permeability"].sel(phase=phase).mean("axis").values
             ax.plot(ds["saturation"].values, np.where(k > 0, k, np.nan), marker="o", ms=3,
@@ -106,7 +106,7 @@ def convergence_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 4) -> P
            ("k_w [m2]", geomean.sel(phase="water"), change.sel(phase="water"), True),
            ("k_g [m2]", geomean.sel(phase="gas"), change.sel(phase="gas"), True))
     for column, (label, values, relative, log) in enumerate(top):
-        for colour, level in zip(colours, levels):
+        for colour, level in zip(colours, levels, strict=False):
             legend = f"s = {float(ds['suction'][level]):.3g} Pa"
             axes[0, column].plot(n, values.isel(checkpoint=level).values, "o-", ms=3, color=colour,
                                  label=legend)
@@ -161,7 +161,7 @@ def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
     colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.9, levels.size))
     reference = ds.isel(realization=0)
     for column, (name, sel, label, log) in enumerate(panels):
-        for colour, level in zip(colours, levels):
+        for colour, level in zip(colours, levels, strict=False):
             legend = (f"s = {float(ds['suction'][level]):.3g} Pa, "
                       f"S = {float(reference['saturation'][level]):.2f}")
             for row, stat in enumerate(("mean", "std")):
@@ -174,7 +174,7 @@ def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
             ax.set(xscale="log", yscale="log" if log else "linear",
                    xlabel="domain fraction [-]", ylabel=f"{stat} {label}")
     outside_legend(axes[0, 0])
-    counts = ", ".join(f"{f:.3g}: {int(n)}" for f, n in zip(fraction, ds["n_realizations"].values))
+    counts = ", ".join(f"{f:.3g}: {int(n)}" for f, n in zip(fraction, ds["n_realizations"].values, strict=False))
     fig.suptitle(f"scale study: mean and standard deviation over the realizations of a domain "
                  f"fraction (permeability: geometric mean of k_x, k_y, k_z); realizations per "
                  f"domain fraction ({counts})", fontsize="small")

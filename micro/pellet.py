@@ -148,11 +148,11 @@ def centred_grid(
     missing = ~np.isfinite(cropped.values)
     if missing.any():
         local = np.nonzero(missing)
-        blocks = tuple(np.flatnonzero(crop[axis])[k] for axis, k in zip(cropped.dims, local))
+        blocks = tuple(np.flatnonzero(crop[axis])[k] for axis, k in zip(cropped.dims, local, strict=True))
         outside = _outside_specimen(~finite, blocks)
         first = int(np.argmax(outside)) if outside.any() else 0
         position = ", ".join(f"{axis} = {float(cropped[axis][k[first]]) * 1e3:.4g} mm"
-                             for axis, k in zip(cropped.dims, local))
+                             for axis, k in zip(cropped.dims, local, strict=True))
         if outside.any():
             raise ValueError(
                 f"{name}: the {edge_length * 1e3:g} mm cube reaches outside the scanned "

@@ -41,7 +41,7 @@ from shared.fv import (
 from shared.materials import ClayParameters
 from shared.mesh import WALLS, Mesh, boundary_cell_mask
 from shared.permeability import Phase, phase_viscosity
-from shared.solver import SPDSolver, SolverError
+from shared.solver import SolverError, SPDSolver
 
 __all__ = [
     "AXES",

@@ -121,7 +121,7 @@ def convergence_dataset(cases: Mapping[str, xr.Dataset]) -> xr.Dataset:
             raise ValueError(f"case {name!r} has no attribute 'n_points'")
         counts[name] = int(ds.attrs["n_points"])
     order = sorted(cases, key=lambda name: counts[name])
-    for a, b in zip(order, order[1:]):
+    for a, b in zip(order, order[1:], strict=False):
         if counts[a] == counts[b]:
             raise ValueError(f"cases {a!r} and {b!r} have the same n_points ({counts[a]})")
     base = cases[first]

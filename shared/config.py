@@ -187,7 +187,7 @@ def _check_micro(config: Mapping[str, Any]) -> None:
                 f"(samples: {', '.join(sorted(config['samples']))})"
             )
     checkpoints = list(micro["checkpoints_suction_pa"])
-    if any(later >= earlier for earlier, later in zip(checkpoints, checkpoints[1:])):
+    if any(later >= earlier for earlier, later in zip(checkpoints, checkpoints[1:], strict=False)):
         raise ConfigError(
             "config key 'micro.checkpoints_suction_pa': suctions must strictly decrease, "
             f"got {checkpoints}"

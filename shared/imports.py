@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import ast
 import re
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 __all__ = ["PACKAGES", "imported_sources"]
@@ -44,7 +44,7 @@ _IMPORT = re.compile(r"^[ \t]*(?:from[ \t]+[\w.]+[ \t]+import[ \t]*(?:\([^)]*\)|
                      re.MULTILINE)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _parsed_names(source: Path, module: str, mtime_ns: int, size: int) -> tuple[str, ...]:
     """:func:`_imported_names` cached on the file's modification time and size.
 

@@ -13,7 +13,7 @@ import json
 import os
 import tempfile
 from collections.abc import Callable, Iterable, Mapping
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -129,7 +129,7 @@ def write_dataset(
         If a variable lacks ``units`` or ``long_name`` or a dimension is anonymous.
     """
     _check_contract(ds)
-    now = datetime.now(timezone.utc).replace(microsecond=0).isoformat()
+    now = datetime.now(UTC).replace(microsecond=0).isoformat()
     version = code_version()
     sources = _STAGE_SOURCES.get(stage, ("shared",))
     out = ds.copy()

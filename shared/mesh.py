@@ -554,7 +554,7 @@ def porosity_at_points(points: npt.ArrayLike, porosity: xr.DataArray) -> FloatAr
     values = np.asarray(porosity.values, dtype=np.float64)
     if not np.all(np.isfinite(values)):
         where = ", ".join(f"{axis} = {float(porosity[axis][int(k[0])]):.4g} m" for axis, k in
-                          zip(("z", "y", "x"), np.nonzero(~np.isfinite(values))))
+                          zip(("z", "y", "x"), np.nonzero(~np.isfinite(values)), strict=True))
         raise ValueError(f"{name}: NaN or inf at {where} "
                          f"({int((~np.isfinite(values)).sum())} value(s)) where the mesh needs it")
     if not np.all((values > 0.0) & (values < 1.0)):

@@ -8,9 +8,9 @@ from typing import Any
 
 import numpy as np
 import xarray as xr
-from tests._defaults import CONFIG
 
 from shared.io import write_dataset
+from tests._defaults import CONFIG
 
 SUCTION = np.geomspace(1e5, 2e8, 12)
 

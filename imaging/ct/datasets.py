@@ -23,7 +23,7 @@ def voxel_coordinates(shape: tuple[int, ...], voxel_size: float) -> dict[str, xr
     """Voxel-centre coordinates ``z, y, x`` [m], voxel ``i`` spanning ``[i, i+1) * voxel_size``."""
     return {
         axis: _coord((np.arange(n) + 0.5) * voxel_size, axis, "m", f"{axis} position of voxel centre")
-        for axis, n in zip("zyx", shape)
+        for axis, n in zip("zyx", shape, strict=True)
     }
 
 
@@ -76,7 +76,7 @@ def porosity_dataset(
     porosity = np.where(finite, np.clip(grid.porosity, low, high), np.nan)
     coords = {
         axis: _coord(values, axis, "m", f"{axis} position of grid block centre")
-        for axis, values in zip("zyx", (grid.z, grid.y, grid.x))
+        for axis, values in zip("zyx", (grid.z, grid.y, grid.x), strict=True)
     }
     dims = ("z", "y", "x")
     return xr.Dataset(

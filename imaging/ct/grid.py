@@ -87,7 +87,7 @@ def block_sums(
     z_starts = np.unique(np.r_[0, np.arange(-(z0 % block) + block, nz, block)]).astype(np.intp)
     density_sum = np.zeros((z_starts.size, y_starts.size, x_starts.size), dtype=np.float64)
     counts = np.zeros_like(density_sum)
-    for row, (start, stop) in enumerate(zip(z_starts, np.r_[z_starts[1:], nz])):
+    for row, (start, stop) in enumerate(zip(z_starts, np.r_[z_starts[1:], nz], strict=True)):
         slab_mask = specimen[start:stop]
         density = grey_to_density(slab[start:stop].astype(np.float32), calibration)
         density *= slab_mask

@@ -165,7 +165,7 @@ def _ifd_chain_problem(data: mmap.mmap, size: int) -> str | None:
                                                  data, value_at)
         for offsets_tag, counts_tag in _DATA_TAGS:
             if fields.get(offsets_tag) and fields.get(counts_tag):
-                stop = max(o + c for o, c in zip(fields[offsets_tag], fields[counts_tag]))
+                stop = max(o + c for o, c in zip(fields[offsets_tag], fields[counts_tag], strict=True))
                 if stop > size:
                     return (f"the pixels of page {page} end at byte {stop}, beyond the file's "
                             f"{size} bytes")

@@ -189,9 +189,11 @@ def inscribed_box(mask: Any) -> tuple[slice, slice, slice]:
     total = float(value(mask.sum()))
     if total == 0:
         raise ValueError("the specimen mask is empty: no inscribed cube")
+    def profile(axis: int) -> np.ndarray:
+        return np.asarray(value(mask.sum(axis=tuple(a for a in range(3) if a != axis))))
+
     centre = np.array([
-        int(np.rint((np.arange(n) * np.asarray(value(mask.sum(axis=tuple(a for a in range(3) if a != axis))))).sum() / total))
-        for axis, n in enumerate(mask.shape)
+        int(np.rint((np.arange(n) * profile(axis)).sum() / total)) for axis, n in enumerate(mask.shape)
     ])
     low, high = 0, int(min(min(centre), min(np.array(mask.shape) - centre - 1)))
 

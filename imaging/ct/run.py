@@ -31,6 +31,7 @@ from imaging.ct.datasets import image_dataset, porosity_dataset, rev_dataset
 from imaging.ct.grid import block_grid, block_size_voxels
 from imaging.ct.io import ImageError, open_volume, write_tiff_stack
 from imaging.ct.mask import cylinder_section, inscribed_box, otsu_threshold
+from imaging.ct.phantom import PhantomSpec, pellet_phantom
 from imaging.ct.scan import (
     MaskRule,
     ScanSummary,
@@ -41,7 +42,6 @@ from imaging.ct.scan import (
     summarize,
     threshold_areas,
 )
-from imaging.ct.phantom import PhantomSpec, pellet_phantom
 from imaging.morphology import chord_lengths, rev_analyses
 from shared.io import read_dataset, write_dataset
 

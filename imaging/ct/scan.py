@@ -24,7 +24,8 @@ import numpy.typing as npt
 from imaging.ct.calibration import Calibration
 from imaging.ct.grid import block_sums
 from imaging.ct.mask import border_counts, sample_stride, slice_masks
-from imaging.morphology.slabs import slab as read_slab, slabs_in_order
+from imaging.morphology.slabs import slab as read_slab
+from imaging.morphology.slabs import slabs_in_order
 from shared.progress import Progress
 
 __all__ = [
@@ -50,13 +51,13 @@ def each_slab(grey: Any, function: Callable[[int, np.ndarray], Any], label: str,
     """``function(z0, slab)`` over the scan's chunks along z, in order, with a progress
     line (done slices, ETA) at most every 10 s."""
     bounds = np.cumsum((0,) + tuple(grey.chunks[0]))
-    ends = dict(zip(bounds[:-1].tolist(), bounds[1:].tolist()))
+    ends = dict(zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True))
     progress = Progress(int(grey.shape[0]), label, log)
 
     def read(z0: int) -> Any:
         return function(z0, read_slab(grey, z0, ends[z0]))
 
-    for z0, result in zip(ends, slabs_in_order(read, ends, workers)):
+    for z0, result in zip(ends, slabs_in_order(read, ends, workers), strict=False):
         progress.update(ends[z0])
         yield result
     progress.update(int(grey.shape[0]), force=True)

@@ -340,7 +340,7 @@ def rev_analyses(
     starts = np.concatenate(random_starts + [((whole - w) // 2).reshape(1, 3) for w in sizes_c]
                             + [np.zeros((1, 3), np.int64)]).astype(np.int32)
     del random_starts
-    edges = np.concatenate([np.full((n, 3), w, np.int32) for n, w in zip(counts, sizes)]
+    edges = np.concatenate([np.full((n, 3), w, np.int32) for n, w in zip(counts, sizes, strict=True)]
                            + [np.full((1, 3), w, np.int32) for w in sizes_c]
                            + [whole[None].astype(np.int32)])
     sums = window_sums(porosity, binary, starts, edges, chunk_slices, workers)

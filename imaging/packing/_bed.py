@@ -75,7 +75,7 @@ class BedIndex:
     @classmethod
     def of(cls, centers: npt.NDArray[np.float64], rotations: npt.NDArray[np.float64],
            semi_axes: npt.NDArray[np.float64], box_width: float,
-           contact_distance: float) -> "BedIndex":
+           contact_distance: float) -> BedIndex:
         """Index of a finished bed."""
         bed = cls(semi_axes, box_width, contact_distance)
         bed.centers[:] = centers

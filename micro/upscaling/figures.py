@@ -45,6 +45,7 @@ def table_figure(table: xr.Dataset, path: str | Path) -> Path:
         low = axes[1, column]
         low.plot(suction, view["saturation"].values, "k-o", ms=3, label="saturation")
         low.plot(suction, view["eps_v"].values, "g-s", ms=3, label="eps_v")
-        low.set(xscale="log", xlabel="suction [Pa]", ylabel="saturation, volumetric strain [-]", title="saturation and swelling")
+        low.set(xscale="log", xlabel="suction [Pa]", ylabel="saturation, volumetric strain [-]",
+                title="saturation and swelling")
         outside_legend(low)
     return save_figure(fig, path)

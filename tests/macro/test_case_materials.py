@@ -6,13 +6,13 @@ import copy
 import json
 
 import pytest
-from tests._macro_cases import small_config
 
 import macro.run as macro_run
 from macro.laws import case_materials, mixture_parameters
 from shared.config import ConfigError, load_schema, validate_config
 from shared.io import read_dataset
 from shared.upscaling import PermeabilityTable
+from tests._macro_cases import small_config
 
 OWN = {"mixture_pellet": {"swelling_beta_per_pa": 3.0e-8},
        "mixture_powder": {"retention_exponent_reference": 0.3}}

@@ -14,11 +14,11 @@ from pathlib import Path
 
 import pytest
 import xarray as xr
-from tests._macro_cases import small_config
 
 from macro.model import MacroModel
 from macro.run import run
 from shared.io import OutputError
+from tests._macro_cases import small_config
 
 ROOT = Path(__file__).resolve().parents[2]
 

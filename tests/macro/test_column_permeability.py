@@ -9,12 +9,12 @@ import dataclasses
 
 import numpy as np
 import pytest
-from tests._macro_cases import small_config, write_table
 
 import macro.hydraulics
 from macro.column_permeability import column_permeability, network_permeability
 from macro.run import build_model, simulate
 from shared.upscaling import PermeabilityTable
+from tests._macro_cases import small_config, write_table
 
 DENSITY, VISCOSITY = 1000.0, 1.0e-3
 

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests._macro_cases import small_config, swelling
 
 from macro.laws import confined_volume, mixture_parameters, swelling_pressure
 from macro.newton import NewtonSettings, PVProblem, solve_pressure_volume
 from macro.run import build_model, run
 from shared.upscaling import PermeabilityTable
+from tests._macro_cases import small_config, swelling
 
 CONFIG = small_config()
 MATERIAL = mixture_parameters(CONFIG["materials"], CONFIG["macro"]["powder"])
@@ -132,7 +132,7 @@ def test_first_passages_are_the_first_records_above_half_a_megapascal(tmp_path_f
                                 ds["axial_pressure_lower"].values])
     passages = np.concatenate([ds["sensor_passage_time"].values, ds["axial_passage_time"].values])
     assert ds.sizes["time"] == 41
-    for column, passage in zip(readings.T, passages):
+    for column, passage in zip(readings.T, passages, strict=True):
         above = np.flatnonzero(column >= 5e5)
         expected = ds["time"].values[above[0]] if above.size else np.nan
         np.testing.assert_equal(passage, expected)

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
-from tests._macro_cases import small_config
 
 from macro.mixture import container_points
 from macro.run import build_model
 from shared.upscaling import PermeabilityTable
+from tests._macro_cases import small_config
 
 
 def test_cells_fill_the_container_and_the_ends_are_held(table_path):

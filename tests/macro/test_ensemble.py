@@ -7,8 +7,6 @@ import json
 import numpy as np
 import pytest
 import xarray as xr
-from tests._figures import check_figure, kept_figures  # noqa: F401
-from tests._macro_cases import small_config
 
 from macro import ensemble
 from macro.config import check_ensembles, ensemble_cases
@@ -19,6 +17,8 @@ from macro.ensemble import (
 )
 from shared.config import ConfigError, validate_config
 from shared.io import read_dataset, write_dataset
+from tests._figures import check_figure, kept_figures  # noqa: F401
+from tests._macro_cases import small_config
 
 OFFSETS = np.arange(8.0)  # member k is the curve shifted up by k
 SLOPES = {"sensor": np.array([1.0, 2.0, 3.0]), "axial": 5.0, "lower": 4.0}

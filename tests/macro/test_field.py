@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests._defaults import CONFIG
 
 from macro.field import cell_porosity, gaussian_field
+from tests._defaults import CONFIG
 
 
 def test_random_field_has_the_requested_mean_variance_and_correlation_length():

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
-from tests._figures import check_figure, kept_figures  # noqa: F401
 
 from macro.figures import case_figure, comparison_figure
+from tests._figures import check_figure, kept_figures  # noqa: F401
 
 
 def _case() -> xr.Dataset:

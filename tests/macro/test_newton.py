@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests._defaults import CONFIG
-from tests._macro_cases import swelling
 
 from macro.laws import mixture_parameters
 from macro.newton import NewtonError, NewtonSettings, PVProblem, constraints, solve_pressure_volume
+from tests._defaults import CONFIG
+from tests._macro_cases import swelling
 
 MATERIAL = mixture_parameters(CONFIG["materials"], CONFIG["macro"]["powder"])
 NUM = CONFIG["macro"]["numerics"]

@@ -7,17 +7,17 @@ import json
 import numpy as np
 import pytest
 import xarray as xr
-from tests._figures import check_figure, kept_figures  # noqa: F401
-from tests._macro_cases import small_config, swelling, synthetic_table, write_table
 
 from macro.laws import mixture_parameters
 from macro.model import MacroModel
-from macro.settings import macro_settings
 from macro.packing import Packing, pack_cylinder
 from macro.run import build_model, run
+from macro.settings import macro_settings
 from shared.io import OutputError, write_dataset
 from shared.provenance import file_sha256
 from shared.upscaling import PermeabilityTable
+from tests._figures import check_figure, kept_figures  # noqa: F401
+from tests._macro_cases import small_config, swelling, synthetic_table, write_table
 
 
 def test_run_writes_the_contract(tmp_path, table_path, kept_figures):  # noqa: F811

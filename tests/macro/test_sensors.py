@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests._macro_cases import small_config
 
 from macro.laws import mixture_parameters
 from macro.model import MacroModel
-from macro.settings import macro_settings
 from macro.packing import Packing
+from macro.settings import macro_settings
 from shared.upscaling import PermeabilityTable
+from tests._macro_cases import small_config
 
 # (height above the lower plate [m], azimuth [rad], overlap with the wall [m]); the small
 # column's sensors S10, S25, S40 read the bands [6, 14), [21, 29), [36, 44) mm and its five

@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests._macro_cases import small_config, write_table
 
 from macro.laws import case_materials, mixture_parameters, swelling_pressure, swelling_strain
 from macro.model import MacroModel
-from macro.settings import macro_settings
 from macro.packing import Packing
+from macro.settings import macro_settings
 from shared.upscaling import PermeabilityTable
+from tests._macro_cases import small_config, write_table
 
 PELLET_RADIUS = 4e-3
 STEPS = 100

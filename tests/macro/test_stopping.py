@@ -6,9 +6,9 @@ import logging
 
 import numpy as np
 import pytest
-from tests._defaults import CONFIG
 
 from macro.stopping import MONITORED, RunProgress, progress_line, stop_distance, stop_time_estimate
+from tests._defaults import CONFIG
 
 DAY = 86400.0
 NUMERICS = CONFIG["macro"]["numerics"]

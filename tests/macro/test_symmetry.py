@@ -10,14 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests._macro_cases import small_config
 
 import macro.model
 from macro.laws import case_materials, mixture_parameters
 from macro.model import MacroModel
-from macro.settings import macro_settings
 from macro.packing import Packing, pack_cylinder
+from macro.settings import macro_settings
 from shared.upscaling import PermeabilityTable
+from tests._macro_cases import small_config
 
 STEPS = 120
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests._macro_cases import small_config, synthetic_table
 
 from macro.run import build_model
 from macro.transport import implicit_pressures, limited_rates, mass_rates, stable_time_step
 from shared.io import write_dataset
 from shared.upscaling import PermeabilityTable
+from tests._macro_cases import small_config, synthetic_table
 
 
 @pytest.fixture
@@ -95,7 +95,7 @@ def test_implicit_pressures_are_the_dense_backward_euler_solution(rng):
     free[:5] = False
     dt = 50.0
     laplacian = np.zeros((n, n))
-    for (i, j), g in zip(pairs, conductance):
+    for (i, j), g in zip(pairs, conductance, strict=True):
         laplacian[i, i] += g
         laplacian[j, j] += g
         laplacian[i, j] -= g

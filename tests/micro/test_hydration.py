@@ -33,7 +33,7 @@ SMALL = SpecimenSpec(edge_length=4e-3, n_points=125, seed=3)
 
 
 def _grid(values: np.ndarray, spacing: float = 5e-4) -> xr.DataArray:
-    coords = {axis: np.arange(n) * spacing for axis, n in zip("zyx", values.shape)}
+    coords = {axis: np.arange(n) * spacing for axis, n in zip("zyx", values.shape, strict=True)}
     return xr.DataArray(values, dims=("z", "y", "x"), coords=coords)
 
 

@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from micro.run import _SCALARS, _dataset
 from micro.pellet import POROSITY_BINS
+from micro.run import _SCALARS, _dataset
 from shared.io import read_dataset, write_dataset
 
 SUCTIONS = np.array([132.0e6, 38.0e6, 4.0e6])

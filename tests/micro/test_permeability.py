@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from micro.permeability import measure_permeability, measurement_pattern, axis_permeabilities
+from micro.permeability import axis_permeabilities, measure_permeability, measurement_pattern
 from shared.fv import facet_conductance, facet_flux, flow_pattern, steady_pressure
 from shared.mesh import WALLS, Mesh, boundary_cell_mask, build_mesh
 from shared.solver import SPDSolver

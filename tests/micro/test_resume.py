@@ -28,6 +28,7 @@ from shared.config import validate_config
 from shared.mesh import update_mesh
 from shared.solver import SPDSolver
 from tests._defaults import CLAY, DEM
+
 from .porosity_grid import write_porosity_grid
 
 CHECKPOINTS = [132.0e6, 60.0e6, 20.0e6, 5.0e6, 1.0e6, 1.0e5]

@@ -17,6 +17,7 @@ import xarray as xr
 import micro.run as micro_run
 from shared.config import validate_config
 from shared.solver import SPDSolver
+
 from .porosity_grid import write_porosity_grid
 
 CHECKPOINTS = [132.0e6, 40.0e6, 10.0e6, 1.0e6]

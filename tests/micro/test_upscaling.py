@@ -7,14 +7,13 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from tests._figures import check_figure, kept_figures  # noqa: F401
-
 from micro.config import source_names
 from micro.upscaling import run as upscaling_run
 from micro.upscaling import upscaling_table
 from shared.config import ConfigError, default_config, validate_config
 from shared.io import write_dataset
 from shared.upscaling import PermeabilityTable, read_table
+from tests._figures import check_figure, kept_figures  # noqa: F401
 
 CHECKPOINTS = np.array([1.32e8, 6e7, 1e7, 1e6, 1e5])
 RANGE = (1e6, 1.32e8)

@@ -17,7 +17,7 @@ from shared.fv import (
 )
 from shared.mesh import WALLS, Mesh, boundary_cell_mask, build_mesh
 from shared.retention import saturation, saturation_derivative
-from shared.solver import SPDSolver, SolverError
+from shared.solver import SolverError, SPDSolver
 from tests._defaults import CLAY, clay
 
 
@@ -76,7 +76,7 @@ def test_fv_assembly_matches_dense_reference(rng: np.random.Generator) -> None:
     conductance = rng.uniform(0.5, 2.0, mesh.n_facets)
     storage = rng.uniform(0.1, 1.0, mesh.n_cells)
     full = np.diag(storage)
-    for (a, b), g in zip(mesh.facet_cells, conductance):
+    for (a, b), g in zip(mesh.facet_cells, conductance, strict=True):
         full[a, a] += g
         full[b, b] += g
         full[a, b] -= g

@@ -63,7 +63,7 @@ def test_failed_write_leaves_the_old_file_and_no_temporary(tmp_path):
     path = write_dataset(_dataset(), tmp_path / "o.nc", stage="imaging", title="first")
     bad = _dataset()
     bad["text"] = (("z",), np.array([object()] * 4, dtype=object), {"units": "1", "long_name": "x"})
-    with pytest.raises(Exception):
+    with pytest.raises(ValueError):
         write_dataset(bad, path, stage="imaging", title="second")
     assert read_dataset(path).attrs["title"] == "first"
     assert [p.name for p in tmp_path.iterdir()] == ["o.nc"]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from shared.solver import SPDSolver, SolverError, _scaled_drift, _symmetric_product
+from shared.solver import SolverError, SPDSolver, _scaled_drift, _symmetric_product
 
 
 def laplacian_system(n: int, rng: np.random.Generator) -> sp.csc_matrix:

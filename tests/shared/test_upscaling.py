@@ -50,7 +50,7 @@ def test_exact_at_the_nodes_per_axis_and_as_geometric_mean():
 def test_monotone_between_nodes_no_overshoot():
     curve = PermeabilityTable(_table(), "free")
     nodes = curve.permeability(SUCTION, "water", "x")
-    for a, b, low, high in zip(SUCTION[:-1], SUCTION[1:], nodes[:-1], nodes[1:]):
+    for a, b, low, high in zip(SUCTION[:-1], SUCTION[1:], nodes[:-1], nodes[1:], strict=True):
         inside = curve.permeability(np.geomspace(a, b, 50), "water", "x")
         assert np.all(inside >= min(low, high) * (1 - 1e-12))
         assert np.all(inside <= max(low, high) * (1 + 1e-12))

@@ -35,8 +35,8 @@ from imaging.ct.io import ImageError, write_tiff_stack
 from imaging.ct.phantom import pellet_phantom
 from imaging.packing.config import check_packings
 from micro import run as micro_run
-from micro.hydration import DivergenceError
 from micro.config import check_studies
+from micro.hydration import DivergenceError
 from shared.config import ConfigError, default_config, load_config, validate_config
 from shared.io import OutputError, write_dataset
 
@@ -335,7 +335,7 @@ MICRO["micro"].update(n_points=64, specimen_size_m=EDGE,
 def _grid(values: np.ndarray, spacing: float = 5e-4, dims: tuple[str, ...] = ("z", "y", "x"),
           variable: str = "porosity") -> xr.Dataset:
     coords = {d: (d, (np.arange(n) + 0.5) * spacing, {"units": "m", "long_name": d})
-              for d, n in zip(dims, values.shape)}
+              for d, n in zip(dims, values.shape, strict=True)}
     return xr.Dataset({variable: (dims, values, {"units": "1", "long_name": "porosity"})},
                       coords=coords)
 

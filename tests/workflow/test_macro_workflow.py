@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+
 from tests.workflow._chain import snakemake as _snakemake
 from tests.workflow._chain import workdir as _workdir
 

@@ -13,10 +13,10 @@ import json
 from pathlib import Path
 
 import pytest
-from tests.workflow._chain import snakemake, workdir
 
 from shared.io import read_dataset
 from shared.provenance import file_sha256
+from tests.workflow._chain import snakemake, workdir
 
 
 def _inputs(path: Path) -> dict[str, str]:

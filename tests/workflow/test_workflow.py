@@ -249,8 +249,8 @@ def two_samples(tmp_path_factory):
     """The CT rules for two samples: the phantom, and a scan given as a folder of slices
     (the same phantom written slice by slice), each with its own REV setting."""
     from imaging.ct.io import write_slice_folder
-    from imaging.ct.run import phantom_spec
     from imaging.ct.phantom import pellet_phantom
+    from imaging.ct.run import phantom_spec
     from shared.config import default_config
 
     tmp = tmp_path_factory.mktemp("wf_samples")

@@ -7,8 +7,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
 import _logging  # noqa: E402
 
-from micro.figures import scale_figure  # noqa: E402
 from micro.config import Realization  # noqa: E402
+from micro.figures import scale_figure  # noqa: E402
 from micro.studies import scale_dataset  # noqa: E402
 from shared.io import read_dataset, write_dataset  # noqa: E402
 

@@ -80,8 +80,8 @@ def test_window_sums_match_direct_sums_whatever_the_slabs(rng, chunk_slices):
     edges = rng.integers(1, 17, size=(60, 3))
     starts = rng.integers(0, np.array(field.shape) - edges + 1)
     sums = window_sums(field, binary, starts, edges, chunk_slices=chunk_slices, workers=2)
-    for k, (start, edge) in enumerate(zip(starts, edges)):
-        box = tuple(slice(s, s + e) for s, e in zip(start, edge))
+    for k, (start, edge) in enumerate(zip(starts, edges, strict=True)):
+        box = tuple(slice(s, s + e) for s, e in zip(start, edge, strict=True))
         assert sums.field[k] == pytest.approx(field[box].sum(), rel=1e-12)
         assert sums.pore[k] == np.count_nonzero(binary[box])
         inside = binary[box].view(np.uint8)
@@ -155,7 +155,7 @@ def test_one_pass_gives_the_field_and_the_binary_images_rev(rng):
                         n_positions=300)
     alone = [rev_analysis(image, 1e-6, np.random.default_rng(5), binary=binary, n_sizes=4,
                           n_positions=300) for image in (field, binary)]
-    for result, reference in zip(both, alone):
+    for result, reference in zip(both, alone, strict=True):
         for name in ("porosity_mean", "porosity_std", "porosity_centred", "interface_std"):
             np.testing.assert_allclose(getattr(result, name), getattr(reference, name),
                                        rtol=1e-12)

@@ -10,13 +10,14 @@ from scipy.spatial import cKDTree
 from imaging.packing import (
     DepositionParameters,
     Packing,
+    _contact_kernels,
+    _settle_kernels,
     deposit,
     legendre_order,
     linear_zone,
     porosity_profile,
     zone_porosity,
 )
-from imaging.packing import _contact_kernels, _settle_kernels
 from imaging.packing.analysis import profile_edges
 from imaging.packing.voxels import overlap_fraction, voxelize
 

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 import xarray as xr
 import yaml
-from tests._figures import check_figure, kept_figures  # noqa: F401
 
 from imaging.packing.config import population_of
 from imaging.packing.population import sample_semi_axes
 from imaging.packing.run import run
 from shared.config import ConfigError
 from shared.io import read_dataset
+from tests._figures import check_figure, kept_figures  # noqa: F401
 
 from .conftest import packing_section
 

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
-from tests._defaults import DEM
 
 from shared.dem import detect_contacts, held_points, new_state, pair_values, update_contacts
+from tests._defaults import DEM
 
 
 def _brute_force(positions, radii, factor, skin):
@@ -64,7 +64,7 @@ def test_pair_values_merge_agrees_with_a_dictionary_and_rejects_unsorted_lists()
     pairs = np.unique(np.sort(rng.integers(0, 60, (300, 2)), axis=1), axis=0)
     pairs = pairs[pairs[:, 0] < pairs[:, 1]]
     values = rng.normal(size=(keyed.shape[0], 3))
-    lookup = {tuple(pair): value for pair, value in zip(keyed.tolist(), values)}
+    lookup = {tuple(pair): value for pair, value in zip(keyed.tolist(), values, strict=True)}
     expected = np.array([lookup.get(tuple(pair), np.zeros(3)) for pair in pairs.tolist()])
     assert 0 < sum(tuple(pair) in lookup for pair in pairs.tolist()) < pairs.shape[0]
     assert np.array_equal(pair_values(pairs, keyed, values), expected)
@@ -81,9 +81,9 @@ def test_held_points_are_those_of_compressive_contacts_and_intact_bonds():
     state.bond_broken[::3] = True
     normal_forces = np.where(rng.random(state.contacts.pairs.shape[0]) < 0.3, 1.0, 0.0)
     expected = np.zeros(300, dtype=bool)
-    for (i, j), force in zip(state.contacts.pairs, normal_forces):
+    for (i, j), force in zip(state.contacts.pairs, normal_forces, strict=True):
         expected[[i, j]] |= force > 0.0
-    for (i, j), broken in zip(state.bonds, state.bond_broken):
+    for (i, j), broken in zip(state.bonds, state.bond_broken, strict=True):
         expected[[i, j]] |= not broken
     assert 0 < expected.sum() < 300
     np.testing.assert_array_equal(held_points(state, normal_forces), expected)

@@ -168,5 +168,5 @@ def test_steps_do_not_depend_on_the_thread_count():
         pytest.skip("numba has a single thread here")
     one, two = run(1), run(2)
     assert np.count_nonzero(one[-1]) > 100
-    for a, b in zip(one, two):
+    for a, b in zip(one, two, strict=True):
         assert np.array_equal(a, b)
