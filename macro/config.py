@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from shared.config import ConfigError
+from shared.config import ConfigError, check_ordered_pair
 
 __all__ = ["check_ensembles", "ensemble_cases", "ensemble_members", "member_name"]
 
@@ -65,8 +65,4 @@ def check_ensembles(config: Mapping[str, Any]) -> None:
                 f"config key '{key}': the case ensemble_{name} would have the ensemble's "
                 f"output (results/macro/ensemble_{name}.nc); rename one of them"
             )
-        low, high = entry["band_quantiles"]
-        if not low < high:
-            raise ConfigError(
-                f"config key '{key}.band_quantiles': need low < high, got {[low, high]}"
-            )
+        check_ordered_pair(entry["band_quantiles"], f"{key}.band_quantiles")

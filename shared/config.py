@@ -19,6 +19,7 @@ __all__ = [
     "load_config",
     "default_config",
     "sample_imaging",
+    "check_ordered_pair",
     "SCHEMA_PATH",
     "DEFAULT_CONFIG_PATH",
 ]
@@ -215,11 +216,20 @@ def _check_upscaling(config: Mapping[str, Any]) -> None:
                     f"config key 'upscaling.conditions.{condition}': {case!r} is not a case "
                     f"of micro.cases (cases: {', '.join(sorted(config['micro']['cases']))})"
                 )
-    low, high = upscaling["suction_range_pa"]
+    check_ordered_pair(upscaling["suction_range_pa"], "upscaling.suction_range_pa")
+
+
+def check_ordered_pair(pair: Any, key: str) -> None:
+    """A [low, high] setting with low < high.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``key`` otherwise.
+    """
+    low, high = pair
     if not low < high:
-        raise ConfigError(
-            f"config key 'upscaling.suction_range_pa': need smallest < largest, got {[low, high]}"
-        )
+        raise ConfigError(f"config key '{key}': need low < high, got {[low, high]}")
 
 
 def _check_case_materials(config: MutableMapping[str, Any], schema: Mapping[str, Any]) -> None:
