@@ -44,7 +44,8 @@ def plain_number(value: float) -> str:
 
 def _log_axis(axis: object, low: float, high: float) -> None:
     """At least three labelled major ticks: at the decades when three are in view, else
-    at 1, 2 and 5 per decade when that gives three, else at every integer multiple (and
+    at 1, 2 and 5 (then 1, 2, 3 and 5) per decade when that gives three, else at every
+    integer multiple (and
     a narrow view widened to three of them); minor tick labels off. Labels are plain
     numbers between 1e-3 and 1e6 (``0.05``, ``210``), scientific beyond; a custom
     formatter (e.g. plain days) is kept."""
@@ -60,7 +61,7 @@ def _log_axis(axis: object, low: float, high: float) -> None:
         return int(np.count_nonzero((values >= low * (1 - 1e-12)) & (values <= high * (1 + 1e-12))))
 
     every = tuple(float(k) for k in range(1, 10))
-    subs = next((c for c in ((1.0,), (1.0, 2.0, 5.0)) if in_view(ticks(c)) >= 3), every)
+    subs = next((c for c in ((1.0,), (1.0, 2.0, 5.0), (1.0, 2.0, 3.0, 5.0)) if in_view(ticks(c)) >= 3), every)
     if in_view(ticks(every)) < 3:
         # a narrow range: widen the view to three neighbouring integer multiples
         candidates = ticks(every)
