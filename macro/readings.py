@@ -135,7 +135,6 @@ class WallReadings:
     def profiles(self, edges: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Along the axis (bins ``edges``): mean swelling strain V/V_0 - 1 of pellets and
         powder (volume-weighted) [1], and mean suction [Pa]."""
-        n_p = self.n_pellets
         z = np.concatenate([self.positions[:, 2], self.mesh.centroids[:, 2]])
         bins = np.clip(np.searchsorted(edges, z) - 1, 0, edges.size - 2)
         n = edges.size - 1
@@ -143,7 +142,6 @@ class WallReadings:
         weight = np.bincount(bins, v0, minlength=n)
         swell = np.bincount(bins, self.volume - v0, minlength=n)
         suction = np.bincount(bins, -self.pressure * v0, minlength=n)
-        del n_p
         with np.errstate(invalid="ignore", divide="ignore"):
             return swell / weight, suction / weight
 

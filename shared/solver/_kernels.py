@@ -47,6 +47,15 @@ def _scaled_drift(
 
 
 @njit(cache=True)
+def _dot(a: FloatArray, b: FloatArray) -> float:
+    """a . b summed in index order (the same order on every call)."""
+    total = 0.0
+    for k in range(a.shape[0]):
+        total += a[k] * b[k]
+    return total
+
+
+@njit(cache=True)
 def _cg_update(
     indptr: npt.NDArray[np.int32], indices: npt.NDArray[np.int32], data: FloatArray,
     preconditioned: FloatArray, solution: FloatArray, residual: FloatArray,
@@ -57,18 +66,14 @@ def _cg_update(
     Returns the new rho = r . z and whether the step was possible (rho and the
     curvature d . A d positive).
     """
-    rho_new = 0.0
-    for k in range(residual.shape[0]):
-        rho_new += residual[k] * preconditioned[k]
+    rho_new = _dot(residual, preconditioned)
     if not rho_new > 0.0:
         return rho_new, False
     beta = rho_new / rho
     for k in range(residual.shape[0]):
         direction[k] = preconditioned[k] + beta * direction[k]
     image = _symmetric_product(indptr, indices, data, direction)
-    curvature = 0.0
-    for k in range(residual.shape[0]):
-        curvature += direction[k] * image[k]
+    curvature = _dot(direction, image)
     if not curvature > 0.0:
         return rho_new, False
     step = rho_new / curvature
