@@ -1,23 +1,17 @@
 """Benchmark cases of the sequential deposition (Ferrage et al. 2015).
 
-- :func:`bench_deposition`: Table II series 2 (monodisperse disks of aspect ratio 0.1 in
-  a box of 7.5 equivalent diameters, theta_ini random, A_swiv = 80 deg, A_slide = 5 d,
-  3 x 800 attempts). Target: the full Table II run (2500 disks) in 10 min or less on 2
-  cores, with a cost per particle that does not grow with the bed.
+- :func:`bench_deposition`: Table II series 2 (monodisperse disks of aspect ratio 0.1,
+  2500 disks), its cost per particle against the bed;
 - :func:`bench_deposition_cost`: the cost per particle against the particles already in
-  the bed (series 2 measured here, plus the stored ``settle_time`` of earlier packing
-  files, e.g. the 10 000-particle 0.1-0.2 um fraction); ``deposition_cost.{json,png}``.
-- :func:`bench_deposition_axis_ratio`: Fig. 7 analogue, porosity vs l_a / l_b for the
-  three Table II series at reduced N; ``deposition_axis_ratio.{json,png}``.
-- :func:`bench_deposition_freedom`: Fig. 4 / 6a analogue, a grid of deposition freedom
-  (A_swiv, A_slide, theta_ini) at reduced N, porosity vs S_part;
-  ``deposition_freedom.{json,png}``.
+  the bed; ``deposition_cost.{json,png}``;
+- :func:`bench_deposition_axis_ratio`: Fig. 7 analogue, porosity vs l_a / l_b at
+  reduced N; ``deposition_axis_ratio.{json,png}``;
+- :func:`bench_deposition_freedom`: Fig. 4 / 6a analogue, porosity vs S_part over a grid
+  of deposition freedom at reduced N; ``deposition_freedom.{json,png}``.
 
-Reduced-N sweeps keep the Table II bed height: N particles in a box of
-w = 7.5 d sqrt(N / 2500), the particles per unit floor area of the paper's runs.
-Porosity and S_part are those of the linear zone, detected as in
-:func:`imaging.packing.measures.measure_packing` (slices d / 2 thick), without the
-voxel image.
+Reduced-N sweeps keep the Table II bed height (w = 7.5 d sqrt(N / 2500)); porosity and
+S_part are those of the linear zone, without the voxel image. The cases in full:
+docs/performance.md, "benchmarks.deposition".
 """
 
 from __future__ import annotations

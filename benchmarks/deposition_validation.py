@@ -1,39 +1,17 @@
-"""Paper-target validation table of the sequential deposition (issue 3; Ferrage et al. 2015).
+"""Paper-target validation table of the sequential deposition (Ferrage et al. 2015).
 
 Runs the six presets of ``config/paper/packing_*.yaml`` (Table II series 1-3, and the three
 vermiculite size fractions of Table III) through :func:`imaging.packing.run.run`, and
 compares what the packing file holds with the paper: Table IV for the fractions, the
-porosity ranges of Sec. III for the Table II series. Writes, in ``results/benchmarks/``:
-
-- ``deposition_validation.json``: one row per run (preset and scale), ours and paper's;
-- ``deposition_validation.md``: a paragraph on contact accuracy, the table, ours vs
-  paper, relative difference, pass/fail, then the reduced-N sweeps and the cost curve of
-  :mod:`benchmarks.deposition` when they have been run (:func:`sweeps_markdown`), then
-  the surface areas of each fraction's particle law under several truncations of its
-  basal surface law (:func:`truncation_table`; the areas are mass-weighted, so the tail
-  that the box cannot hold matters);
-- ``deposition_validation.png``: a Fig. 6a analogue, porosity vs S_part of every run and
-  of the deposition freedom sweep;
-- ``deposition_validation/<preset>_s<scale>.nc`` and ``.png``: the packing files of
-  :func:`~imaging.packing.run.run`.
-
-:func:`write_report` rewrites the last two from the JSON files without running anything
-(after a sweep of :mod:`benchmarks.deposition`, say).
-
-Rows accumulate over calls (a row is replaced only by a new run of the same preset at the
-same scale), so quick scaled runs and the full-scale runs that fit a time budget end up
-in one table.
-
-Scaled-down runs (``scale`` < 1) multiply ``n_particles`` by ``scale`` and ``box_width_m``
-by ``sqrt(scale)``: the number of particles per unit floor area, hence the bed height in
-particle diameters, stays that of the preset, while the bed is narrower. The voxel
-resolution is multiplied by ``sqrt(scale)`` too, to keep the voxel edge l_v (f_o and the
-chord lengths depend on it). The narrower box cannot hold the largest particles of the
-polydisperse size laws, so scaled runs of the fractions truncate the basal surface law at
-a diameter w / 2 (``basal_surface_max_m2 = pi (w / 4)^2``) unless the preset cuts lower
-(the 1-2 um preset cuts at w / 4 of the full box). A narrower box gives noisier values and a
-box-limited REV edge: scaled rows are a check that the chain runs, the full-scale rows are
-the validation.
+porosity ranges of Sec. III for the Table II series. Writes, in ``results/benchmarks/``,
+``deposition_validation.json`` (one row per preset and scale, accumulated over calls),
+``deposition_validation.md`` (the table, ours vs paper, pass/fail, with the sweeps of
+:mod:`benchmarks.deposition` and the truncation table), ``deposition_validation.png``
+(a Fig. 6a analogue) and the packing files; :func:`write_report` rewrites the report
+from the JSON files. Scaled-down runs (``scale`` < 1) keep the bed height and the voxel
+edge in a narrower box: they check that the chain runs, the full-scale rows validate.
+The outputs and the scaling in full: docs/performance.md,
+"benchmarks.deposition_validation".
 """
 
 from __future__ import annotations

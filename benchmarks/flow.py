@@ -2,24 +2,12 @@
 
 A jittered grid of about ``n_points`` points fills a 7 mm cube (the thesis's specimen).
 Every phase is called once to compile or warm it, then timed ``repeats`` times; the
-records give the median (``*_ms``) and the fastest call (``*_min_ms``, the cost on an
-idle machine) in milliseconds. Timings are measured, never asserted.
-
-* :func:`bench_flow`: Delaunay (from scratch, and repaired from the mesh of the points
-  before a small random motion, as a run remeshes), geometry, geometry update of moved
-  points with the same connectivity, pattern, conductance, assembly, analysis + factorisation + solve,
-  a refactorisation (with one and two BLAS threads), a solve with the factor
-  unchanged, and a transient step with a reused (stale) factor after the state
-  drifted slightly.
-* :func:`bench_flow_scaling`: :func:`bench_flow` at 1.5k to 50k points, the fitted
-  exponent of each step's cost versus N and a log-log figure of the curve.
-* :func:`bench_solver_crossover`: the two preconditioners of
-  :class:`shared.solver.SPDSolver` (CHOLMOD factor, multigrid hierarchy) on the same
-  transient systems, fresh and reused on a drifted matrix, with and without cracks, at
-  1.5k to 150k points: where ``method="auto"`` should switch.
-* :func:`bench_coupled_step`: coupled steps as :mod:`micro.hydration` runs them (DEM
-  step, hydro-mechanical forces, flow step with the factor reused as the solver's
-  rent-or-buy rule decides, geometry update), with the work of each step.
+records give the median (``*_ms``) and the fastest call (``*_min_ms``) in milliseconds.
+Timings are measured, never asserted. Cases: :func:`bench_flow` (every phase of a
+remesh, a solve and a transient step), :func:`bench_flow_scaling` (its cost against N),
+:func:`bench_solver_crossover` (factor against multigrid: where ``method="auto"``
+should switch) and :func:`bench_coupled_step` (coupled steps as :mod:`micro.hydration`
+runs them). The phases in full: docs/performance.md, "benchmarks.flow".
 
 Run ``python -m benchmarks.flow [--quick]`` to write ``results/benchmarks/flow.json``,
 ``flow_scaling.json``, ``flow_scaling.png``, ``flow_coupled.json`` and

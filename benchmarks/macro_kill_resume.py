@@ -1,26 +1,14 @@
 """A macro run killed three times resumes to the uninterrupted result, bit for bit.
 
 ``python -m benchmarks run macro_kill_resume [--size MAX_STEPS]`` runs the default
-configuration's first macro case (``config/config.yaml``; ``MAX_STEPS`` lowers
-``macro.numerics.max_steps``) on the synthetic pellet permeability table of
-``benchmarks.macro``:
+configuration's first macro case (``MAX_STEPS`` lowers ``macro.numerics.max_steps``) on
+the synthetic pellet permeability table of ``benchmarks.macro``, uninterrupted in this
+process, then in a process of its own SIGKILLed three times (before the first remesh
+and after two later ones) and rerun from its snapshot each time. It records the kill
+points, the snapshot resumed from, the wall times, and whether the result and the
+ParaView series are the uninterrupted run's, bit for bit, naming what differs. The kill
+points and the snapshot setting: docs/performance.md, "benchmarks.macro_kill_resume".
 
-1. uninterrupted, in this process, noting the steps that remeshed;
-2. as a user would, in a process of its own (``macro.run.run``) SIGKILLed when it is
-   about to take the step after the kill point, then rerun (it resumes from its
-   snapshot), three times: halfway to the first remesh, and just after the remeshes a
-   third and two thirds into the run's remeshes (a quarter, half and three quarters
-   into the run when it remeshes fewer than three times); the last rerun finishes.
-
-The configuration asks for a snapshot after every step (``snapshot_interval_s`` 1e-9),
-and each run writes only the one at its kill point: pickling the records at every step
-would cost more than the steps (0.3-0.5 s a step at 4 000 records), and a run resumes
-from its last snapshot whenever it was written.
-
-It records the kill points, the step and remesh count of each snapshot resumed from,
-the wall times, and whether the result (every variable and coordinate, and every
-attribute but the wall times and the provenance's time stamps) and the ParaView series
-are those of the uninterrupted run, bit for bit, naming what differs.
 ``python -m benchmarks.macro_kill_resume CONFIG TABLE OUTPUT KILL_AT`` is the user's
 run (configuration as JSON; KILL_AT -1: never killed).
 """

@@ -1,37 +1,17 @@
-"""Where a whole micro run spends its time (issue: the micro model at 150k points).
+"""Where a whole micro run spends its time, and how it scales with the number of points.
 
-``python -m benchmarks run micro_profile --size N`` runs the default configuration's
-heterogeneous case at N DEM points (default protocol: every checkpoint from 132 MPa to
-1 kPa, balanced) under cProfile, on the porosity grid of ``results/porosity/pellet.nc``
-(``bash claychain run`` makes it), and reports the cumulative wall time of the functions
-that make up the phases: DEM relaxation, flow steps and their linear solves, remeshes
-(triangulations), permeability measurements, the initial settling, and output, with
-the solvers' work counters (``solver_work``: flow steps and measurements apart). Phases
-nest (a flow step contains its solve; balancing a checkpoint contains flow steps and
-relaxations), so the numbers are cumulative, not a partition. Timings are measured,
-never asserted.
+- ``micro_profile --size N``: the heterogeneous case at N DEM points under cProfile,
+  cumulative wall time of the phases (DEM relaxation, flow steps and their solves,
+  remeshes, permeability measurements, settling, output) and the solvers' counters;
+- ``micro_scaling``: wall time, peak memory and wall time per phase of the convergence
+  preset's cases, with a power law fitted per phase and a log-log figure;
+- ``measurement_workers --size N``: one checkpoint's eight permeability solves alone,
+  with a second thread and in the worker process, bit for bit alike;
+- ``micro_ramp --size N``: load ramps of 50 to 400 DEM steps against the spread of
+  equally valid runs.
 
-``python -m benchmarks run micro_scaling`` reads the finished cases of the convergence
-preset (``results/micro/points_<N>.nc``, ``config/paper/micro_convergence_full.yaml``):
-their wall time and peak memory, and the wall time per phase that every micro run
-records (``wall_time_<phase>_s`` attributes), with the exponent of a power law fitted
-per phase (relaxation, flow, measurement, remesh, the rest) from 15k points up, and a
-log-log figure of the curve. Cases run in earlier sessions (hours each, and results/
-does not outlive a machine) come from ``benchmarks/reference/micro_cases.json`` unless
-results/micro has them.
-
-``python -m benchmarks run measurement_workers --size N`` times one checkpoint's eight
-permeability solves on a jittered cube of N points in this process alone, with a second
-thread, and with the micro run's worker process (``micro.run.measurement_executor``),
-and checks that all three give the same permeabilities bit for bit.
-
-``python -m benchmarks run micro_ramp --size N`` runs the heterogeneous case with load
-ramps of 50 to 400 DEM steps (``micro.numerics.ramp_steps``) beside two runs that differ
-from the 200-step one only in ways that the tolerances allow (multigrid instead of the
-factor for the flow solves; the unbalanced force checked every 11 steps instead of 10):
-their spread is the envelope of equally valid checkpoints that a ramp length must stay
-within. Two protocols: the default 14 checkpoints, and four (132, 40, 10, 1 MPa) whose
-larger suction steps load each relaxation more.
+Run as ``python -m benchmarks run CASE``. Timings are measured, never asserted. The
+cases in full: docs/performance.md, "benchmarks.micro_profile".
 """
 
 from __future__ import annotations

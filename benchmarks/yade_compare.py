@@ -1,43 +1,17 @@
-"""Side-by-side benchmark against Yade 2023.02a's PartialSatClayEngine (issue 4).
+"""Side-by-side benchmark against Yade 2023.02a's PartialSatClayEngine.
 
 Both codes get the same points: a jittered grid from :func:`shared.dem.points.cube_points`
-with the seed, jitter and radius factor of :mod:`benchmarks.dem`, so that the DEM
-timings of that module are taken on these very points. The Yade side is
-``benchmarks/yade/partialsat_cube.py``, run headless in a subprocess of its own
-session (killed as a group when it ends or times out, which also frees the ports 9000
-and 21000 it listens on while it runs); its material, DEM and run parameters come from
-the settings JSON written here from the default configuration's parameters
-(:mod:`benchmarks.parameters`).
-
-Compared (ratio = ours / Yade's):
-
-* a coupled iteration with a reused factor: ours is a DEM step (:mod:`benchmarks.dem`:
-  ``step_ms`` + ``hydro_forces_ms`` + ``point_suction_ms``) plus the flow part of a
-  coupled step (:mod:`benchmarks.flow`: ``coupled_flow_step_s``), at hydraulic balance
-  as Yade's and, separately, during hydration;
-* a remesh: ours is :mod:`benchmarks.flow`'s ``remesh_step_s`` (Delaunay repair after
-  a motion that leaves 5 % of the cells non-Delaunay, more than Yade's few steps
-  between its remeshes do, to first solve, factorisation included) plus the transfer of the cell state to the new mesh,
-  timed here (the sector weights of the point forces are computed in the force kernel
-  at every step, so they are part of ``hydro_forces``, not of a remesh);
-* the water permeability along x of the homogeneous specimen (porosity phi_0) after
-  Yade's equilibration, at the equilibrium saturation S(s_0) and fully saturated,
-  both by the wall-flux method (docs/yade.md §10), ours on Yade's
-  equilibrated point positions with :func:`micro.permeability.axis_permeabilities`;
-* the water permeability curve k_x(S) on the same frozen positions: at each suction of
-  :data:`CURVE_SUCTIONS_PA` (0: full saturation) every cell of both codes gets the van
-  Genuchten saturation S(s, phi_0) of :func:`shared.retention.saturation` and the x
-  walls pressures -s -+ dP/2 (dP = 10 % of s), k_x by the wall-flux method; ours also
-  with Yade's default conductance clamp (``clampKValues``, off in the Yade run)
-  emulated, g clipped to [1e-4, 1e2] x mean(g). Yade's bulk value is its wall flux
-  over its interior gradient, corrected for where that gradient is sampled and
-  taken per the cross-section the flux crosses (:func:`_curve_table`). Written with
-  a figure (k against S, both codes) to ``results/benchmarks/yade_compare_<N>.png``.
-
-Timings are wall-clock on a shared machine, medians and fastest of repeated calls on
-both sides, recorded with the load average, never asserted. Run
-``python -m benchmarks.yade_compare [N ...]`` to write
-``results/benchmarks/yade_compare_<N>.json``.
+with the seed, jitter and radius factor of :mod:`benchmarks.dem`. The Yade side is
+``benchmarks/yade/partialsat_cube.py``, run headless in a subprocess of its own session
+(killed as a group when it ends or times out); its parameters come from the settings
+JSON written here from the default configuration (:mod:`benchmarks.parameters`).
+Compared (ratio = ours / Yade's): a coupled iteration with a reused factor, a remesh,
+the water permeability along x of the homogeneous specimen (wall flux, docs/yade.md
+§10) and the permeability curve k_x(S) at :data:`CURVE_SUCTIONS_PA`. What each side
+times and reads: docs/performance.md, "benchmarks.yade_compare".
+Timings (medians and fastest of repeated calls, with the load average) are never
+asserted. Run ``python -m benchmarks.yade_compare [N ...]`` to write
+``results/benchmarks/yade_compare_<N>.json`` and ``yade_compare_<N>.png``.
 """
 
 from __future__ import annotations

@@ -3,16 +3,14 @@
 One loop over the systems, each solved on its own (results do not depend on the order
 or the thread count). Unknowns per system: volume V [m3] and suction s = -p [Pa].
 Material constants come in one array ``law``: zeta_0 [Pa], lambda_0, a, b, phi_0 of the
-retention curve (the formulas of :mod:`shared.retention`, scalar here), alpha [1/Pa],
-beta [1/Pa], s_0 [Pa] of the swelling law (:mod:`shared.swelling`) and beta_v [Pa],
-alpha_v [m3/kg] of the consolidation line (Eq. 4.31). Per system: the confining stress
-[Pa] and the solid mass [kg] of the confined swelling (:func:`macro.laws.confined_volume`).
+retention curve (:mod:`shared.retention`, scalar here), alpha [1/Pa], beta [1/Pa],
+s_0 [Pa] of the swelling law (:mod:`shared.swelling`) and beta_v [Pa], alpha_v [m3/kg]
+of the consolidation line (Eq. 4.31). Per system: the confining stress [Pa] and the
+solid mass [kg] of the confined swelling (:func:`macro.laws.confined_volume`).
 
-Status per system: 0 solved by Newton-Raphson, 1 solved by the bracketed search,
-2 no feasible volume (its water does not fit below V_max), 3 no solution found, 4 drier
-than the retention curve allows at s_max (fixed retention porosity: no root, the system
-sits on the bound without a search), 5 confined (fixed retention porosity: at V_max its
-water's suction, Eq. 4.24 inverted, has a swelling target beyond V_max; the one solution).
+Status per system: 0 solved by Newton-Raphson, 1 by the bracketed search, 2 no feasible
+volume, 3 no solution found, 4 drier than the retention curve allows at s_max,
+5 confined at V_max. The statuses in full: docs/macro.md, "macro._newton_kernels".
 """
 
 from __future__ import annotations

@@ -1,42 +1,16 @@
 """Permeability of the whole mixture column along its axis (Appendix .1 ``emulatePermeability``).
 
-The thesis's script freezes the state, imposes on the boundary cells a pressure linear
-along the axis around the current suction s (a drop dp of 10 % of s between the ends:
--s - dp/2 at the lower plate, -s + dp/2 at the upper one), solves the steady flow with
-the current conductances and reads k = mu |<u>| / |grad p| from the velocity averaged
-over the inner 80 % of the specimen. Here, on the pellet-powder network of
-:mod:`macro.transport`:
-
-- unknowns: the pressures of the active systems (pellets and cells holding powder);
-  systems that no exchange of positive conductance links to an end are left out (NaN);
-- Dirichlet: the active systems whose centre (pellet centre, cell centroid) lies within
-  one mean pellet radius of a plate, at the linear profile's value at that centre. The
-  layer holds the pellets resting on the plates (their centres about one radius from
-  it) with the cells beside and below them, pellets and cells alike, and is as thick
-  everywhere; the hydration's held cells (a vertex on a plate) reach up to 1.9 radii
-  into the column and leave the pellets resting on the plates free. The plates' wall
-  layer conducts more than the bulk (more powder beside the plates): at t = 0 a layer
-  of half a radius gives k 6 % higher (4 % on the default mock-up), of two radii 13 %
-  lower (8 %), the held cells 9 % lower (5 %); the pellets whose centres lie within 1 %
-  of one radius move k by less than 1 %;
-- no flux through the curved wall (it is not a system);
-- the mass conductances of the exchanges, :meth:`macro.model.MacroModel.conductances`
-  divided by ``macro.conductivity_factor`` (a time scaling), so that k is the
-  material's;
-- k = mu Q / (rho A dp / L), Q the mass flux through the column [kg/s] (the mean of the
-  flux leaving the upper layer and the flux entering the lower one, which agree to
-  round-off), A = pi R^2 and L the container's cross-section and height. The network has
-  no velocities of its own (pellet-cell exchanges are not faces of a partition), but with
-  a no-flux side wall every cross-section of the column carries the same Q, so Q / (rho A)
-  is the mean axial Darcy velocity over any slab between two cross-sections, the inner
-  80 % of the height included: the thesis's estimator without a velocity reconstruction.
-
-The steady problem without storage is linear with frozen conductances: k depends on
-neither s nor dp (they set the pressure field only). The network's two-point fluxes on
-the Delaunay cells are not a consistent discretisation (centroids rather than
-circumcentres; the pellets conduct through their overlap disks and their spherical
-triangles beside the powder): with every system at one permeability k, the column's k
-comes back 14 to 19 % above it (tests/macro/test_column_permeability.py).
+The state is frozen; the active systems of the network of :mod:`macro.transport` whose
+centre lies within one mean pellet radius of a plate get a pressure linear along the
+axis around the current suction s (a drop dp of 10 % of s between the plates); the
+steady flow is solved with the current mass conductances divided by
+``macro.conductivity_factor`` (the material's k), no flux through the curved wall, and
+k = mu Q / (rho A dp / L) [m2], Q the mass flux through the column [kg/s], A = pi R^2
+and L the container's cross-section and height: with a no-flux wall Q / (rho A) is the
+mean axial Darcy velocity over any slab, the thesis's estimator. Systems linked to no
+end are NaN. The problem is linear: k depends on neither s nor dp. The Dirichlet layer's
+thickness and the network's bias (14-19 % above a uniform k): docs/macro.md,
+"macro.column_permeability".
 """
 
 from __future__ import annotations

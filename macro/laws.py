@@ -3,19 +3,15 @@
 Units are SI and per Pa: suction s = -p > 0 [Pa], alpha and beta [1/Pa].
 
 - Retention (Eqs. 4.24-4.26, docs/design.md §3): S(s) = [1 + (s/zeta)^(1/(1-lambda))]^(-lambda),
-  zeta = zeta_0 exp(a (phi_0 - phi)), lambda = lambda_0 exp(b (phi_0 - phi)); inverse
-  s(S) = zeta (S^(-1/lambda) - 1)^(1-lambda).
-- Powder permeability (Eqs. 4.16-4.19): k = k_0 exp(b_k (phi - phi_0)) k_r,
-  k_r = ((S - S_r)/(S_s - S_r))^n clamped to [0, 1].
-- Swelling (Eq. 4.28 with the sign of docs/design.md §3):
-  eps(s) = (beta/alpha) [exp(-alpha s) - exp(-alpha s_0)] > 0 for s < s_0.
+  zeta and lambda exponential in the porosity, and its inverse s(S).
+- Powder permeability (Eqs. 4.16-4.19): k = k_0 exp(b_k (phi - phi_0)) k_r(S).
+- Swelling (Eq. 4.28, sign of docs/design.md §3): eps(s) = (beta/alpha)
+  [exp(-alpha s) - exp(-alpha s_0)].
 - Pellet Young's modulus (Eq. 4.3): E(s) = 3 (1 - 2 nu) exp(alpha s) / beta, capped.
-- Swelling under confinement (Eqs. 4.31-4.33, our reading, for pellets and powder alike):
-  clay held below its free swelling volume V_f(s) = V_0 (1 + eps(s)) presses with
-  P = S_ret(s) [p'_vc(m_s / V) - p'_vc(m_s / V_f)], the consolidation line
-  p'_vc = beta_v exp(alpha_v rho_d), rho_d = m_s / V (Eq. 4.32); zero at V_f (the free
-  limit, Eq. 4.28), the line's stress at saturation. Under a stress sigma it swells to
-  the volume where P = sigma (:func:`confined_volume`). See docs/macro.md.
+- Swelling under confinement (Eqs. 4.31-4.33, our reading): the pressure
+  P = S_ret(s) [p'_vc(m_s / V) - p'_vc(m_s / V_f)] of clay held below its free volume
+  V_f, and the volume where P = sigma (:func:`confined_volume`). In full: docs/macro.md,
+  "Swelling limited by confinement" and "macro.laws".
 """
 
 from __future__ import annotations

@@ -3,21 +3,14 @@ of fixed points on the container.
 
 Mesh vertices 0..n_p-1 are the pellet centres, the others points on the container's
 wall and plates (:func:`container_points`, radius 0), so that the cells fill the
-container: the powder between the outer pellets and the wall, which a mesh of the
-pellet centres alone leaves out, has its cells, and the cells on the plates are the
-hydrated ends. Systems are the pellets (indices 0..n_p-1) and the cells (tetrahedra,
+container. Systems are the pellets (indices 0..n_p-1) and the cells (tetrahedra,
 indices n_p..n_p+n_c-1) whose void, outside the pellets, holds the powder. Exchanges
-(Fig. 4.2, Eqs. 4.13-4.15), each with an area A and a length L:
-
-- pellet-pellet: the overlap disk of two pellets, A = pi a^2, L = centre distance;
-- pellet-cell: the spherical triangle of the pellet inside the cell, A = Omega r^2
-  (Omega the solid angle of the tetrahedron at the vertex), L = distance from the
-  pellet centre to the cell centroid;
-- cell-cell: the shared triangle minus the three pellet sectors (theta r^2 / 2, theta
-  the triangle's angle at the vertex), L = centroid distance.
-
-The void of a cell is its volume minus the pellet parts inside it, V_t - sum Omega r^3 / 3,
-floored at ``void_floor`` V_t where swollen pellets overlap.
+(Fig. 4.2, Eqs. 4.13-4.15), each with an area A [m2] and a length L [m]: pellet-pellet
+(the overlap disk, L the centre distance), pellet-cell (the spherical triangle of the
+pellet inside the cell, L to the cell centroid) and cell-cell (the shared triangle
+minus the pellet sectors, L the centroid distance). The void of a cell is its volume
+minus the pellet parts inside it, floored at ``void_floor`` times its volume. The
+formulas: docs/macro.md, "macro.mixture".
 """
 
 from __future__ import annotations

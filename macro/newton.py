@@ -1,40 +1,17 @@
 """The local pressure-volume problem of each system (Caulk 2022, Sec. 4.3, Eqs. 4.39-4.51).
 
 Given a system's water mass m_w, solid volume V_s, reference volume V_0 and largest
-volume V_max (its cell's void for powder), find its volume V and water pressure p with
+volume V_max, find its volume V [m3] and water pressure p [Pa] with
 
     f1 = S(V) - S_ret(p, phi(V)) - mu sum_p log c = 0   (retention, Eqs. 4.39, 4.41-4.43)
     f2 = V - V_t(-p, sigma) - mu sum_V log c = 0   (swelling, Eq. 4.40)
 
-where S_ret is the retention curve (Eq. 4.24 read as S(s)), S(V) = m_w / (rho (V - V_s)),
-phi(V) = 1 - V_s / V, V_t the swelling target under the system's confining stress sigma
-(:func:`macro.laws.confined_volume`; Eq. 4.28's V_0 (1 + eps(s)) when free),
-and the log-barriers keep the constraints of Sec. 4.3 strictly positive:
-c1 = 1 - V_s/V (phi >= 0), c2 = V_s/V (phi <= 1), c3 = 1 - V/V_max, c4 = 1 - S, c5 = S
-(volume constraints, in f2) and c6 = -p/s_max (p <= 0), c7 = 1 + p/s_max (p >= -s_max)
-(pressure constraints, in f1). The thesis prints one barrier sum in both equations; a
-constraint that binds would then shift the other equation by a finite amount, so each
-equation carries the barriers of its own unknown (our reading). Eq. 4.39 is written on
-saturation, S(V) = S_ret(p), rather than on pressure, p = p_ret(V): the same root, but a
-bounded function (p_ret has infinite slopes at S -> 0 and S -> 1, where Newton steps
-overshoot). f2 is made dimensionless by V_0.
-
-Newton-Raphson (Eqs. 4.44-4.50) from the guess of Eqs. 4.47-4.48, with central-difference
-Jacobians (Eq. 4.46), the barrier weight mu and the under-relaxation 1 - alpha_r decaying
-geometrically each iteration, a fraction-to-boundary rule that keeps every iterate
-strictly feasible, and a backtracking (Armijo) line search on |f|^2. It stops when mu
-has decayed below 1e-3 tolerance and the RMS relative update (Eq. 4.51) is below the
-tolerance. Its answer is then checked against the equations without barriers: both
-hold within the tolerance, or one is replaced by its active bound (V = V_max with the
-swelling target beyond it: confined powder; s = s_max: drier than the curve allows;
-S = 1 above the target: saturated). A system that fails the check (Newton stalls where
-the porosity dependence of the retention curve bends |f|, or ends in a barrier's local
-minimum) is solved by a bracketed search of the same problem with p eliminated: V(s) is
-the swelling target clipped to [saturated volume, V_max] and the root of
-S(V(s)) - S_ret(s) nearest the previous suction is bisected on a log-suction grid; those
-systems are counted. The loop over systems is a numba kernel
-(:mod:`macro._newton_kernels`); a system that neither method solves raises
-:class:`NewtonError` naming it and its state.
+S(V) = m_w / (rho (V - V_s)), phi(V) = 1 - V_s / V, V_t the swelling target under the
+confining stress sigma (:func:`macro.laws.confined_volume`), each equation with the
+log-barriers of its own unknown's constraints. Barrier Newton-Raphson (Eqs. 4.44-4.50,
+a numba kernel, :mod:`macro._newton_kernels`), checked against the equations without
+barriers; a system that fails is solved by a bracketed search in log suction, and one
+that neither solves raises :class:`NewtonError`. In full: docs/macro.md, "macro.newton".
 """
 
 from __future__ import annotations

@@ -4,25 +4,14 @@ Mass conductance of an exchange e = (i, j): G_e = f rho k_e A_e / (mu L_e) [kg/(
 (Eq. 4.15; f the configured conductivity factor), so that in one explicit step
 (Eq. 4.23) m_i += dt sum_j G_ij (p_j - p_i). Permeabilities: a pellet's from the
 upscaling table at its suction, a cell's from the powder law (Eqs. 4.16-4.19);
-pellet-pellet and pellet-cell exchanges take the harmonic mean of their two systems
-(series flow), cell-cell exchanges the powder law at the two cells' mean saturation and
-mean porosity (Eq. 4.16). Systems held at the boundary suction (Dirichlet) keep their
-state; the water they give is the boundary inflow.
+pellet-pellet and pellet-cell exchanges take the harmonic mean of their two systems,
+cell-cell exchanges the powder law at the two cells' mean state. Held systems
+(Dirichlet) keep their state; the water they give is the boundary inflow.
 
-Stable step (Eq. 4.58): dt = chi min_i 2 / (alpha_i |dp/dS|_i) with
-alpha_i = sum_j G_ij / (rho n_i V_i), n_i V_i the system's pore volume and |dp/dS| the
-retention curve's slope at fixed porosity, over the systems that are not held. The
-thesis prints Eq. 4.58 with dp/ds in the numerator; the stability analysis above it
-(Eqs. 4.52-4.57) gives it in the denominator, which is the dimensionally consistent
-reading used here.
-
-Linearised implicit step (our addition, ``macro.numerics.transport_scheme: implicit``):
-the fluxes of Eq. 4.22 are taken at the end-of-step pressures, linearised through each
-system's capacity C = dm/dp (the retention curve's slope and the swelling law at the
-current state); the mass update stays conservative (antisymmetric fluxes) and the
-step is limited only by the saturation change it produces, not by Eq. 4.58, whose
-bound collapses where a small dry cell meets a wet neighbour. The local
-pressure-volume problem then gives the actual pressures, as after an explicit step.
+Stable explicit step (Eq. 4.58, dp/dS in the denominator: our reading):
+dt = chi min_i 2 / (alpha_i |dp/dS|_i), alpha_i = sum_j G_ij / (rho n_i V_i). The
+implicit step (our addition) takes the fluxes at the end-of-step pressures,
+linearised through each system's capacity dm/dp. In full: docs/macro.md, "macro.transport".
 """
 
 from __future__ import annotations

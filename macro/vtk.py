@@ -2,19 +2,14 @@
 
 One snapshot is an unstructured grid (``.vtu``, meshio) whose points are the pellet
 centres and the container's points, and whose cells are the Delaunay tetrahedra holding
-the powder:
-
-- point data per pellet: ``radius_m`` (current), ``suction_Pa``, ``saturation`` [1],
-  ``swelling_strain`` V/V_0 - 1 [1] (use *Glyph* with ``radius_m`` to see the pellets),
-  all 0 on the container's points; ``is_pellet`` (1 for pellets, 0 for the container);
-- cell data per tetrahedron: ``suction_Pa``, ``saturation``, ``swelling_strain`` of the
-  powder, ``powder_pressure_Pa`` (its push on the contour, Eqs. 4.31-4.35) and
-  ``has_powder`` (0 for the slivers without powder).
-
-Snapshots are taken when the simulated time first passes each of ``vtk_snapshots``
-times spaced geometrically from 100 s to ``max_time_s`` and at the end, into
-``results/macro/<case>_vtk/step_<step>.vtu``; ``<case>.pvd`` lists them with the
-simulated time in days as time step (ParaView's time readout is then in days).
+the powder: point data per pellet (``radius_m``, ``suction_Pa``, ``saturation``,
+``swelling_strain``, ``is_pellet``; 0 on the container's points), cell data per
+tetrahedron (``suction_Pa``, ``saturation``, ``swelling_strain``,
+``powder_pressure_Pa``, ``has_powder``). Snapshots are taken when the simulated time
+first passes each of ``vtk_snapshots`` times spaced geometrically from 100 s to
+``max_time_s`` and at the end, into ``results/macro/<case>_vtk/step_<step>.vtu``;
+``<case>.pvd`` lists them with the simulated time in days as time step. The fields
+with their units: docs/macro.md, "macro.vtk".
 """
 
 from __future__ import annotations

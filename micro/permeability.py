@@ -11,9 +11,7 @@ docs/yade.md §§4 and 10: saturation, porosity and mesh are frozen, a pressure 
 * the tensor (:func:`permeability_tensor`): velocity method for gradients along x, y and
   z, K[:, j] = -mu <v> / (grad p)_j; :func:`principal_permeability` its symmetric part.
 
-A wall flux against the gradient, or unbalanced after extended-precision refinement, is
-reported as NaN. Boundary values, floors, refinement and limits: docs/micro.md,
-"micro.permeability".
+Unbalanced or reversed wall fluxes are NaN; the rest: docs/micro.md, "micro.permeability".
 """
 
 from __future__ import annotations

@@ -4,16 +4,14 @@ The studies are aggregates of finished cases (``results/micro/<case>.nc``, docs/
 
 - convergence (thesis Sec. 3.5.8): the per-checkpoint outputs of cases that differ in
   their number of points, stacked along a new dimension ``n_points`` (ascending);
-- scale (thesis Sec. 3.5.9): sub-cubes of volume fraction f of a reference case's cube,
-  at seeded random positions inside it (:func:`micro.config.scale_realizations`), each hydrated as a
-  specimen of its own with the reference's point spacing; per realization and, grouped
-  by ``domain_fraction``, the mean and the sample standard deviation (``ddof=1``) over
-  the realizations, per checkpoint. The reference itself is domain fraction 1, a single
-  realization whose standard deviation is NaN (undefined for one sample), not 0.
+- scale (thesis Sec. 3.5.9): sub-cubes of volume fraction f of a reference case's cube
+  (:func:`micro.config.scale_realizations`), each hydrated as a specimen of its own;
+  per realization and, grouped by ``domain_fraction``, the mean and the sample standard
+  deviation (``ddof=1``) over the realizations, per checkpoint.
 
-The studies are declared in ``micro.studies`` of the configuration; their configuration
-helpers (:func:`micro.config.check_studies`, :func:`micro.config.scale_realizations`) are
-in :mod:`micro.config`. The functions here do no file I/O.
+Declared in ``micro.studies`` (helpers in :mod:`micro.config`); the functions here do
+no file I/O. Placement of the sub-cubes and the reference's NaN spread: docs/micro.md,
+"micro.studies".
 """
 
 from __future__ import annotations

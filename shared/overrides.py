@@ -1,15 +1,11 @@
 """Configuration values from the command line: ``--set key=value``, typed by the schema.
 
-``bash claychain run --set materials.pellet.swelling_beta_per_pa=2e-8`` calls this
-module's command line, which writes the assignments as an overlay YAML file that the
-launcher passes to Snakemake after the configuration files (``--configfile
-config/config.yaml <overlay>``): Snakemake merges it over them, mapping by mapping.
-
-A value takes the type the schema gives its key: ``integer``, ``number``, ``boolean``
-(``true``/``false``), ``string``, ``null`` (``null``), arrays and mappings as JSON
-(``'[60e6, 132e6]'``). A key the schema does not know, or a value of the wrong type, is
-refused with a message naming the key; the merged configuration is validated against
-the schema before Snakemake starts (the stages' cross-checks run when it builds the DAG).
+``bash claychain run --set KEY=VALUE`` calls this module's command line, which writes
+the assignments as an overlay YAML file that the launcher passes to Snakemake after the
+configuration files. A value takes the type the schema gives its key (arrays and
+mappings as JSON); an unknown key or a value of the wrong type is refused naming the
+key, and the merged configuration is validated against the schema. Types and merge
+order: docs/development.md, "shared.overrides".
 
 Command line::
 

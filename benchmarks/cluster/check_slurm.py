@@ -3,22 +3,14 @@
     python benchmarks/cluster/check_slurm.py [--full] [--workdir DIR] [--no-start]
                                              [--skip-local] [--compare-only]
 
-1. starts munge, mariadb, slurmdbd, slurmctld and slurmd (start_slurm.sh, as root);
-2. lays the committed tree (git archive HEAD) twice under DIR (default
-   /tmp/claychain-cluster-check): local/ and cluster/; without --full both get a reduced
-   config (config/config.yaml rewritten: 2 micro cases of 300 points, 1 scale fraction,
-   a smaller packing), with --full the default chain;
-3. runs `bash claychain cluster` in cluster/ (account/partition of start_slurm.sh) and,
-   when the first micro case has written its checkpoint, scancels its job: Snakemake
-   must see it fail, submit it again (retries), and the new job resume from
-   results/micro/<case>.checkpoint.npz;
-4. runs `snakemake --cores 2` in local/;
-5. compares every netCDF of the two runs with xarray (each data variable: equals; those
-   whose long_name says "wall time", e.g. the packing's settle_time, are left out).
-
-Prints the timings, the cancelled job and its successor, and one line per netCDF; exits
-non-zero if anything differs or the cancelled case was not resumed. Logs: DIR/*.log,
-DIR/cluster/.snakemake/slurm_logs/rule_<rule>/<wildcards>/<jobid>.log.
+Starts the SLURM daemons (start_slurm.sh, as root), lays the committed tree twice under
+DIR (local/ and cluster/; a reduced configuration unless --full), runs ``bash claychain
+cluster`` in cluster/ and scancels the first micro case's job once it has written its
+checkpoint (Snakemake must resubmit it and the new job resume), runs ``snakemake
+--cores 2`` in local/, and compares every netCDF of the two runs with xarray (wall
+times left out). Prints the cancelled job and its successor and one line per netCDF;
+exits non-zero if anything differs or the cancelled case was not resumed. The steps and
+logs in full: docs/performance.md, "benchmarks.cluster.check_slurm".
 """
 
 import argparse

@@ -1,5 +1,5 @@
 # ruff: noqa: F821  (Yade injects O, Sphere, flow and its engine classes as globals)
-"""Yade 2023.02a side of the Yade comparison benchmark (issue 4): the micro model's cube.
+"""Yade 2023.02a side of the Yade comparison benchmark: the micro model's cube.
 
 Run headless as ``yade -x -n -j1 partialsat_cube.py SETTINGS.json``. ``SETTINGS.json``
 (written by :mod:`benchmarks.yade_compare`) names the points file (``x y z r`` per
@@ -7,34 +7,12 @@ line, metres) and the output files, and holds the Table 3.1 clay parameters, the
 parameters and the run lengths; the few numbers set here are those of Appendix .2
 that our model does not have (wall material, porosity clamps, swelling floor).
 
-What it does, after Caulk (2022) Appendix .2 with the corrections of
-docs/yade.md §10:
-
-1. Spheres at the given points inside six static walls moved 1 mm away (free swelling),
-   Hertz-Mindlin contacts, PartialSatClayEngine with Table 3.1 parameters, homogeneous
-   porosity, ``blockIsoCells = False`` (otherwise every imposed-pressure boundary is
-   silently removed), one solver thread, cracks off (homogeneous specimen).
-2. Equilibration at the initial suction with porosity and saturation frozen and
-   swelling off, in chunks, until the unbalanced force falls below the threshold or
-   the iteration budget is spent.
-3. Water permeability along x at the equilibrated state and at full saturation: the
-   two x walls get pressures dP apart (dP = 10 % of s), the other walls no flux,
-   everything frozen; k = Q mu L / (A dP) with Q from ``getBoundaryFlux`` (the
-   per-cell velocity average of the thesis script is biased in this build), L and A
-   from the spheres' box and from the centres' box, and Q mu / (A |grad p|) with the
-   pressure gradient sampled inside the specimen. Then the same measurement along the
-   curve of the settings (``curve``: suction and van Genuchten saturation S(s, phi_0)
-   pairs): every cell gets that saturation, the walls the pressures -s -+ dP/2, and a
-   remesh recomputes the conductances from it. Each measurement also records the
-   mean conductance of facets between free cells and between an imposed-pressure
-   cell and a free one (how each follows the saturation set).
-4. Timings with swelling and saturation live again: median and fastest wall time of
-   coupled iterations (DEM + flow solve with the factor reused), a per-engine split, and
-   the steps after a forced remesh (triangulation, interpolation, conductances,
-   refactorisation), minus the plain iteration cost.
-
-The script runs inside Yade's interpreter, whose namespace provides ``O``, the engine
-and functor classes and ``utils``.
+After Caulk (2022) Appendix .2 with the corrections of docs/yade.md §10: spheres in six
+walls with PartialSatClayEngine, equilibration at the initial suction, water
+permeability along x (wall flux) at that state, saturated and along the settings'
+curve, then timings of coupled iterations and remeshes. The steps in full:
+docs/performance.md, "benchmarks.yade.partialsat_cube". The script runs inside Yade's
+interpreter, whose namespace provides ``O``, the engine and functor classes and ``utils``.
 """
 
 import json

@@ -1,20 +1,16 @@
 """Virtual clay porous media by 3D sequential deposition of flat elliptic disks.
 
 Reference implementation of Ferrage et al., Phys. Rev. E 91, 062210 (2015):
-
-- :mod:`.population`: particle sizes and shapes (log-normal laws of Table I);
-- :mod:`.deposition`: the sequential deposition algorithm (Sec. II), with exact contact
-  and overlap geometry (:mod:`._contact_kernels`) and a spatial hash (:mod:`._bed`);
-- :mod:`.analysis`, :mod:`.voxels`, :mod:`.measures`: porosity and order profiles,
-  Q tensor, rocking curve, surface areas, voxel image and overlap fraction (Secs. III-V);
-- :mod:`.config`, :mod:`.run`, :mod:`.figures`: the packing stage (cross-field checks and
-  conversion of a config entry, netCDF file with the REV and chord lengths of
-  :mod:`imaging.morphology`, and figure). They are not imported here, to keep xarray and
-  matplotlib out of the import of the numerical API: ``from imaging.packing.run import run``.
+:mod:`.population` (particle sizes and shapes, Table I), :mod:`.deposition` (the
+sequential deposition, Sec. II), :mod:`.analysis`, :mod:`.voxels` and :mod:`.measures`
+(porosity and order profiles, Q tensor, rocking curve, surface areas, voxel image,
+overlap fraction; Secs. III-V). The stage's modules (:mod:`.config`, :mod:`.run`,
+:mod:`.figures`) are not imported here, to keep xarray and matplotlib out of the
+numerical API: ``from imaging.packing.run import run``.
 
 The names below are imported from their submodule on first use (PEP 562), so that
 importing a light submodule (:mod:`.config` for the workflow's checks) does not compile
-the numba kernels.
+the numba kernels. The modules in full: docs/packing.md, "imaging.packing".
 """
 
 from __future__ import annotations

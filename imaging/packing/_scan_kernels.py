@@ -9,10 +9,9 @@ its bottom face and edge rings; delta_z, the vertical distance of a point down t
 bed particle B, is minimised over offsets of step delta_(n+1) = delta_n / 10 around the
 lowest points until delta_n < d_cont. A scan point inside B is an overlap; the overlap
 scan is the inverse, from B's basal faces in A's frame. Between scan points nothing is
-seen, so small overlaps remain (the paper's f_o, Table IV). Our readings of the
-procedure: docs/packing.md, "imaging.packing._scan_kernels".
-
-Reference: E. Ferrage et al., Phys. Rev. E 91, 062210 (2015).
+seen, so small overlaps remain (the paper's f_o, Table IV). Our readings:
+docs/packing.md, "imaging.packing._scan_kernels". Reference: E. Ferrage et al.,
+Phys. Rev. E 91, 062210 (2015).
 """
 
 from __future__ import annotations

@@ -7,13 +7,11 @@ contact point, in-plane rotation), each accepted only if the barycentre descends
 overlap appears; amplitudes are halved between cycles. Particles in the bed never move.
 Contacts are exact on the convex shape by default (GJK, :mod:`._contact_kernels`), or
 the paper's multiscale scan with ``scan_points`` > 0 (:mod:`._scan_kernels`). Our
-readings of Sec. II.A and the alternatives kept as options: docs/packing.md,
-"imaging.packing.deposition".
+readings of Sec. II.A and the options: docs/packing.md, "imaging.packing.deposition".
 
-References
-----------
-E. Ferrage et al., Phys. Rev. E 91, 062210 (2015), doi:10.1103/PhysRevE.91.062210.
-D. Coelho, J.-F. Thovert and P. M. Adler, Phys. Rev. E 55, 1959 (1997).
+References: E. Ferrage et al., Phys. Rev. E 91, 062210 (2015),
+doi:10.1103/PhysRevE.91.062210; D. Coelho, J.-F. Thovert and P. M. Adler, Phys. Rev.
+E 55, 1959 (1997).
 """
 
 from __future__ import annotations

@@ -1,58 +1,17 @@
 """Saturated poroelastic coupling of DEM points and their Delaunay finite volumes (DEM-PFV).
 
-Verification setup of ``test_terzaghi.py`` (Terzaghi consolidation, docs/design.md §5.1): no
-stage runs it, so it lives beside its test, not in :mod:`micro`.
+Verification setup of ``test_terzaghi.py`` (Terzaghi consolidation, docs/design.md §5.1):
+no stage runs it, so it lives beside its test, not in :mod:`micro`. The scheme of
+Catalano, Chareyre & Barthelemy (2014) for an incompressible fluid and solid: in every
+free cell i, sum_j g_ij (p_i - p_j) = -dV_i/dt; drained cells hold p_D. The fluid force
+on the points is B^T (p - p_D), B = dV/dx, with equal vertex shares (the pressure work).
+Each DEM step is a pressure projection, (L_ff + dt B_f M^-1 B_f^T) (p - p_D) =
+-(B_f v* + owed / dt), factorised once; small strains (g and B of the mesh the coupling
+was built on); with rigid walls the fluid fills the gap to the walls (``enclosed``).
+Derivations: docs/validation.md, "tests.micro.terzaghi_setup".
 
-The scheme of Catalano, Chareyre & Barthelemy (2014) for an incompressible pore fluid
-and an incompressible solid: the fluid a tetrahedron expels is its volume decrease, so
-in every free (undrained) cell i
-
-    sum_j g_ij (p_i - p_j) = -dV_i/dt,
-
-and the pressures push on the points. Drained cells (Dirichlet) hold the drainage
-pressure p_D. A saturated medium has no retention storage, so this volume balance is
-what delays the settlement (Terzaghi consolidation, docs/yade.md §9).
-
-Forces. With B = dV/dx (n_cells x 3 n_points) the fluid force on the points is
-B^T (p - p_D): each triangle's force (p_i - p_j) A n shared equally by its three
-vertices, i.e. :func:`micro.forces.hydromechanical_forces` with S = 1 and equal vertex
-shares instead of the sector shares of Eqs. 3.29-3.31. Only with these shares is the
-force the pressure work p dV, which the implicit coupling below needs to be stable.
-
-Implicit coupling. The pressure is a Darcy drag on the point velocities, -B^T L^-1 B v.
-It is stiff: the slivers of a Delaunay mesh give it rates thousands of times those of
-the continuum (mu / k per unit volume), so an explicit coupling (pressure from the last
-step's volume change, Yade's) needs DEM steps far below the contact limit. Each DEM step
-is therefore a pressure projection: the contact, wall and external forces give
-predicted velocities v*, then the free-cell excess pressures solve
-
-    (L_ff + dt B_f M^-1 B_f^T) (p - p_D) = -(B_f v* + owed / dt),
-
-so that the velocities v* + dt M^-1 B^T (p - p_D) change the free cells' volumes by
-what the fluid carries out. The matrix is symmetric positive definite and constant for
-a fixed time step, so CHOLMOD factorises it once. ``owed`` is each cell's accumulated
-actual minus balanced volume change (the Cundall damping applied after the projection
-makes them differ); feeding it back makes the fluid leaving the free cells equal their
-volume loss up to the last step's mismatch.
-
-Small strains: g_ij = k A_ij / (mu l_ij) and B are those of the mesh the coupling was
-built on, and the cell volumes are V_0 + B (x - x_0); linear poroelasticity, like the
-Terzaghi and Biot solutions. With fixed connectivity and the true volumes, the slivers
-of a jittered lattice invert under strains of 1e-3 and their volume is not smooth enough
-for the projection; rebuild the coupling (:func:`saturated_flow`) after large
-deformations.
-
-Rigid walls: the fluid fills the gap between the hull of the points and the walls, so
-(``enclosed``) the hull triangles pass no force to the points and a hull point moving
-towards a wall changes no fluid volume. Otherwise the pore pressure pushes the hull
-points into the compliant Hertz wall contacts, which then swallow a large part of the
-expelled volume at once (measured: half of it in a 40-point-high column).
-
-References
-----------
-Catalano, E., Chareyre, B., Barthelemy, E. (2014). Pore-scale modeling of fluid-particles
-interaction and emerging poromechanical effects. Int. J. Numer. Anal. Methods Geomech.
-38, 51-71. doi:10.1002/nag.2198
+Reference: Catalano, E., Chareyre, B., Barthelemy, E. (2014). Int. J. Numer. Anal.
+Methods Geomech. 38, 51-71. doi:10.1002/nag.2198
 """
 
 from __future__ import annotations

@@ -1,47 +1,15 @@
 """Terzaghi consolidation of the coupled DEM + flow solver (docs/design.md §5.1, docs/yade.md §9).
 
-Set-up. An oedometric column of DEM points on a face-centred cubic lattice (the points
-of a cubic grid of spacing s whose indices add up to an even number: 12 neighbours at
-s sqrt(2); jitter +-0.5 % of s; radii 0.5 % above touching, so that nearly every neighbour
-pair is in contact): rigid fixed walls on the four sides and the bottom, no top wall.
-Not the jittered cubic grid of ``cube_points``: its lateral contacts are open and its
-outer points stand off the walls, so the undrained column simply bulges sideways. The
-top layer of points carries a uniform load (a flexible loading plate); the cells
-touching it are drained (p = 0), all other faces impervious, and the fluid fills the
-gaps up to the walls (``enclosed``). The column is brought to equilibrium dry under the
-preload F_0 (1 MPa), then the load steps to 1.2 F_0.
-
-Measured, not fitted, parameters:
-
-* M_oed: the drained increment on a copy of the preloaded column (DEM only),
-  M = (dF / A) / (dh / h), A the mean cross-section of the meshed volume (where the
-  fluid pressure acts), h the height between the bottom layer and the layer below
-  the top one: the free cells, which consolidate (the drained top layer compresses at
-  once and is left out of the settlement);
-* k: steady Darcy flow along z on the same mesh (:func:`measure_permeability`);
-* Cv = k M / mu; the drainage length H_d runs from the bottom of the mesh to the mean
-  height of the drained cells (where p = 0 is imposed); Tv = Cv t / H_d^2.
-
-The permeability is chosen so that the consolidation time H_d^2 / Cv is ``scale_ratio``
-(20 or 30) times the compression wave time H_d sqrt(rho / M), rho the mass per meshed
-volume: the Darcy drag then damps the slowest mode ratio / pi times critically, and
-inertia delays U by about 1 / ratio^2 in Tv. The DEM time step is the contact limit
-(:func:`stable_time_step`, about 0.4 us); the implicit coupling adds none. The
-consolidation runs undamped (no Cundall damping): the drag is the damping.
-
-U(t) comes from the settlement dh(t) / dh_drained and from the mean excess pore
-pressure, 1 - <p> / (dF / A), and is compared with the analytic series
-U(Tv) = 1 - sum_k 2 / M_k^2 exp(-M_k^2 Tv), M_k = pi (2k + 1) / 2.
-
-Measured (seed 20221121): 5 x 5 x 60 grid (750 points, ratio 30, 3100 DEM steps,
-about 25 s of CPU): M = 7.13e8 Pa, k = 9.33e-13 m2, Cv = 0.665 m2/s; settlement U
-+0.2, +1.0, +1.0 % and pressure U -3.5, -0.8, -0.2 % off the series at Tv = 0.05,
-0.2, 0.5; tolerance 5 % on both (the pressure error at 0.05 is the discretisation
-next to the drained layer, where early profiles are steep). 5 x 5 x 30 grid (375
-points, ratio 20, about 5 s): settlement U -0.3 % at Tv = 0.2, tolerance 10 % in the
-default suite. Fluid volume: the outflow into the drained cells, integrated from the
-fluxes, equals the pore volume lost by the free cells to within 1e-12 (tolerance 1e-9).
-A 4-point-wide column is too narrow: +7 % at Tv = 0.2.
+An oedometric column of DEM points on a jittered face-centred cubic lattice, rigid
+walls on the sides and the bottom, a uniform load on the top layer whose cells are
+drained (p = 0), brought to equilibrium dry under F_0 (1 MPa), then loaded to 1.2 F_0.
+M_oed (drained increment, DEM only) and k (steady Darcy flow) are measured, not fitted;
+Cv = k M / mu, Tv = Cv t / H_d^2. The permeability sets the consolidation time to
+``scale_ratio`` times the compression wave time, so that inertia barely delays U. U(t)
+from the settlement and from the mean excess pore pressure is compared with the series
+U(Tv) = 1 - sum_k 2 / M_k^2 exp(-M_k^2 Tv), M_k = pi (2k + 1) / 2; the fluid leaving
+the free cells must equal their volume loss. Set-up, parameters and measured errors:
+docs/validation.md, "tests.micro.test_terzaghi".
 """
 
 from __future__ import annotations
