@@ -11,27 +11,32 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import tempfile
 from collections.abc import Callable, Iterable, Mapping
 from datetime import UTC, datetime
+from functools import cache
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import xarray as xr
 
-from shared.provenance import code_sha256, code_version, config_sha256, inputs_record
+from shared.imports import PACKAGES
+from shared.provenance import code_sha256, code_version, config_sha256, inputs_record, module_sha256
 
 __all__ = ["OutputError", "read_dataset", "write_dataset", "netcdf_safe_attrs", "atomic_write"]
 
-_STAGE_SOURCES = {
-    "imaging": ("imaging/__init__.py", "imaging/ct", "imaging/morphology", "shared/*.py"),
-    "packing": ("imaging/__init__.py", "imaging/packing", "imaging/morphology", "shared/*.py"),
-    "micro": ("micro", "shared"),
-    "studies": ("micro", "shared"),
-    "upscaling": ("micro", "shared"),
-    "macro": ("macro", "shared"),
-}
+
+@cache
+def _entry_sha256(entry: str) -> str:
+    """The ``code_sha256`` attribute of the files a module writes: the hash of that module
+    and of what it imports (:func:`shared.provenance.module_sha256`), once per process, so
+    it is the code at the first write. Without a source file (code run from a string) every
+    package counts."""
+    if not Path(entry).is_file():
+        return code_sha256(*PACKAGES)
+    return module_sha256(entry)
 
 
 class OutputError(ValueError):
@@ -90,6 +95,7 @@ def write_dataset(
     wildcards: Mapping[str, str] | None = None,
     references: str | None = None,
     comment: str | None = None,
+    code: str | Path | None = None,
 ) -> Path:
     """Write a dataset to netCDF atomically, with CF and provenance attributes.
 
@@ -117,6 +123,9 @@ def write_dataset(
         Snakemake rule name and wildcards, when called from a rule.
     references, comment
         CF ``references`` and ``comment``.
+    code
+        The module whose source and imports make the ``code_sha256`` attribute; by default
+        the caller's (a stage's run module).
 
     Returns
     -------
@@ -131,7 +140,7 @@ def write_dataset(
     _check_contract(ds)
     now = datetime.now(UTC).replace(microsecond=0).isoformat()
     version = code_version()
-    sources = _STAGE_SOURCES.get(stage, ("shared",))
+    entry = str(Path(code if code is not None else sys._getframe(1).f_code.co_filename).resolve())
     out = ds.copy()
     out.attrs = netcdf_safe_attrs(
         {
@@ -146,7 +155,7 @@ def write_dataset(
             "stage": stage,
             "created": now,
             "code_version": version,
-            "code_sha256": code_sha256(*sources),
+            "code_sha256": _entry_sha256(entry),
             "config_sha256": config_sha256(config),
             "config_json": json.dumps(config if config is not None else {}, default=str),
             "seed": -1 if seed is None else int(seed),

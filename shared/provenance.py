@@ -18,6 +18,7 @@ __all__ = [
     "file_sha256",
     "folder_sha256",
     "inputs_record",
+    "module_sha256",
     "script_sha256",
 ]
 
@@ -143,4 +144,48 @@ def script_sha256(script: str | Path, root: str | Path = _REPO_ROOT) -> str:
         digest.update(module.encode())
         digest.update(b"\0")
         digest.update(source.read_bytes())
+    return digest.hexdigest()
+
+
+def _package_root(path: Path) -> Path | None:
+    """The folder that holds the outermost package around a source file; None when the
+    file's folder is not a package."""
+    folder = path.parent
+    if not (folder / "__init__.py").is_file():
+        return None
+    while (folder.parent / "__init__.py").is_file():
+        folder = folder.parent
+    return folder.parent
+
+
+def module_sha256(path: str | Path) -> str:
+    """Return one sha256 over a module's own source and the sources of our modules it imports.
+
+    The hash of the code that runs when ``path`` is the entry point: :func:`script_sha256`
+    (the imports, transitively) plus the module's own name and bytes. The packages are
+    read from the tree that holds the module, so a copy of the tree hashes its own
+    sources. A file outside our packages (a Snakemake script, run from a copy that
+    carries the job's preamble) counts by its imports only.
+
+    Parameters
+    ----------
+    path
+        The entry module's source file.
+
+    Returns
+    -------
+    str
+        The hex digest.
+    """
+    from shared.imports import PACKAGES
+
+    path = Path(path).resolve()
+    root = _package_root(path)
+    if root is None or path.relative_to(root).parts[0] not in PACKAGES:
+        return script_sha256(path)
+    module = ".".join(path.relative_to(root).with_suffix("").parts).removesuffix(".__init__")
+    digest = hashlib.sha256(script_sha256(path, root).encode())
+    digest.update(module.encode())
+    digest.update(b"\0")
+    digest.update(path.read_bytes())
     return digest.hexdigest()

@@ -8,9 +8,12 @@ import sys
 from pathlib import Path
 
 import pytest
+import xarray as xr
 
+import shared.io
 from shared.imports import imported_sources
-from shared.provenance import script_sha256
+from shared.io import read_dataset, write_dataset
+from shared.provenance import module_sha256, script_sha256
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPTS = sorted(p.name for p in (ROOT / "workflow/scripts").glob("*.py") if p.name[0] != "_")
@@ -106,3 +109,29 @@ def test_relative_and_lazy_imports_are_followed(tmp_path):
     script.write_text("import numpy\nfrom shared import sub\n")
     assert set(imported_sources(script, tmp_path)) == {
         "shared", "shared.sub", "shared.sub.leaf", "shared.other", "shared.late"}
+
+
+def _written_code_hash(tree: Path, entry: str) -> str:
+    """The ``code_sha256`` attribute of a file written as the tree's ``entry`` module would."""
+    shared.io._entry_sha256.cache_clear()  # once per process otherwise: the code of the first write
+    ds = xr.Dataset({"x": ("n", [1.0], {"units": "1", "long_name": "x"})})
+    path = write_dataset(ds, tree / "out.nc", stage="macro", title="t", code=tree / entry)
+    return read_dataset(path).attrs["code_sha256"]
+
+
+def test_the_file_code_hash_follows_what_the_writing_module_imports(tree):
+    before = _written_code_hash(tree, "macro/run.py")
+    _touch(tree / "imaging/ct/run.py")  # another stage's run module
+    _touch(tree / "micro/hydration.py")
+    assert _written_code_hash(tree, "macro/run.py") == before
+    _touch(tree / "shared/retention.py")  # imported through macro.laws
+    edited = _written_code_hash(tree, "macro/run.py")
+    assert edited != before
+    _touch(tree / "macro/run.py")  # the writing module itself
+    assert _written_code_hash(tree, "macro/run.py") != edited
+
+
+def test_the_file_code_hash_defaults_to_the_calling_module(tmp_path):
+    ds = xr.Dataset({"x": ("n", [1.0], {"units": "1", "long_name": "x"})})
+    path = write_dataset(ds, tmp_path / "out.nc", stage="macro", title="t")
+    assert read_dataset(path).attrs["code_sha256"] == module_sha256(__file__)
