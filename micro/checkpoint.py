@@ -44,7 +44,8 @@ class CheckpointError(ValueError):
 def _opened(path: Path) -> Iterator[Any]:
     """The checkpoint's arrays, or :class:`CheckpointError` naming the file."""
     try:
-        with np.load(path) as data:
+        # our handle, closed even when np.load refuses a damaged file (np.load's own is not)
+        with open(path, "rb") as handle, np.load(handle) as data:
             yield data
     except (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile) as err:
         if isinstance(err, CheckpointError):

@@ -261,12 +261,14 @@ def test_a_killed_run_leaves_no_measurement_worker(tmp_path):
     script = tmp_path / "killed_run.py"
     script.write_text(KILLED_RUN)
     root = Path(micro_run.__file__).parents[1]
-    run = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True,
-                           cwd=root, env={**os.environ, "PYTHONPATH": str(root)})
-    worker = int(run.stdout.readline())
-    assert _alive(worker)
-    run.send_signal(signal.SIGKILL)
-    run.wait()
+    # the context closes the stdout pipe (a ResourceWarning otherwise) and waits
+    with subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True,
+                          cwd=root, env={**os.environ, "PYTHONPATH": str(root)}) as run:
+        try:
+            worker = int(run.stdout.readline())
+            assert _alive(worker)
+        finally:
+            run.send_signal(signal.SIGKILL)
     deadline = time.monotonic() + 20 * micro_run.WORKER_PARENT_POLL_S + 10.0
     while _alive(worker) and time.monotonic() < deadline:
         time.sleep(0.1)
