@@ -1,4 +1,4 @@
-"""Cell-list contact detection against a brute-force O(N^2) search; Verlet list upkeep."""
+"""shared.dem.contacts: cell-list contact detection against a brute-force O(N^2) search; Verlet list upkeep."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""The macro ParaView collection's time steps are in days, and a resumed run reads them back."""
+"""macro.vtk: the ParaView collection's time steps are in days, and a resumed run reads them back."""
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET

@@ -1,4 +1,4 @@
-"""Cube specimens: counts, bounds, determinism, separation."""
+"""shared.dem.points: cube specimens (counts, bounds, determinism, separation)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Relative and intrinsic permeability, viscosities, and the swelling law."""
+"""shared.permeability: relative and intrinsic permeability, viscosities."""
 
 from __future__ import annotations
 
@@ -10,7 +10,6 @@ from shared.permeability import (
     phase_viscosity,
     relative_permeability,
 )
-from shared.swelling import swollen_radius, volumetric_strain
 from tests._defaults import CLAY, clay
 
 
@@ -36,17 +35,3 @@ def test_permeability_intrinsic_exponential_in_porosity() -> None:
 
 def test_permeability_phase_viscosity() -> None:
     assert phase_viscosity("gas", CLAY) == 1.8e-5
-
-
-def test_swelling_strain_hand_values() -> None:
-    material = clay(swelling_alpha=2e-8, swelling_beta=1e-8, initial_suction=1e8)
-    assert volumetric_strain(1e8, material) == 0.0
-    # (1e-8/2e-8) (exp(0) - exp(-2)) at zero suction.
-    assert volumetric_strain(0.0, material) == pytest.approx(0.5 * (1.0 - np.exp(-2.0)), rel=1e-14)
-    assert volumetric_strain(2e8, material) < 0.0
-
-
-def test_swelling_radius_follows_volume() -> None:
-    assert swollen_radius(1e-4, 0.331) == pytest.approx(1.1e-4, rel=1e-12)
-    with pytest.raises(ValueError, match="exceed -1"):
-        swollen_radius(1e-4, -1.0)
