@@ -1,7 +1,7 @@
 """Confinement-limited swelling and the invariants of the macro model.
 
-The confined swelling law (macro.laws) against its inverse and its free limit (Eq. 4.28),
-the pressure-volume kernel against the law, and a small column's water and volume
+The pressure-volume kernel against the confined swelling law (macro.laws; the law itself
+is tested in test_laws.py), and a small column's water and volume
 balances and dry density against their definitions.
 """
 
@@ -10,42 +10,21 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from macro.laws import confined_volume, mixture_parameters, swelling_pressure
+from macro.laws import confined_volume, swelling_pressure
 from macro.newton import NewtonSettings, PVProblem, solve_pressure_volume
 from macro.run import build_model, run
 from shared.upscaling import PermeabilityTable
 from tests._macro_cases import small_config, swelling
+from tests.macro._material import CONFIG, MATERIAL, PHI0, pellet
 
-CONFIG = small_config()
-MATERIAL = mixture_parameters(CONFIG["materials"], CONFIG["macro"]["powder"])
-PHI0 = MATERIAL.reference_porosity
 NEWTON = NewtonSettings(tolerance=1e-8, max_iterations=80, barrier_start=0.1, barrier_decay=0.3,
                         relaxation_start=0.5, derivative_step=1e-7)
-
-
-def _pellet(suction: float) -> tuple[float, float, float]:
-    """A 6 mm pellet of porosity 0.25: V_0 [m3], V_s [m3], m_s [kg]."""
-    v0 = 4.0 / 3.0 * np.pi * 6e-3**3
-    vs = 0.75 * v0
-    return v0, vs, MATERIAL.grain_density * vs
-
-
-@pytest.mark.parametrize("suction", [1e6, 1e7, 5e7])
-def test_confined_volume_inverts_the_swelling_pressure_and_is_free_without_stress(suction):
-    v0, _, ms = _pellet(suction)
-    stresses = np.array([0.0, 1e4, 1e5, 1e6, 4e6, 2e7])
-    volume = confined_volume(suction, stresses, ms, v0, PHI0, MATERIAL)
-    free = v0 * (1.0 + swelling(suction))
-    assert volume[0] == pytest.approx(free, rel=1e-12)
-    assert np.all(np.diff(volume) < 0.0)
-    pressure = swelling_pressure(volume[1:], suction, ms, v0, PHI0, MATERIAL)
-    np.testing.assert_allclose(pressure, stresses[1:], rtol=1e-9)
 
 
 def _solve(suction: float, stress: float) -> tuple[float, float, float, float]:
     """The kernel's (V, s) of a pellet whose water is that of the law's state at
     ``suction`` under ``stress``; also the law's volume."""
-    v0, vs, ms = _pellet(suction)
+    v0, vs, ms = pellet(suction)
     volume = float(confined_volume(suction, stress, ms, v0, PHI0, MATERIAL))
     sat = (1.0 + (suction / MATERIAL.zeta0) ** (1.0 / (1.0 - MATERIAL.lambda0))) ** -MATERIAL.lambda0
     water = 1000.0 * sat * (volume - vs)
@@ -66,7 +45,7 @@ def test_free_pellet_reaches_the_free_swelling_of_eq_4_28(suction):
 def test_pressure_volume_kernel_balances_the_swelling_pressure_against_the_stress(stress):
     """The numba kernel's confined target and macro.laws' are two implementations."""
     volume, found, law_volume, v0 = _solve(2e6, stress)
-    _, _, ms = _pellet(2e6)
+    _, _, ms = pellet(2e6)
     assert volume == pytest.approx(law_volume, rel=1e-4)
     assert swelling_pressure(volume, found, ms, v0, PHI0, MATERIAL) == pytest.approx(stress, rel=1e-2)
 

@@ -1,0 +1,63 @@
+"""macro.laws: the mixture's constitutive laws against their inverses, hand values of the
+equations at the default parameters (Tables 4.1-4.2), and finite differences."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from macro.laws import (
+    confined_volume,
+    saturation,
+    suction,
+    suction_derivative,
+    swelling_pressure,
+    young_modulus,
+)
+from tests._macro_cases import swelling
+from tests.macro._material import MATERIAL, PHI0, pellet
+
+
+@pytest.mark.parametrize("suction", [1e6, 1e7, 5e7])
+def test_confined_volume_inverts_the_swelling_pressure_and_is_free_without_stress(suction):
+    v0, _, ms = pellet(suction)
+    stresses = np.array([0.0, 1e4, 1e5, 1e6, 4e6, 2e7])
+    volume = confined_volume(suction, stresses, ms, v0, PHI0, MATERIAL)
+    free = v0 * (1.0 + swelling(suction))
+    assert volume[0] == pytest.approx(free, rel=1e-12)
+    assert np.all(np.diff(volume) < 0.0)
+    pressure = swelling_pressure(volume[1:], suction, ms, v0, PHI0, MATERIAL)
+    np.testing.assert_allclose(pressure, stresses[1:], rtol=1e-9)
+
+
+def test_retention_at_the_reference_porosity_is_table_4_2s_curve():
+    """At phi_0 = 0.25, zeta = 4.026 MPa and lambda = 0.26 (Table 4.2): S(zeta) = 2^-0.26,
+    S(0) = 1; s(S) inverts S(s) at other porosities too."""
+    assert MATERIAL.reference_porosity == 0.25
+    assert saturation(4.026e6, 0.25, MATERIAL) == pytest.approx(2.0**-0.26, rel=1e-12)
+    assert saturation(0.0, 0.25, MATERIAL) == 1.0
+    s = np.array([1e5, 3e6, 4e7, 1.3e8])
+    for porosity in (0.2, 0.25, 0.4):
+        np.testing.assert_allclose(suction(saturation(s, porosity, MATERIAL), porosity, MATERIAL), s, rtol=1e-9)
+    assert np.isnan(suction(1.2, 0.25, MATERIAL))
+
+
+def test_suction_derivative_is_the_slope_of_the_suction():
+    """The closed form |ds/dS| against a central difference of s(S)."""
+    sat = np.array([0.3, 0.6, 0.9])
+    h = 1e-6
+    slope = (suction(sat - h, 0.3, MATERIAL) - suction(sat + h, 0.3, MATERIAL)) / (2.0 * h)
+    np.testing.assert_allclose(suction_derivative(sat, 0.3, MATERIAL), slope, rtol=1e-6)
+
+
+def test_young_modulus_eq_4_3_within_its_bounds():
+    """E = 3 (1 - 2 nu) exp(alpha s) / beta by hand between the bounds, capped outside."""
+    m = dataclasses.replace(MATERIAL, young_bounds=(1e6, 1e12))
+    s = 5e7
+    expected = 3.0 * (1.0 - 2.0 * 0.3) * np.exp(2.4e-8 * s) / 1.6e-8
+    assert (m.poisson_ratio, m.alpha, m.beta) == (0.3, 2.4e-8, 1.6e-8)
+    assert young_modulus(s, m) == pytest.approx(expected, rel=1e-12)
+    lower, upper = MATERIAL.young_bounds
+    np.testing.assert_array_equal(young_modulus([-1e9, 1e10], MATERIAL), [lower, upper])
