@@ -1,4 +1,5 @@
-"""Seed ensembles: members as cases, statistics on a common time axis, figure, product."""
+"""macro.ensemble: seed ensembles' statistics on a common time axis, figure, product (the
+members as cases: test_config.py)."""
 
 from __future__ import annotations
 
@@ -9,16 +10,13 @@ import pytest
 import xarray as xr
 
 from macro import ensemble
-from macro.config import check_ensembles, ensemble_cases
 from macro.ensemble import (
     ensemble_figure,
     ensemble_statistics,
     plot_ensemble,
 )
-from shared.config import ConfigError, validate_config
 from shared.io import read_dataset, write_dataset
 from tests._figures import check_figure, kept_figures  # noqa: F401
-from tests._macro_cases import small_config
 
 OFFSETS = np.arange(8.0)  # member k is the curve shifted up by k
 SLOPES = {"sensor": np.array([1.0, 2.0, 3.0]), "axial": 5.0, "lower": 4.0}
@@ -93,40 +91,6 @@ def test_members_with_other_sensors_are_refused_naming_the_member():
     members["e_s6"] = _member(6, ["SP20", "SP40", "SP60"])
     with pytest.raises(ValueError, match="ensemble member e_s6: sensors"):
         ensemble_statistics(members)
-
-
-def test_members_become_cases_with_their_seeds():
-    config = validate_config(small_config(
-        cases={"small": {"heterogeneity": "homogeneous"}},
-        ensembles={"het": {"case": "small", "seeds": [3, 5]}}))
-    assert ensemble_cases(config["macro"]) == {
-        "het_s3": {"heterogeneity": "homogeneous", "seed": 3},
-        "het_s5": {"heterogeneity": "homogeneous", "seed": 5},
-    }
-    assert config["macro"]["ensembles"]["het"]["band_quantiles"] == [0.1, 0.9]
-
-
-@pytest.mark.parametrize(
-    ("ensembles", "cases", "message"),
-    [
-        ({"e": {"case": "nope", "seeds": [1, 2]}}, {"small": {}},
-         "config key 'macro.ensembles.e.case': 'nope' is not a case"),
-        ({"e": {"case": "small", "seeds": [1, 2]}}, {"small": {}, "e_s2": {}},
-         "config key 'macro.ensembles.e.seeds': member 'e_s2' is also a case"),
-        ({"e": {"case": "small", "seeds": [1, 2]}}, {"small": {}, "ensemble_e": {}},
-         "config key 'macro.ensembles.e': the case ensemble_e"),
-        ({"e": {"case": "small", "seeds": [1, 2], "band_quantiles": [0.9, 0.1]}},
-         {"small": {}}, "config key 'macro.ensembles.e.band_quantiles'"),
-        ({"e": {"case": "small", "seeds": [1]}}, {"small": {}},
-         "config key 'macro.ensembles.e.seeds'"),
-        ({"e": {"case": "small", "seeds": [1, 2], "members": 2}}, {"small": {}},
-         "unknown config key 'macro.ensembles.e.members'"),
-    ],
-)
-def test_a_bad_ensemble_is_refused_naming_the_key(ensembles, cases, message):
-    config = small_config(cases=cases, ensembles=ensembles)
-    with pytest.raises(ConfigError, match=message.replace(".", r"\.")):
-        validate_config(config, checks=[check_ensembles])
 
 
 def test_the_figure_has_log_days_and_its_legends_outside_the_data(tmp_path):
