@@ -1,0 +1,39 @@
+"""shared.imports: the modules a script imports, read from the sources on a tree built
+for the test (absolute, relative, nested and lazy imports; standard and third-party
+modules and names that are not modules are not followed)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from shared.imports import imported_sources
+
+
+def _write(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+
+
+def test_the_import_graph_of_a_small_tree(tmp_path: Path) -> None:
+    root = tmp_path / "tree"
+    _write(root / "pkg" / "__init__.py", "")
+    _write(root / "pkg" / "sub" / "__init__.py", "from .inner import helper\n")
+    _write(root / "pkg" / "sub" / "inner.py", "import json\n\ndef helper():\n    from ..lazy import x\n")
+    _write(root / "pkg" / "lazy.py", "x = 1\n")
+    _write(root / "pkg" / "unused.py", "x = 2\n")
+    _write(root / "pkg" / "direct.py", "from pkg.sub.inner import helper as h\nimport numpy\n")
+    script = root / "scripts" / "run.py"
+    _write(script, '"""import pkg.unused is prose here."""\nimport os\nfrom pkg import direct\nimport _local\n')
+    _write(root / "scripts" / "_local.py", "from pkg.sub import helper\n")
+    found = imported_sources(script, root, packages=("pkg",))
+    assert found == {
+        "_local": (root / "scripts" / "_local.py").resolve(),
+        "pkg": (root / "pkg" / "__init__.py").resolve(),
+        "pkg.direct": (root / "pkg" / "direct.py").resolve(),
+        "pkg.lazy": (root / "pkg" / "lazy.py").resolve(),
+        "pkg.sub": (root / "pkg" / "sub" / "__init__.py").resolve(),
+        "pkg.sub.inner": (root / "pkg" / "sub" / "inner.py").resolve(),
+    }
+    assert list(found) == sorted(found)
+    assert "pkg" not in sys.modules  # read, not imported
