@@ -1,0 +1,62 @@
+"""macro.geometry: the cells of the mixture fill the container, the ends are held, and a
+remesh transfers the powder conservatively."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from macro.run import build_model
+from shared.upscaling import PermeabilityTable
+from tests._macro_cases import small_config
+
+
+def test_cells_fill_the_container_and_the_ends_are_held(table_path):
+    """Cell voids plus the pellet parts inside the cells add up to the volume of the
+    container's inscribed prism (the rings' polygons; between the exact cylinder and
+    it within the chord loss n sin(2 pi / n) / (2 pi)); no pellet is on the mesh's hull, so
+    the solid angles around each add up to 4 pi and the pellet parts to the pellets'
+    volume (round-off); held cells are those on a plate."""
+    config = small_config()
+    model = build_model(config, "small", PermeabilityTable.from_file(table_path, "free"))
+    macro = config["macro"]
+    height, radius = macro["cylinder_height_m"], macro["cylinder_radius_m"]
+    cylinder = np.pi * radius**2 * height
+    mesh = model.mesh
+    spacing = 2.0 * float(model.radii.mean())
+    n_around = int(np.ceil(2.0 * np.pi * radius / spacing))
+    polygon = n_around * np.sin(2.0 * np.pi / n_around) / (2.0 * np.pi)
+    assert polygon * cylinder * (1.0 - 0.01) < mesh.volumes.sum() <= cylinder * (1.0 + 1e-9)
+    pellets = (4.0 / 3.0 * np.pi * model.radii**3).sum()
+    np.testing.assert_allclose(model.initial_void.sum() + pellets, mesh.volumes.sum(), rtol=1e-9)
+    # every container point is a vertex; held cells touch a plate, free cells do not
+    assert np.unique(mesh.tetrahedra).size == model.n_pellets + model.container.shape[0]
+    n_p = model.n_pellets
+    touches = model.on_plate[mesh.tetrahedra].any(axis=1)
+    held, inert = model.held[n_p:], model.inert[n_p:]
+    np.testing.assert_array_equal(held, touches & ~inert)
+    assert model.neglected_void_fraction() < 0.05
+
+
+def test_remesh_conserves_the_powder(model):
+    """A forced remesh moves the powder's solid, water and the initial void into the new
+    cells: totals conserved to round-off, the water crossing held cells booked as inflow."""
+    for _ in range(3):
+        model.step()
+    cells = slice(model.n_pellets, None)
+    active = ~model.inert[cells]
+    solid = model.solid_volume[cells][active].sum()
+    void = model.initial_void.sum()
+    balance = model.interior_water() - model.boundary_inflow
+    model.positions += rng_jitter(model)
+    model._remesh()
+    active = ~model.inert[cells]
+    assert model.solid_volume[cells][active].sum() == pytest.approx(solid, rel=1e-12)
+    assert model.initial_void.sum() == pytest.approx(void, rel=1e-12)
+    assert model.interior_water() - model.boundary_inflow == pytest.approx(balance, rel=1e-12)
+    assert model.remeshes >= 1
+
+
+def rng_jitter(model):
+    """A displacement of 5 % of a radius that changes the Delaunay connectivity."""
+    return np.random.default_rng(3).normal(0.0, 0.05 * model.radii.mean(), model.positions.shape)
