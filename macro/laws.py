@@ -206,10 +206,10 @@ def yield_force(suction: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
 
     Our reading: Table 4.1's B = 1.206e-7 "m^-2" is an area [m2]. Read as printed (or as
     dimensionless, as the text says) Eq. 4.4 gives a yield stress of tens of pascals; as
-    an area it gives 50 N at 132 MPa and 6 N at 1 MPa, the order of the crushing forces of
-    bentonite pellets, and a Hertz contact between two 6 mm pellets reaches it at a mean
-    contact pressure of about 26 MPa dry and 5 MPa wet: the yield stress "normal force
-    divided by the contact area" of the text (see :func:`shared.dem.hertz_yield`).
+    an area, with the default alpha and beta, it gives 215 N at 132 MPa and 9 N at 1 MPa,
+    which a Hertz contact between two 6 mm pellets reaches at a mean contact pressure of
+    about 120 MPa dry and 9 MPa wet (:func:`yield_pressure`): the yield stress "normal
+    force divided by the contact area" of the text (see :func:`shared.dem.hertz_yield`).
     inf when the yield is off (``materials.mixture_pellet.yield``).
     """
     s = np.asarray(suction, dtype=np.float64)
