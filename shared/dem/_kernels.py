@@ -12,6 +12,8 @@ scattered reads cost more on one thread than the second thread wins back.
 
 from __future__ import annotations
 
+import types
+
 import numpy as np
 from numba import njit, prange
 
@@ -628,3 +630,39 @@ def cylinder_contacts(positions, radii, young, poisson, cylinder_radius, z_low, 
             forces[i, 2] -= fn * normals[w][2]
             stiffness[i] += 2.0 * e_star * a
     return loads[:, 0].copy(), loads[:, 1].copy(), loads[:, 2].copy()
+
+
+PARALLEL_MIN_ROWS = 4096
+"""Rows (contacts, bonds or points) from which :func:`sized` picks a parallel kernel."""
+
+
+def _serial_twin(kernel):
+    """``kernel`` compiled without ``parallel=True`` (its ``prange`` runs as ``range``).
+
+    The same source and scalar arithmetic, without the sums that a parallel loop would
+    reorder: the results are bit-identical. A twin of its own name and qualified name,
+    so that numba's on-disk cache keeps the two compilations apart.
+    """
+    py_func = kernel.py_func
+    name = f"{py_func.__name__}_serial"
+    twin = types.FunctionType(py_func.__code__.replace(co_name=name), py_func.__globals__,
+                              name, py_func.__defaults__, py_func.__closure__)
+    twin.__qualname__ = name
+    twin.__doc__ = py_func.__doc__
+    return njit(cache=True)(twin)
+
+
+hertz_mindlin_serial = _serial_twin(hertz_mindlin)
+bond_tension_serial = _serial_twin(bond_tension)
+leapfrog_serial = _serial_twin(leapfrog)
+cap_speed_serial = _serial_twin(cap_speed)
+
+
+def sized(parallel, serial, rows: int):
+    """The parallel kernel from ``PARALLEL_MIN_ROWS`` rows, else its serial twin.
+
+    Below, the start and join of the parallel region (a few microseconds on idle cores,
+    tens to hundreds when other processes hold them) cost more than a second thread
+    wins: the 216-point test cases spend most of their DEM steps there.
+    """
+    return parallel if rows >= PARALLEL_MIN_ROWS else serial

@@ -76,7 +76,9 @@ def contact_forces(
     if not (np.isfinite(time_step) and time_step > 0.0):
         raise ValueError(f"time_step must be finite and > 0, got {time_step}")
     contacts = state.contacts
-    normal_forces = _kernels.hertz_mindlin(
+    kernel = _kernels.sized(_kernels.hertz_mindlin, _kernels.hertz_mindlin_serial,
+                            contacts.pairs.shape[0])
+    normal_forces = kernel(
         state.positions, state.velocities, state.spins, state.radii, state.reference_radii,
         contacts.pairs, contacts.reference_overlaps, contacts.shear_forces,
         parameters.effective_modulus, parameters.shear_coefficient, float(time_step),
@@ -117,7 +119,9 @@ def bond_tension(
     field's differences of S s, hydration fronts) break bonds.
     """
     forces = _zeros_or_checked(forces, state.n_points, "forces")
-    _kernels.bond_tension(
+    kernel = _kernels.sized(_kernels.bond_tension, _kernels.bond_tension_serial,
+                            state.bonds.shape[0])
+    kernel(
         state.positions, state.radii, state.reference_radii, state.bonds, state.bond_overlaps,
         state.bond_broken, parameters.effective_modulus, parameters.bond_tensile_strength,
         forces,

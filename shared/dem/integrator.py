@@ -142,11 +142,12 @@ def integrate(
     n = state.n_points
     if forces.shape != (n, 3) or torques.shape != (n, 3):
         raise ValueError(f"forces and torques must have shape ({n}, 3)")
-    _kernels.leapfrog(
+    leapfrog = _kernels.sized(_kernels.leapfrog, _kernels.leapfrog_serial, n)
+    leapfrog(
         state.positions, state.velocities, forces, state.masses, state.fixed,
         float(damping), float(time_step),
     )
-    _kernels.leapfrog(
+    leapfrog(
         np.empty((0, 3)), state.spins, torques, state.inertia, state.fixed,
         float(damping), float(time_step),
     )
@@ -234,7 +235,8 @@ def limit_speed(state: DEMState, max_speed: float) -> None:
     has launched would otherwise travel far before damping catches it, and a nearly
     unconfined swollen assembly can then fall apart.
     """
-    _kernels.cap_speed(state.velocities, max_speed)
+    _kernels.sized(_kernels.cap_speed, _kernels.cap_speed_serial,
+                   state.velocities.shape[0])(state.velocities, max_speed)
 
 
 def damped_update(rate: FloatArray, drive: FloatArray, inertia: FloatArray, damping: float,

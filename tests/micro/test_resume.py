@@ -2,10 +2,11 @@
 
 The kill is simulated as in ``test_hydration.py``: ``advance_to_balance`` raises at the
 checkpoint after the kill point, so the run stops with its checkpoint file on disk, and
-a second call resumes from it. On 216 points and six checkpoints, the code before the
-flow numbering and the solver's reuse state were saved differed after a kill at the
-fifth checkpoint (gas permeability tensor 3 %, porosity histogram), and at 1000 points
-after the sixth of 14 (issue 14).
+a second call resumes from it. The case: 216 points and four checkpoints from 132 MPa
+to 0.1 MPa (33 saves between flow steps, 18 remeshes). On 216 points and six
+checkpoints, the code before the flow numbering and the solver's reuse state were saved
+differed after a kill at the fifth checkpoint (gas permeability tensor 3 %, porosity
+histogram), and at 1000 points after the sixth of 14 (issue 14).
 """
 
 from __future__ import annotations
@@ -31,13 +32,22 @@ from tests._defaults import CLAY, DEM
 
 from .porosity_grid import write_porosity_grid
 
-CHECKPOINTS = [132.0e6, 60.0e6, 20.0e6, 5.0e6, 1.0e6, 1.0e5]
+CHECKPOINTS = [132.0e6, 20.0e6, 1.0e6, 1.0e5]
 
 # attributes that legitimately differ between two runs of the same case: the time of
 # writing (``created``, ``history``) and what the run cost (``wall_time_s``: the
 # resumed run counts the killed run's time up to its checkpoint file, and
 # ``peak_memory_mb``)
 VOLATILE = {"created", "history", "wall_time_s", "peak_memory_mb"}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _no_case_figure():
+    """The runs here skip the case figure (about a second of matplotlib each): the tests
+    compare netCDFs, and ``test_figures.py`` checks the figure."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(micro_run.figures, "case_figure", lambda ds, case, path: Path(path))
+        yield
 
 
 @pytest.fixture(scope="module")
@@ -119,11 +129,13 @@ def test_resume_after_a_kill_at_every_checkpoint_is_bit_identical(case, uninterr
     _assert_same_file(output, uninterrupted)
 
 
-@pytest.mark.parametrize("kill", [1, 7, 19])
+@pytest.mark.parametrize("kill", [1, 25])
 def test_resume_after_a_kill_between_flow_steps_is_bit_identical(case, uninterrupted, kill,
                                                                   monkeypatch):
-    """Killed just after the ``kill``-th save between two flow steps (mid-balance), the
-    run resumes from that file and writes the uninterrupted run's netCDF."""
+    """Killed just after the ``kill``-th save between two flow steps (mid-balance: the
+    first, on the way to the second checkpoint, and one near the middle of the last
+    checkpoint's balance), the run resumes from that file and writes the uninterrupted
+    run's netCDF."""
     config, grid, tmp = case
     output = tmp / f"killed_in_balance_{kill}.nc"
     original = micro_run.save_checkpoint

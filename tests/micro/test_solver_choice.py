@@ -43,17 +43,21 @@ def _perturbing_solve(seed: int):
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
+    """Four runs of a 512-point CT case (5 mm) through four checkpoints: factor, multigrid
+    and two perturbed factor runs. The case figure is skipped (``test_figures.py``
+    checks it)."""
     tmp = tmp_path_factory.mktemp("solver_choice")
     path = write_porosity_grid(tmp / "porosity.nc", 5e-4)
     datasets = {}
-    with pytest.MonkeyPatch.context() as patch:
+    with pytest.MonkeyPatch.context() as patch, pytest.MonkeyPatch.context() as quiet:
+        quiet.setattr(micro_run.figures, "case_figure", lambda ds, case, path: path)
         for label, solver, seed in (("direct", "direct", None), ("amg", "amg", None),
                                     ("perturbed 1", "direct", 1), ("perturbed 2", "direct", 2)):
             if seed is not None:
                 patch.setattr(SPDSolver, "solve", _perturbing_solve(seed))
             config = validate_config({
                 "samples": {"p": {"source": "phantom", "voxel_size_m": 3e-4}},
-                "micro": {"sample": "p", "specimen_size_m": 5e-3, "n_points": 1000,
+                "micro": {"sample": "p", "specimen_size_m": 5e-3, "n_points": 512,
                           "checkpoints_suction_pa": CHECKPOINTS,
                           "numerics": {"solver": solver}, "cases": {"c": {"porosity": "ct"}}},
                 "upscaling": {"conditions": {"free": "c", "confined": "c"}},

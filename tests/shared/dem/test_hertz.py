@@ -143,14 +143,17 @@ def test_without_strength_a_bond_breaks_at_its_first_stretch():
     assert state.bond_broken.all()
 
 
-def test_steps_do_not_depend_on_the_thread_count():
+def test_steps_do_not_depend_on_the_thread_count(monkeypatch):
     """Forces, shear history and motion of a random assembly after 20 steps, with spins
-    and drifting velocities, bit for bit on one and on two threads."""
+    and drifting velocities, bit for bit with the serial twins of the parallel kernels
+    (400 points, below ``PARALLEL_MIN_ROWS``) and with the parallel kernels forced, on
+    one and on two threads."""
     import numba
 
-    from shared.dem import step
+    from shared.dem import _kernels, step
 
-    def run(threads):
+    def run(threads, parallel_min_rows):
+        monkeypatch.setattr(_kernels, "PARALLEL_MIN_ROWS", parallel_min_rows)
         rng = np.random.default_rng(5)
         state = new_state(rng.uniform(0.0, 1e-3, (400, 3)), rng.uniform(6e-5, 1.2e-4, 400), DEM)
         state.velocities[:] = rng.normal(0.0, 1e-3, state.velocities.shape)
@@ -166,7 +169,9 @@ def test_steps_do_not_depend_on_the_thread_count():
 
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has a single thread here")
-    one, two = run(1), run(2)
-    assert np.count_nonzero(one[-1]) > 100
-    for a, b in zip(one, two, strict=True):
-        assert np.array_equal(a, b)
+    serial = run(2, _kernels.PARALLEL_MIN_ROWS)
+    assert 400 < _kernels.PARALLEL_MIN_ROWS
+    assert np.count_nonzero(serial[-1]) > 100
+    for other in (run(1, 0), run(2, 0)):
+        for a, b in zip(serial, other, strict=True):
+            assert np.array_equal(a, b)
