@@ -45,8 +45,9 @@ def chain(tmp_path_factory):
     """The tiny configuration run once to the end for every test of a finished run: the
     phantom sample ``pellet`` through micro, upscaling and macro, and a second sample
     ``sliced``, a scan given as a folder of slices (another phantom written slice by slice)
-    with its own REV setting, through the CT rules (no case reads it). A test that runs
-    anything but a dry run works on a copy (``edited_copy``)."""
+    with its own REV setting, through the CT rules (no case reads it). A test that changes
+    the folder (runs or touches a job, edits the config) works on a copy (``edited_copy``);
+    dry runs and the report read it in place."""
     from imaging.ct.io import write_slice_folder
     from imaging.ct.phantom import pellet_phantom
     from imaging.ct.run import phantom_spec
@@ -71,6 +72,7 @@ def chain(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def finished(chain):
+    """The folder of the finished tiny run."""
     return chain[0]
 
 
