@@ -78,6 +78,8 @@ def imported_sources(
     script: str | Path,
     root: str | Path,
     packages: tuple[str, ...] = PACKAGES,
+    *,
+    lookups: dict[tuple[str, tuple[Path, ...]], Path | None] | None = None,
 ) -> dict[str, Path]:
     """Return the source files of our modules that a script imports, transitively.
 
@@ -90,6 +92,9 @@ def imported_sources(
     packages
         The top-level package names whose modules count; standard library and third-party
         imports are not followed.
+    lookups
+        Where a module's name was found, kept across calls that share this dict (the
+        rules of one Snakemake invocation: the tree does not change meanwhile).
 
     Returns
     -------
@@ -97,26 +102,39 @@ def imported_sources(
         Module name to source file, in name order. Modules beside the script (the
         scripts' own helpers, such as ``_logging``) count as well, under their bare name.
     """
+    if lookups is None:
+        lookups = {}
+
+    def module_file(name: str, folders: tuple[Path, ...]) -> Path | None:
+        key = (name, folders)
+        if key not in lookups:
+            lookups[key] = _module_file(name, folders)
+        return lookups[key]
+
     script = Path(script).resolve()
     root = Path(root).resolve()
     local = script.parent
     found: dict[str, Path] = {}
+    seen: set[str] = set()  # a name imported by several modules is looked up once
     pending = list(_imported_names(script, "__main__"))
     while pending:
         name = pending.pop()
+        if name in seen:
+            continue
+        seen.add(name)
         top = name.split(".")[0]
         if top in packages:
             folders: tuple[Path, ...] = (root,)
             # importing a.b.c runs a/__init__.py and a/b/__init__.py first
             chain = [".".join(name.split(".")[:i]) for i in range(1, name.count(".") + 2)]
-        elif _module_file(name, (local,)) is not None:
+        elif module_file(name, (local,)) is not None:
             folders, chain = (local,), [name]
         else:
             continue
         for module in chain:
             if module in found:
                 continue
-            path = _module_file(module, folders)
+            path = module_file(module, folders)
             if path is None:  # ``from a import b`` where b is a name, not a submodule
                 continue
             found[module] = path

@@ -117,7 +117,12 @@ def inputs_record(paths: Iterable[str | Path]) -> str:
     return json.dumps(records)
 
 
-def script_sha256(script: str | Path, root: str | Path = _REPO_ROOT) -> str:
+def script_sha256(
+    script: str | Path,
+    root: str | Path = _REPO_ROOT,
+    *,
+    lookups: dict[tuple[str, tuple[Path, ...]], Path | None] | None = None,
+) -> str:
     """Return one sha256 over the sources of our modules that a script imports.
 
     The modules are those of :func:`shared.imports.imported_sources` (the import graph
@@ -131,6 +136,9 @@ def script_sha256(script: str | Path, root: str | Path = _REPO_ROOT) -> str:
         The rule's script.
     root
         The folder that holds the packages (the repository root by default).
+    lookups
+        Passed to :func:`~shared.imports.imported_sources`: where module names were found,
+        shared by the calls of one Snakemake invocation.
 
     Returns
     -------
@@ -140,7 +148,7 @@ def script_sha256(script: str | Path, root: str | Path = _REPO_ROOT) -> str:
     from shared.imports import imported_sources
 
     digest = hashlib.sha256()
-    for module, source in imported_sources(script, root).items():
+    for module, source in imported_sources(script, root, lookups=lookups).items():
         digest.update(module.encode())
         digest.update(b"\0")
         digest.update(source.read_bytes())

@@ -6,6 +6,7 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import yaml
@@ -29,7 +30,10 @@ def workdir(tmp: Path, config: dict | None) -> Path:
 def snakemake(folder: Path, *args: str, ok: bool = True, timeout: float = 900) -> subprocess.CompletedProcess:
     """``snakemake --cores 2 *args`` in ``folder`` on this checkout's packages; asserts that
     it succeeds (``ok``) or fails."""
-    path = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
+    # this checkout first, the caller's path after it, each folder once (Snakemake scans
+    # every folder of the path for its plugins)
+    folders = [str(ROOT), *os.environ.get("PYTHONPATH", "").split(os.pathsep)]
+    path = os.pathsep.join(dict.fromkeys(f for f in folders if f))
     result = subprocess.run(
         [sys.executable, "-m", "snakemake", "--cores", "2", *args],
         cwd=folder, capture_output=True, text=True, timeout=timeout,
@@ -37,3 +41,21 @@ def snakemake(folder: Path, *args: str, ok: bool = True, timeout: float = 900) -
     )
     assert (result.returncode == 0) == ok, result.stderr[-3000:]
     return result
+
+
+def edited_copy(run: Path, copy: Path, edit: Callable[[dict], None] | None = None) -> Path:
+    """A copy of a (finished) workflow folder at ``copy`` with ``edit`` applied to its
+    config/config.yaml: results and ``.snakemake`` metadata included, modification times
+    kept and symlinks copied as links, so Snakemake sees the run as it was."""
+    shutil.copytree(run, copy, symlinks=True)
+    if edit is not None:
+        path = copy / "config" / "config.yaml"
+        config = yaml.safe_load(path.read_text())
+        edit(config)
+        path.write_text(yaml.safe_dump(config))
+    return copy
+
+
+def listed(result: subprocess.CompletedProcess) -> set[str]:
+    """The outputs that a ``--list-changes`` run lists."""
+    return {line.strip() for line in result.stdout.splitlines() if line.startswith("results/")}

@@ -15,7 +15,6 @@ import copy
 import errno
 import importlib.util
 import logging
-import shutil
 import subprocess
 import sys
 import textwrap
@@ -28,7 +27,6 @@ import cv2
 import numpy as np
 import pytest
 import xarray as xr
-import yaml
 
 from imaging.ct import run as ct_run
 from imaging.ct.io import ImageError, write_tiff_stack
@@ -39,6 +37,7 @@ from micro.config import check_studies
 from micro.hydration import DivergenceError
 from shared.config import ConfigError, default_config, load_config, validate_config
 from shared.io import OutputError, write_dataset
+from tests.workflow._chain import snakemake, workdir
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPTS = ROOT / "workflow" / "scripts"
@@ -675,17 +674,9 @@ TINY = {
 }
 
 
-def _snakemake(tmp: Path, config: dict, *targets: str) -> tuple[subprocess.CompletedProcess,
-                                                                  Path]:
-    workdir = tmp / "wf"
-    workdir.mkdir()
-    shutil.copy(ROOT / "Snakefile", workdir / "Snakefile")
-    shutil.copytree(ROOT / "workflow", workdir / "workflow")
-    (workdir / "config").mkdir()
-    (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(config))
-    result = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "1", *targets],
-                            cwd=workdir, capture_output=True, text=True, timeout=600)
-    return result, workdir
+def _failing_run(work: Path, config: dict, *targets: str) -> subprocess.CompletedProcess:
+    """Snakemake on ``config`` in ``work`` (the workflow copied there), which must fail."""
+    return snakemake(workdir(work, config), *targets, ok=False)
 
 
 def _outputs(workdir: Path, folders: tuple[str, ...]) -> list[Path]:
@@ -704,9 +695,29 @@ def _scan_folder(tmp: Path) -> Path:
     return tmp / "scan.tif"
 
 
+def _scan(config: dict, work: Path) -> None:
+    """The sample as a TIFF scan of the phantom written here (no phantom job to run first)."""
+    scan = write_tiff_stack(_phantom_volume(), work / "scan" / "pellet.tif")
+    config["samples"]["pellet"] = {"source": "tiff", "path": str(scan), "voxel_size_m": VOXEL}
+
+
+def _gridded_scan(config: dict, work: Path) -> None:
+    """The TIFF scan and, newer than it, its porosity grid already made (by the rule's entry
+    point, the products of a finished ``imaging_porosity`` job): Snakemake runs the micro
+    case alone."""
+    _scan(config, work)
+    entry = config["samples"]["pellet"]
+    micro = (TINY["micro"]["specimen_size_m"], TINY["micro"]["n_points"])
+    results = work / "results"
+    ct_run.porosity("pellet", entry, CONFIG["imaging"], CONFIG["materials"]["pellet"], micro,
+                    entry["path"], results / "images/pellet.nc",
+                    results / "porosity/pellet.nc", results / "porosity/pellet.png")
+
+
 WORKFLOWS = {
-    # (config edit given the tmp folder, target, words of the claychain line, output folders
-    #  that must stay empty)
+    # (config edit given the workflow's folder, target, words of the claychain line, output
+    #  folders that must stay empty); the failing job is the target's, its upstream jobs
+    #  are not run when the real code lets the inputs be made without them
     "truncated_tiff": (
         lambda c, tmp: c["samples"].update(
             pellet={"source": "tiff", "path": str(_cut_tiff(tmp)), "voxel_size_m": VOXEL}),
@@ -716,12 +727,12 @@ WORKFLOWS = {
             pellet={"source": "tiff", "path": str(_scan_folder(tmp)), "voxel_size_m": VOXEL}),
         "results/porosity/pellet.nc", ["scan.tif", "is a folder"], ("images", "porosity")),
     "every_block_clamped": (
-        lambda c, tmp: c.setdefault("imaging", {}).update(
-            calibration={"porosity_bounds": [0.9, 0.95]}),
+        lambda c, tmp: (_scan(c, tmp), c.setdefault("imaging", {}).update(
+            calibration={"porosity_bounds": [0.9, 0.95]})),
         "results/porosity/pellet.nc", ["imaging.calibration.porosity_bounds", "pellet.tif"],
         ("images", "porosity")),
     "cube_larger_than_the_specimen": (
-        lambda c, tmp: c["micro"].update(specimen_size_m=2.0e-2),
+        lambda c, tmp: (_gridded_scan(c, tmp), c["micro"].update(specimen_size_m=2.0e-2)),
         "results/micro/het.nc", ["results/porosity/pellet.nc", "micro.specimen_size_m"],
         ("micro",)),
 }
@@ -731,25 +742,25 @@ WORKFLOWS = {
 def test_snakemake_reports_a_bad_input_in_one_line(case, tmp_path):
     edit, target, words, folders = WORKFLOWS[case]
     config = copy.deepcopy(TINY)
-    edit(config, tmp_path)
-    result, workdir = _snakemake(tmp_path, config, target)
-    assert result.returncode != 0
+    work = tmp_path / "wf"
+    work.mkdir()
+    edit(config, work)
+    result = _failing_run(work, config, target)
     ours = [line for line in result.stderr.splitlines() if line.startswith("claychain: ")]
     assert len(ours) == 1, result.stderr[-3000:]
     for word in words:
         assert word in ours[0]
     assert "Traceback" not in result.stderr
-    assert not _outputs(workdir, folders)
-    logs = "".join(p.read_text() for p in (workdir / "results/logs").rglob("*.log"))
+    assert not _outputs(work, folders)
+    logs = "".join(p.read_text() for p in (work / "results/logs").rglob("*.log"))
     assert "Traceback" in logs
 
 
 def test_snakemake_refuses_an_undefined_case_as_target(tmp_path):
     """Documented in docs/howto-inspect-outputs.md: a target naming no configured case has no rule."""
-    result, workdir = _snakemake(tmp_path, copy.deepcopy(TINY), "results/micro/nowhere.nc")
-    assert result.returncode != 0
+    result = _failing_run(tmp_path, copy.deepcopy(TINY), "results/micro/nowhere.nc")
     assert "results/micro/nowhere.nc" in result.stderr
-    assert not _files(workdir / "results")
+    assert not _files(tmp_path / "results")
 
 
 def test_a_coarse_grid_is_warned_with_the_spacing_to_set(volume, tmp_path, caplog):

@@ -10,13 +10,13 @@ from the current rules' after a config edit, i.e. the jobs that the edit itself 
 from __future__ import annotations
 
 import copy
-import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
 import yaml
 
+from tests.workflow._chain import edited_copy, listed
 from tests.workflow._chain import snakemake as _snakemake
 from tests.workflow._chain import workdir as _workdir
 
@@ -35,10 +35,6 @@ TINY = {
         "ensembles": {"e": {"case": "b", "seeds": [1, 2]}},
     },
 }
-
-
-def _listed(result: subprocess.CompletedProcess) -> set[str]:
-    return {line.strip() for line in result.stdout.splitlines() if line.startswith("results/")}
 
 
 def _planned(result: subprocess.CompletedProcess, rule: str) -> list[str]:
@@ -62,7 +58,7 @@ def touched(tmp_path_factory):
                 (workdir / name.strip()).touch()
     _snakemake(workdir, "--touch", "--forceall")
     assert "Nothing to be done" in _snakemake(workdir, "-n").stdout
-    assert not _listed(_snakemake(workdir, "--list-changes", "params"))
+    assert not listed(_snakemake(workdir, "--list-changes", "params"))
     return workdir
 
 
@@ -91,23 +87,16 @@ def _outputs(*cases: str) -> set[str]:
     ],
 )
 def test_a_macro_edit_changes_the_params_of_its_cases_only(touched, tmp_path, edit, changed):
-    workdir = tmp_path / "wf"
-    shutil.copytree(touched, workdir, symlinks=True)
-    path = workdir / "config" / "config.yaml"
-    config = yaml.safe_load(path.read_text())
-    edit(config)
-    path.write_text(yaml.safe_dump(config))
-    assert _listed(_snakemake(workdir, "--list-changes", "params")) == changed
+    workdir = edited_copy(touched, tmp_path / "wf", edit)
+    assert listed(_snakemake(workdir, "--list-changes", "params")) == changed
 
 
 def test_a_cases_own_value_plans_that_case_alone(touched, tmp_path):
     """Of the cases, the dry run plans case a alone (the comparison reads it)."""
-    workdir = tmp_path / "wf"
-    shutil.copytree(touched, workdir, symlinks=True)
-    path = workdir / "config" / "config.yaml"
-    config = yaml.safe_load(path.read_text())
-    config["macro"]["cases"]["a"]["materials"]["mixture_powder"]["reference_porosity"] = 0.3
-    path.write_text(yaml.safe_dump(config))
+    def edit(config):
+        config["macro"]["cases"]["a"]["materials"]["mixture_powder"]["reference_porosity"] = 0.3
+
+    workdir = edited_copy(touched, tmp_path / "wf", edit)
     dry = _snakemake(workdir, "-n")
     assert _planned(dry, "macro_case") == ["macro_case=a"]
     assert _planned(dry, "macro_ensemble") == []

@@ -40,7 +40,7 @@ def chain(tmp_path_factory):
         "cylinder_height_m": 0.05, "cylinder_radius_m": 0.015, "pellet_radius_m": 4.0e-3,
         "sensors": {"S10": {"height_m": 0.01, "band_width_m": 0.008}},
         "cases": {"mine": {}},
-        "numerics": {"packing_iterations": 1500, "max_steps": 15},
+        "numerics": {"packing_iterations": 1500, "max_steps": 5},
     }
     config = {
         "samples": {
@@ -48,7 +48,7 @@ def chain(tmp_path_factory):
             "scan": {"source": "slices", "path": str(folder), "voxel_size_m": 3.0e-4},
         },
         "micro": {
-            "specimen_size_m": 4.0e-3, "n_points": 216,
+            "specimen_size_m": 4.0e-3, "n_points": 64,
             "checkpoints_suction_pa": [132.0e6, 60.0e6],
             "cases": {"mine": {"porosity": "ct", "sample": "scan"}},
         },
@@ -80,6 +80,6 @@ def test_the_scan_reaches_the_macro_model_through_micro_and_the_table(chain):
 
 def test_the_macro_case_ran_on_the_scans_table(chain):
     macro = read_dataset(chain / "results/macro/mine.nc", ["sensor_pressure"])
-    assert int(macro.attrs["steps"]) == 15
+    assert int(macro.attrs["steps"]) == 5
     table = read_dataset(chain / "results/upscaling/pellet_permeability.nc", ["k"])
     assert float(table["k"].min()) > 0.0

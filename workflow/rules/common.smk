@@ -43,11 +43,17 @@ wildcard_constraints:
     ensemble="|".join(ENSEMBLES) or "(?!)",
 
 
+# where the import walk found each module name, shared by the rules' script_code calls
+_MODULE_LOOKUPS = {}
+
+
 def script_code(script):
     """sha256 of the sources of our modules that a rule's script imports, transitively
     (shared.imports), a param: an edit of that code reruns the rule, other edits do not.
     """
-    return script_sha256(workflow.source_path(f"../scripts/{script}"))
+    return script_sha256(
+        workflow.source_path(f"../scripts/{script}"), lookups=_MODULE_LOOKUPS
+    )
 
 
 def get_sample_config(wildcards):
