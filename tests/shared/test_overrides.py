@@ -1,4 +1,4 @@
-"""Configuration values from the command line (shared.overrides) and the launcher's help."""
+"""Configuration values from the command line (shared.overrides)."""
 
 from __future__ import annotations
 
@@ -67,30 +67,6 @@ def test_the_overlay_merged_over_the_config_validates(tmp_path, capsys):
     # a new case lacks its required keys in the merged configuration
     assert main(["--output", str(out), "--set", "micro.cases.new.n_points=300"]) == 2
     assert "'micro.cases.new'" in capsys.readouterr().err
-
-
-def _claychain(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(["bash", str(ROOT / "claychain"), *args], capture_output=True,
-                          text=True, timeout=60)
-
-
-@pytest.mark.parametrize("flag", ["--help", "-h", "help"])
-def test_the_launcher_help_lists_commands_presets_and_examples(flag):
-    result = _claychain(flag)
-    assert result.returncode == 0, result.stderr
-    for word in ("run", "test", "setup", "--set", "Examples:"):
-        assert word in result.stdout
-    for preset in sorted((ROOT / "config/paper").glob("*.yaml")):
-        first = next(line for line in preset.read_text().splitlines() if line.startswith("#"))
-        assert f"config/paper/{preset.name}" in result.stdout
-        assert first.lstrip("# ").strip() in result.stdout
-
-
-def test_an_unknown_command_prints_the_usage_on_stderr_and_exits_2():
-    result = _claychain("bogus")
-    assert result.returncode == 2
-    assert result.stdout == ""
-    assert "unknown command 'bogus'" in result.stderr and "usage:" in result.stderr
 
 
 def test_the_module_runs_as_a_command(tmp_path):
