@@ -130,7 +130,8 @@ def _closest_on_tetrahedron(w, lam, trial):
         d2 = np.dot(p, p)
         if d2 < best:
             best = d2
-            lam[:] = trial
+            for q in range(4):
+                lam[q] = trial[q]
     return outside_any
 
 
@@ -155,8 +156,9 @@ def _reduce_simplex(n, w, pb, lam, trial):
     m = 0
     for i in range(n):
         if lam[i] > 0.0:
-            w[m] = w[i]
-            pb[m] = pb[i]
+            for k in range(3):  # element-wise: a row assignment compiles numba's error text
+                w[m, k] = w[i, k]
+                pb[m, k] = pb[i, k]
             lam[m] = lam[i]
             m += 1
     lam[m:] = 0.0
