@@ -150,7 +150,8 @@ def _reduce_simplex(n, w, pb, lam, trial):
         lam[0] = 1.0 - t
         lam[1] = t
     elif n == 3:
-        _closest_on_triangle(w, 0, 1, 2, lam)
+        # int64 indices, not literals: the compiled _closest_on_triangle is the one of above
+        _closest_on_triangle(w, np.int64(0), np.int64(1), np.int64(2), lam)
     elif not _closest_on_tetrahedron(w, lam, trial):
         return 0
     m = 0
