@@ -118,7 +118,13 @@ def _closest_on_tetrahedron(w, lam, trial):
     outside_any = False
     for f in faces:
         i, j, k, m = f
-        n = np.cross(w[j] - w[i], w[k] - w[i])
+        # np.cross's formula, written out (np.cross compiles three more functions)
+        e = w[j] - w[i]
+        g = w[k] - w[i]
+        n = np.empty(3)
+        n[0] = e[1] * g[2] - e[2] * g[1]
+        n[1] = e[2] * g[0] - e[0] * g[2]
+        n[2] = e[0] * g[1] - e[1] * g[0]
         side_origin = -np.dot(w[i], n)
         side_other = np.dot(w[m] - w[i], n)
         if side_origin * side_other > 0.0:
