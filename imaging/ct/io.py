@@ -15,11 +15,11 @@ from pathlib import Path
 from typing import Any
 
 import cv2
-import dask
 import dask.array as da
 import numpy as np
 import numpy.typing as npt
 import xarray as xr
+from dask.base import tokenize
 
 from shared.io import atomic_write
 
@@ -74,13 +74,21 @@ def _slices_per_chunk(shape: tuple[int, ...], dtype: np.dtype, chunk_bytes: int)
 def _slabs(read: Any, n_slices: int, shape: tuple[int, int], dtype: np.dtype,
            chunk_bytes: int) -> Any:
     """A dask array of ``n_slices`` slices of ``shape`` whose chunks are slabs of about
-    ``chunk_bytes``, each made by ``read(z0, count)`` when it is computed."""
+    ``chunk_bytes``, each made by ``read(z0, count)`` when it is computed.
+
+    One blockwise layer (not a concatenation of one layer per slab): taking a slab out of
+    it, as each pass over the scan does, costs the same whatever the number of slabs."""
     step = _slices_per_chunk(shape, dtype, chunk_bytes)
-    return da.concatenate([
-        da.from_delayed(dask.delayed(read, pure=True)(z0, min(step, n_slices - z0)),
-                        (min(step, n_slices - z0), *shape), dtype=dtype)
-        for z0 in range(0, n_slices, step)
-    ])
+    counts = tuple(min(step, n_slices - z0) for z0 in range(0, n_slices, step))
+    return da.map_blocks(_read_block, read=read, chunks=(counts, (shape[0],), (shape[1],)),
+                         dtype=dtype, meta=np.empty((0, 0, 0), dtype=dtype),
+                         name="slabs-" + tokenize(read, n_slices, shape, dtype, step))
+
+
+def _read_block(read: Any, block_info: dict | None = None) -> np.ndarray:
+    """The slab of a :func:`_slabs` chunk."""
+    (z0, z1), _, _ = block_info[None]["array-location"]
+    return read(z0, z1 - z0)
 
 
 def _same_page(page: np.ndarray, shape: tuple[int, int], dtype: np.dtype, source: Path,

@@ -66,8 +66,9 @@ def basal_contact_points(selected, step, centers, rots, axes, exts, fine, coarse
     total = 0
     for i in selected:
         a, b, c = axes[i]
-        lo[:] = centers[i] - exts[i] - d_cont
-        hi[:] = centers[i] + exts[i] + d_cont
+        for k in range(3):  # element-wise: an array assignment compiles numba's error text
+            lo[k] = centers[i, k] - exts[i, k] - d_cont
+            hi[k] = centers[i, k] + exts[i, k] + d_cont
         count = gather_levels(lo, hi, centers, exts, fine, coarse, link, geometry, found, shifts)
         na = int(np.ceil(a / step))
         nb = int(np.ceil(b / step))

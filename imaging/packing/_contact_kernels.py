@@ -118,7 +118,13 @@ def _closest_on_tetrahedron(w, lam, trial):
     outside_any = False
     for f in faces:
         i, j, k, m = f
-        n = np.cross(w[j] - w[i], w[k] - w[i])
+        # np.cross's formula, written out (np.cross compiles three more functions)
+        e = w[j] - w[i]
+        g = w[k] - w[i]
+        n = np.empty(3)
+        n[0] = e[1] * g[2] - e[2] * g[1]
+        n[1] = e[2] * g[0] - e[0] * g[2]
+        n[2] = e[0] * g[1] - e[1] * g[0]
         side_origin = -np.dot(w[i], n)
         side_other = np.dot(w[m] - w[i], n)
         if side_origin * side_other > 0.0:
@@ -130,7 +136,8 @@ def _closest_on_tetrahedron(w, lam, trial):
         d2 = np.dot(p, p)
         if d2 < best:
             best = d2
-            lam[:] = trial
+            for q in range(4):
+                lam[q] = trial[q]
     return outside_any
 
 
@@ -149,14 +156,16 @@ def _reduce_simplex(n, w, pb, lam, trial):
         lam[0] = 1.0 - t
         lam[1] = t
     elif n == 3:
-        _closest_on_triangle(w, 0, 1, 2, lam)
+        # int64 indices, not literals: the compiled _closest_on_triangle is the one of above
+        _closest_on_triangle(w, np.int64(0), np.int64(1), np.int64(2), lam)
     elif not _closest_on_tetrahedron(w, lam, trial):
         return 0
     m = 0
     for i in range(n):
         if lam[i] > 0.0:
-            w[m] = w[i]
-            pb[m] = pb[i]
+            for k in range(3):  # element-wise: a row assignment compiles numba's error text
+                w[m, k] = w[i, k]
+                pb[m, k] = pb[i, k]
             lam[m] = lam[i]
             m += 1
     lam[m:] = 0.0

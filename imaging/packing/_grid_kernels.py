@@ -116,6 +116,6 @@ def gather_levels(lo, hi, centers, exts, fine, coarse, link, geometry, found, sh
     x-y, coarse cell z, coarse margin) [m].
     """
     count = gather(lo, hi, centers, exts, fine, link, geometry[0], geometry[2], geometry[3],
-                   geometry[4], found, shifts, 0)
+                   geometry[4], found, shifts, np.int64(0))  # int64: one compiled gather
     return gather(lo, hi, centers, exts, coarse, link, geometry[0], geometry[5], geometry[6],
                   geometry[7], found, shifts, count)

@@ -92,15 +92,15 @@ def _grid(a, b, c, n_sp, face, with_edge):  # type: ignore[no-untyped-def]
         for j in range(-ny, ny + 1):
             if (i * delta / a) ** 2 + (j * delta / b) ** 2 <= 1.0:
                 kind[k], u[k], v[k] = 0, i * delta, j * delta
-                x[k], y[k], z[k] = _local_point(0, u[k], v[k], a, b, c, face)
+                x[k], y[k], z[k] = _local_point(np.int64(0), u[k], v[k], a, b, c, face)
                 k += 1
     if with_edge:
         # every ring has the same angles: one cos and sin per angle
         ring_x = np.empty(n_around)
         ring_y = np.empty(n_around)
         for s in range(n_around):
-            ring_x[s], ring_y[s], _ = _local_point(1, 2.0 * np.pi * s / n_around, 0.0, a, b, c,
-                                                   face)
+            ring_x[s], ring_y[s], _ = _local_point(np.int64(1), 2.0 * np.pi * s / n_around, 0.0,
+                                                   a, b, c, face)
         for r in range(n_rings):
             for s in range(n_around):
                 kind[k] = 1
@@ -208,6 +208,8 @@ def _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine, span
 def _refine_contact(kind, u, v, gap, xa, face, relative, offset, down, xb, d_cont, delta):  # type: ignore[no-untyped-def]
     """The /10 sequence on the points within delta_n of the lowest (in place): x and y
     sweeps on each, then the whole (u, v) window on the lowest."""
+    # int64, not literal constants: each distinct literal would compile _window anew
+    steps, none, zero = np.int64(_STEPS), np.int64(_NONE), np.int64(0)
     while delta >= d_cont:
         fine = delta / _STEPS
         order = np.argsort(gap)
@@ -215,17 +217,17 @@ def _refine_contact(kind, u, v, gap, xa, face, relative, offset, down, xb, d_con
         for k in order[:_REFINED]:
             if not gap[k] - lowest <= delta:
                 break
-            _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine, _STEPS, 0,
-                    _NONE, 0)
-            _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine, 0, _STEPS,
-                    0, _NONE)
+            _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine, steps, zero,
+                    none, zero)
+            _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine, zero, steps,
+                    zero, none)
             if gap[k] < 0.0:
                 return
         k = np.argmin(gap)
-        seen_u, seen_v = _NONE, _NONE
+        seen_u, seen_v = none, none
         for _ in range(_SWEEPS):
             move_u, move_v = _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb,
-                                     fine, _STEPS, _STEPS, seen_u, seen_v)
+                                     fine, steps, steps, seen_u, seen_v)
             if gap[k] < 0.0:
                 return
             if move_u == 0 and move_v == 0:
@@ -255,7 +257,7 @@ def scan_drop(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont, exact):  # type: i
     if exact == INFINITE_DROP:
         return INFINITE_DROP, cb[0], cb[1], cb[2]
     face = -1.0 if ra[2, 2] >= 0.0 else 1.0
-    kind, u, v, x, y, z, delta = _grid(xa[0], xa[1], xa[2], n_sp, face, True)
+    kind, u, v, x, y, z, delta = _grid(xa[0], xa[1], xa[2], n_sp, face, np.bool_(True))
     relative, offset, down = _pair_frame(ca, ra, cb, rb)
     gap = np.empty(kind.size)
     for k in range(kind.size):
@@ -305,7 +307,7 @@ def scan_overlap(ca, ra, xa, cb, rb, xb, n_sp, d_cont):  # type: ignore[no-untyp
     if _apart_along_normals(ca, ra, xa, cb, rb, xb):
         return False
     for face in (-1.0, 1.0):
-        kind, u, v, _, _, _, delta = _grid(xb[0], xb[1], xb[2], n_sp, face, False)
+        kind, u, v, _, _, _, delta = _grid(xb[0], xb[1], xb[2], n_sp, face, np.bool_(False))
         level = np.empty(kind.size)
         keep = np.zeros(kind.size, np.bool_)
         for k in range(kind.size):

@@ -116,7 +116,8 @@ def _collect_contacts(center, rot, axes, drop, floor_drop, drops, witness, count
         n = 1
     for k in range(count):
         if drops[k] - drop < d_cont and n < contacts.shape[0]:
-            contacts[n] = witness[k]
+            for m in range(3):
+                contacts[n, m] = witness[k, m]
             n += 1
     return n
 
@@ -150,7 +151,8 @@ def pivot_point(center, contacts, n_contacts, choice, separation, out, line):
     when the pivot is a single contact.
     """
     i = min(int(choice * n_contacts), n_contacts - 1)
-    out[:] = contacts[i]
+    for k in range(3):
+        out[k] = contacts[i, k]
     line[:] = 0.0
     if n_contacts < 2:
         return
@@ -160,8 +162,20 @@ def pivot_point(center, contacts, n_contacts, choice, separation, out, line):
     if length2 <= separation * separation:
         return
     t = np.dot(center - contacts[i], seg) / length2
-    out[:] = contacts[i] + t * seg
-    line[:] = seg / np.sqrt(length2)
+    norm = np.sqrt(length2)
+    for k in range(3):
+        out[k] = contacts[i, k] + t * seg[k]
+        line[k] = seg[k] / norm
+
+
+@njit(cache=True)
+def _copy_pose(center, rot, to_center, to_rot):
+    """Copy a barycentre and a rotation element by element (the kernels assign no arrays
+    to slices: numba's shape check compiles its error message, 10-20 s on a fresh cache)."""
+    for k in range(3):
+        to_center[k] = center[k]
+        for m in range(3):
+            to_rot[k, m] = rot[k, m]
 
 
 @njit(cache=True)
@@ -187,8 +201,7 @@ def trial_move(kind, amplitude, u_dir, steepest_slide, steepest_swivel, contact_
     keeps both contacts. Rotate: in-plane rotation by +-``amplitude`` [rad] about the particle
     normal (sign from ``u_dir``).
     """
-    new_center[:] = center
-    new_rot[:, :] = rot
+    _copy_pose(center, rot, new_center, new_rot)
     steepest = steepest_slide if kind == SLIDE else steepest_swivel
     rx = center[0] - pivot[0] if steepest else 0.0
     ry = center[1] - pivot[1] if steepest else 0.0
@@ -206,12 +219,18 @@ def trial_move(kind, amplitude, u_dir, steepest_slide, steepest_swivel, contact_
             # the barycentre moves along line x (center - pivot); its z rate must be < 0
             rate = line[0] * (center[1] - pivot[1]) - line[1] * (center[0] - pivot[0])
             if rate != 0.0:
-                axis[:] = line if rate < 0.0 else -line
+                sign = 1.0 if rate < 0.0 else -1.0
+                for k in range(3):
+                    axis[k] = sign * line[k]
     else:
-        axis[:] = rot[:, 2]
+        for k in range(3):
+            axis[k] = rot[k, 2]
         angle = amplitude if u_dir < 0.5 else -amplitude
     rotation_about(axis, angle, work)
-    new_rot[:, :] = work @ rot
+    turned = work @ rot
+    for k in range(3):
+        for m in range(3):
+            new_rot[k, m] = turned[k, m]
     if kind == SWIVEL:
         offset = work @ (center - pivot)
         new_center[0] = pivot[0] + offset[0]
@@ -263,9 +282,10 @@ def settle(center, rot, axes, uniforms, amplitudes, reduction, n_cycles, n_kinds
         if drop <= eps:
             continue
         new_center[2] -= drop
-        center[:] = new_center
-        rot[:, :] = new_rot
-        contacts[:n_trial] = trial_contacts[:n_trial]
+        _copy_pose(new_center, new_rot, center, rot)
+        for q in range(n_trial):
+            for k in range(3):
+                contacts[q, k] = trial_contacts[q, k]
         n_contacts = n_trial
         accepted += 1
     return accepted
