@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 from concurrent.futures import Executor, Future
 from dataclasses import dataclass
 from functools import partial
@@ -349,10 +350,12 @@ def measure_checkpoint(
         mouths[state.mesh.facet_cells[state.cracks.patch_facets].ravel()] = True
     permeabilities: Future | tuple
     if executor is not None and background:
-        # the arguments are pickled later, while the hydration changes the state
+        # the executor pickles the arguments later, in its own thread, while the hydration
+        # goes on in place (the mesh's points are the DEM's positions): copied now
+        mesh, saturation, porosity = copy.deepcopy((state.mesh, state.saturation, state.porosity))
         permeabilities = executor.submit(partial(
-            checkpoint_permeabilities, state.mesh, state.saturation.copy(),
-            state.porosity.copy(), suction, material, conductances=phases, sealed=mouths))
+            checkpoint_permeabilities, mesh, saturation, porosity, suction, material,
+            conductances=phases, sealed=mouths))
     else:
         permeabilities = checkpoint_permeabilities(
             state.mesh, state.saturation, state.porosity, suction, material,
