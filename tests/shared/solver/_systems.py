@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from shared.solver import SPDSolver
+
 
 def laplacian_system(n: int, rng: np.random.Generator) -> sp.csc_matrix:
     """SPD graph Laplacian of a random sparse graph plus a positive diagonal."""
@@ -75,3 +77,10 @@ def flow_system(
     pressure = np.where(mesh.circumcentres[:, 2] < 3.5e-3, -1e8, -2e7)
     rhs = facet_divergence(mesh, conductance, pressure)[pattern.free_cells]
     return assemble_matrix(mesh, pattern, conductance, storage), rhs
+
+
+def drifting_start(rng: np.random.Generator, **options: object) -> tuple[sp.csc_matrix, np.ndarray, SPDSolver]:
+    """A 100-cell conductance system, a random right-hand side and a solver with ``options``
+    (drawn in that order from ``rng``)."""
+    return laplacian_system(100, rng), rng.standard_normal(100), SPDSolver(**options)
+

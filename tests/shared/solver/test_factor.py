@@ -10,7 +10,7 @@ import pytest
 import scipy.sparse as sp
 
 from shared.solver import SPDSolver
-from tests.shared.solver._systems import drift_conductances, laplacian_system, lower_of
+from tests.shared.solver._systems import drift_conductances, drifting_start, laplacian_system, lower_of
 
 
 def test_solver_reuses_factor_and_solves_the_current_matrix(rng: np.random.Generator) -> None:
@@ -49,9 +49,7 @@ def test_solver_ordered_matrix_skips_the_ordering(rng: np.random.Generator) -> N
 def test_solver_buys_a_factor_once_the_rented_iterations_reach_its_price(
     rng: np.random.Generator,
 ) -> None:
-    matrix = laplacian_system(100, rng)
-    rhs = rng.standard_normal(100)
-    solver = SPDSolver(refactor_iterations=4, residual_tolerance=1e-14)
+    matrix, rhs, solver = drifting_start(rng, refactor_iterations=4, residual_tolerance=1e-14)
     solver.solve(lower_of(matrix), rhs)
     drifted = drift_conductances(matrix, 0.3, rng)
     solution = solver.solve(lower_of(drifted), rhs)
@@ -71,9 +69,7 @@ def test_solver_buys_a_factor_once_the_rented_iterations_reach_its_price(
 
 
 def test_solver_rents_while_the_budget_lasts(rng: np.random.Generator) -> None:
-    matrix = laplacian_system(100, rng)
-    rhs = rng.standard_normal(100)
-    solver = SPDSolver(refactor_iterations=20)
+    matrix, rhs, solver = drifting_start(rng, refactor_iterations=20)
     solver.solve(lower_of(matrix), rhs)
     drifted = lower_of(drift_conductances(matrix, 0.01, rng))
     rents = []
@@ -129,9 +125,7 @@ def test_solver_honours_its_tolerance_on_a_strongly_drifted_matrix(
 def test_solver_buys_at_once_while_one_step_of_drift_costs_more_than_a_factor(
     rng: np.random.Generator,
 ) -> None:
-    matrix = laplacian_system(100, rng)
-    rhs = rng.standard_normal(100)
-    solver = SPDSolver(refactor_iterations=3, residual_tolerance=1e-14)
+    matrix, rhs, solver = drifting_start(rng, refactor_iterations=3, residual_tolerance=1e-14)
     rents, bought = [], []
     for _ in range(16):
         # Every matrix differs from the last by up to 60 % in every conductance.

@@ -8,7 +8,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from shared.solver import SPDSolver
-from tests.shared.solver._systems import drift_conductances, flow_system, laplacian_system, lower_of
+from tests.shared.solver._systems import drift_conductances, drifting_start, flow_system, laplacian_system, lower_of
 
 
 def test_multigrid_state_restores_bit_for_bit(rng: np.random.Generator) -> None:
@@ -28,9 +28,7 @@ def test_factor_state_mid_rent_restores_bit_for_bit(rng: np.random.Generator) ->
     """Saved while the stale factor is being rented (through JSON, as a checkpoint keeps
     it), the restored solver takes the same rent-or-buy decisions on the solves that
     follow, with the same answers bit for bit and the same counters."""
-    matrix = laplacian_system(100, rng)
-    rhs = rng.standard_normal(100)
-    solver = SPDSolver(refactor_iterations=20)
+    matrix, rhs, solver = drifting_start(rng, refactor_iterations=20)
     solver.solve(lower_of(matrix), rhs)
     drifts = [lower_of(drift_conductances(matrix, 0.02 * k, rng)) for k in range(1, 9)]
     for lower in drifts[:3]:
