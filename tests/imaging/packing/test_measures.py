@@ -18,7 +18,8 @@ def _stack() -> Packing:
     n = ALTITUDES.size
     centers = np.column_stack([np.full(n, W / 2), np.full(n, W / 2), ALTITUDES])
     return Packing(centers=centers, rotations=np.repeat(np.eye(3)[None], n, axis=0),
-                   semi_axes=np.tile([A, A, C], (n, 1)), box_width=W, contact_distance=1e-9)
+                   semi_axes=np.tile([A, A, C], (n, 1)), box_width=W, contact_distance=1e-9,
+                   accepted_moves=np.zeros(n, np.int64), wall_time=np.zeros(n))
 
 
 def _measure(zone=ZONE):
