@@ -6,7 +6,7 @@ from pathlib import Path
 from micro.figures import case_figure, comparison_figure
 from micro.run import _dataset
 from tests._figures import check_figure, kept_figures  # noqa: F401
-from tests.micro.test_outputs import SUCTIONS, _records
+from tests.micro.test_run import SUCTIONS, _records
 
 
 def test_case_figure(tmp_path: Path, kept_figures) -> None:  # noqa: F811

@@ -12,7 +12,6 @@ import xarray as xr
 
 from micro import hydration
 from micro import run as micro_run
-from micro.checkpoint import load_checkpoint, save_checkpoint
 from micro.forces import membrane_forces
 from micro.hydration import (
     DivergenceError,
@@ -329,22 +328,6 @@ def test_cracks_open_in_a_heterogeneous_specimen_only():
         counts[name] = (int(state.dem.bond_broken.sum()), state.cracks.bonds.size)
     assert counts["homogeneous"] == (0, 0)
     assert counts["heterogeneous"][1] > 0
-
-
-def test_checkpoint_round_trip_and_files_of_older_versions_are_ignored(tmp_path):
-    state = initial_state(SMALL, None, None, CLAY, DEM)
-    system = FlowSystem.for_mesh(state.mesh)
-    state.dem.bond_broken[:3] = True
-    path = tmp_path / "case.checkpoint.npz"
-    save_checkpoint(path, "abc", state, system, [], 1.0)
-    loaded, _, _, _, _ = load_checkpoint(path, "abc", CLAY)
-    np.testing.assert_array_equal(loaded.dem.bond_broken, state.dem.bond_broken)
-    np.testing.assert_array_equal(loaded.dem.bond_overlaps, state.dem.bond_overlaps)
-    assert load_checkpoint(path, "another config", CLAY) is None
-    with np.load(path) as data:
-        older = {k: data[k] for k in data.files if k != "dem_bond_broken"}
-    np.savez(path, **older)
-    assert load_checkpoint(path, "abc", CLAY) is None
 
 
 def test_a_material_value_in_config_reaches_the_model(micro_config):

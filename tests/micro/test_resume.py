@@ -22,13 +22,10 @@ import scipy.sparse as sp
 import xarray as xr
 
 import micro.run as micro_run
-from micro.checkpoint import checkpoint_wall_time, load_checkpoint, save_checkpoint
-from micro.hydration import DivergenceError, FlowSystem
-from micro.pellet import SpecimenSpec, initial_state
+from micro.checkpoint import checkpoint_wall_time
+from micro.hydration import DivergenceError
 from shared.config import validate_config
-from shared.mesh import update_mesh
 from shared.solver import SPDSolver
-from tests._defaults import CLAY, DEM
 
 from .porosity_grid import write_porosity_grid
 
@@ -288,27 +285,6 @@ def test_a_killed_run_leaves_no_measurement_worker(tmp_path):
     if alive:
         os.kill(worker, signal.SIGKILL)
     assert not alive
-
-
-def test_the_flow_numbering_of_the_last_remesh_is_kept(tmp_path):
-    """The unknowns are numbered by the centroids at the last remesh: a checkpoint after
-    the points moved (here a 2 % stretch, which inverts no cell) restores that
-    numbering, not the one of the current geometry."""
-    state = initial_state(SpecimenSpec(edge_length=4e-3, n_points=216, seed=3), None, None,
-                          CLAY, DEM)
-    system = FlowSystem.for_mesh(state.mesh)
-    state.dem.positions[:] = state.dem.positions * np.array([1.02, 1.0, 0.98])
-    state.mesh = update_mesh(state.mesh, state.dem.positions)
-    rebuilt = FlowSystem.for_mesh(state.mesh, system.dirichlet)
-    assert not np.array_equal(rebuilt.pattern.free_cells, system.pattern.free_cells)
-    path = tmp_path / "case.checkpoint.npz"
-    save_checkpoint(path, "abc", state, system, [], 1.0)
-    _, loaded, _, _, balance = load_checkpoint(path, "abc", CLAY)
-    assert balance is None
-    for name in ("dirichlet", "free_cells", "free_index", "indptr", "indices",
-                 "diagonal_position", "facet_position"):
-        np.testing.assert_array_equal(getattr(loaded.pattern, name),
-                                      getattr(system.pattern, name), err_msg=name)
 
 
 def _laplacian(n: int, shift: float) -> sp.csc_matrix:

@@ -1,19 +1,12 @@
-"""The upscaling table built from micro results: aggregation, contract, refusals, files."""
-
-import copy
-import csv
+"""The upscaling table (micro.upscaling.table) built from micro results: aggregation,
+contract, refusals."""
 
 import numpy as np
 import pytest
 import xarray as xr
 
-from micro.config import source_names
-from micro.upscaling import run as upscaling_run
 from micro.upscaling import upscaling_table
-from shared.config import ConfigError, default_config, validate_config
-from shared.io import write_dataset
-from shared.upscaling import PermeabilityTable, read_table
-from tests._figures import check_figure, kept_figures  # noqa: F401
+from shared.config import ConfigError
 
 CHECKPOINTS = np.array([1.32e8, 6e7, 1e7, 1e6, 1e5])
 RANGE = (1e6, 1.32e8)
@@ -81,70 +74,6 @@ def test_bad_sources_are_refused_naming_the_file(source, message):
     with pytest.raises(ConfigError, match=message) as err:
         upscaling_table({"free": [("good.nc", _micro(1))], "confined": [("bad.nc", source)]}, RANGE)
     assert "bad.nc" in str(err.value)
-
-
-def _write(ds, path):
-    write_dataset(ds, path, stage="micro", title="synthetic micro result")
-    return path
-
-
-def test_run_writes_table_csv_and_figure_and_nothing_on_refusal(tmp_path, kept_figures):  # noqa: F811
-    section = {"conditions": {"free": ["a", "b"], "confined": "c"}, "suction_range_pa": list(RANGE)}
-    inputs = {"free": [_write(_micro(1), tmp_path / "a.nc"), _write(_micro(2), tmp_path / "b.nc")],
-              "confined": [_write(_micro(3), tmp_path / "c.nc")]}
-    out = tmp_path / "up" / "pellet_permeability"
-    out.parent.mkdir()
-    table = upscaling_run.run(section, inputs, out.with_suffix(".nc"), out.with_suffix(".csv"),
-                              out.with_suffix(".png"))
-    back = read_table(out.with_suffix(".nc"))
-    xr.testing.assert_allclose(back[["k", "k_tensor", "saturation"]], table[["k", "k_tensor", "saturation"]])
-    assert str(tmp_path / "a.nc") in back.attrs["inputs"]
-    with open(out.with_suffix(".csv")) as stream:
-        rows = list(csv.DictReader(stream))
-    assert len(rows) == 2 * 2 * 3 * CHECKPOINTS.size
-    row = rows[7]
-    expected = table["k"].sel(condition=row["condition"], phase=row["phase"], axis=row["axis"],
-                              suction=float(row["suction_pa"]))
-    assert float(row["k_m2"]) == pytest.approx(float(expected), rel=1e-9)
-    assert out.with_suffix(".png").stat().st_size > 0
-    labels = check_figure(kept_figures[-1])
-    assert {"suction [Pa]", "permeability [m2]", "saturation, volumetric strain [-]"} <= labels
-    curve = PermeabilityTable.from_file(out.with_suffix(".nc"), "confined")
-    assert curve.permeability(1e5, "water", "x") == pytest.approx(
-        float(table["k"].sel(condition="confined", phase="water", axis="x", suction=1e5)), rel=1e-12)
-    # a refused source leaves no partial table
-    refused = tmp_path / "refused"
-    refused.mkdir()
-    bad = _write(_micro(4).assign(permeability=lambda d: -d["permeability"]), tmp_path / "d.nc")
-    with pytest.raises(ConfigError, match="d.nc"):
-        upscaling_run.run(section, {**inputs, "confined": [bad]}, refused / "t.nc",
-                          refused / "t.csv", refused / "t.png")
-    assert not any(refused.iterdir())
-
-
-def test_config_names_unknown_sources_and_bad_ranges():
-    config = default_config()
-    bad = copy.deepcopy(config)
-    bad["upscaling"]["conditions"]["confined"] = ["confined", "nowhere"]
-    with pytest.raises(ConfigError, match=r"upscaling\.conditions\.confined.*'nowhere'"):
-        validate_config(bad)
-    bad = copy.deepcopy(config)
-    bad["upscaling"]["suction_range_pa"] = [1e8, 1e6]
-    with pytest.raises(ConfigError, match=r"upscaling\.suction_range_pa"):
-        validate_config(bad)
-
-
-def test_a_scale_fraction_source_is_that_fractions_realizations():
-    config = copy.deepcopy(default_config())
-    scale = config["micro"]["studies"]["scale"]
-    config["upscaling"]["conditions"]["free"] = {"scale_fraction": 0.25}
-    sources = source_names(validate_config(config))
-    assert sources["free"] == [("realization", f"f0p25_r{k:02d}")
-                               for k in range(scale["realizations"])]
-    assert sources["confined"] == [("case", config["upscaling"]["conditions"]["confined"])]
-    config["upscaling"]["conditions"]["free"] = {"scale_fraction": 0.5}
-    with pytest.raises(ConfigError, match=r"upscaling\.conditions\.free\.scale_fraction"):
-        validate_config(config)
 
 
 def test_a_condition_without_source_is_refused():

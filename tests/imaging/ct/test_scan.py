@@ -1,5 +1,6 @@
-"""The CT stage read in slabs: the same results whatever the slab size, memory set by the
-slab, and a scan too large for the memory limit refused before it is read."""
+"""The scan read in slabs (imaging.ct.scan) through the CT stage: the same results whatever
+the slab size, memory set by the slab, and a scan too large for the memory limit refused
+before it is read."""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
-"""Scans without air around the specimen or inside a container: mask modes, anchors from
-the grey histogram, per-sample settings, against values known by construction."""
+"""The CT stage (imaging.ct.run) on scans without air around the specimen or inside a
+container: mask modes, anchors from the grey histogram, per-sample settings, the grid
+spacing, against values known by construction."""
 
 from __future__ import annotations
 
@@ -12,8 +13,8 @@ import pytest
 from imaging.ct import run as ct_run
 from imaging.ct.calibration import anchors_through, histogram_peaks
 from imaging.ct.io import write_tiff_stack
-from imaging.ct.mask import cylinder_section
 from imaging.ct.phantom import pellet_phantom
+from imaging.ct.run import grid_spacing
 from shared.config import ConfigError, default_config, sample_imaging
 
 CONFIG = default_config()
@@ -77,17 +78,6 @@ def test_a_scan_that_fills_the_field_gives_each_blocks_air_fraction(rng, tmp_pat
     np.testing.assert_allclose(ds.attrs["histogram_peak_densities"], [AIR_DENSITY, SOLID_DENSITY])
 
 
-def test_cylinder_section_has_the_disc_area():
-    slices, disc = cylinder_section((5, 200, 240), 1e-4, 6e-3, centre=(10e-3, 11e-3))
-    assert disc.sum() == pytest.approx(np.pi * 60**2, rel=0.01)
-    y, x = np.argwhere(disc).mean(axis=0)
-    assert (y + 0.5) * 1e-4 == pytest.approx(10e-3, abs=1e-6)
-    assert (x + 0.5) * 1e-4 == pytest.approx(11e-3, abs=1e-6)
-    assert slices.all()
-    ends, _ = cylinder_section((5, 20, 20), 1e-4, 6e-4, z_range=(1e-4, 3e-4))
-    assert ends.tolist() == [False, True, True, False, False]
-
-
 def test_a_pellet_in_a_container_is_masked_by_the_containers_cylinder(tmp_path):
     """A pellet wrapped in a bright container wall: a cylinder inside the wall and between
     the pellet's ends, with the air grey given, recovers the density of every block inside
@@ -136,3 +126,9 @@ def test_sample_settings_merge_over_the_imaging_section():
     config["samples"]["other"]["imaging"]["rev"]["tolerance"] = -1.0
     with pytest.raises(ConfigError, match=r"samples\.other\.imaging\.rev\.tolerance"):
         sample_imaging(config, "other")
+
+
+def test_grid_spacing_defaults_to_micro_point_spacing():
+    micro_spacing = (8e-3, 512)  # micro.specimen_size_m, micro.n_points
+    assert grid_spacing(None, micro_spacing) == pytest.approx(1e-3)
+    assert grid_spacing(3e-4, micro_spacing) == 3e-4

@@ -1,4 +1,5 @@
-"""The micro result file is xarray-friendly: the suction labels the checkpoints."""
+"""The micro result file written by micro.run is xarray-friendly: the suction labels the
+checkpoints."""
 from __future__ import annotations
 
 from pathlib import Path
