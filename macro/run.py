@@ -33,7 +33,7 @@ from macro.settings import MacroSettings, macro_settings
 from macro.stopping import DAY, MONITORED, RunProgress, stop_distance
 from macro.vtk import SnapshotSeries
 from shared.io import write_dataset
-from shared.provenance import code_sha256, file_sha256
+from shared.provenance import file_sha256, module_sha256
 from shared.upscaling import PermeabilityTable
 
 __all__ = ["run", "simulate"]
@@ -334,9 +334,10 @@ def run(
     table = PermeabilityTable.from_file(table_path, settings.table_condition)
     section = {"macro": config["macro"], "case": case,
                "materials": case_materials(config["materials"], config["macro"]["cases"][case])}
-    # the code too: a snapshot of other code would resume as a mixture of two models
+    # the code too (this module and what it imports, as the netCDF's code_sha256): a
+    # snapshot of other code would resume as a mixture of two models
     digest = hashlib.sha256((json.dumps(section, sort_keys=True, default=str) + file_sha256(table_path)
-                             + code_sha256("macro", "shared")).encode()).hexdigest()
+                             + module_sha256(__file__)).encode()).hexdigest()
     output_path = Path(output_path)
     snapshot_path = output_path.with_name(f".{output_path.stem}.snapshot.pkl")
     resumed = load_snapshot(snapshot_path, digest)

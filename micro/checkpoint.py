@@ -109,7 +109,7 @@ def load_checkpoint(
     """The saved state, flow system, records, reference volume and, for a file written
     between two flow steps, the balance in progress; None if absent or stale.
 
-    A file written under another configuration (different hash) or by a version of the
+    A file written under another configuration or code (different hash) or by a version of the
     code that saved fewer arrays is ignored. The crack network, a function of the saved
     state, is rebuilt.
 

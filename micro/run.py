@@ -54,7 +54,7 @@ from shared.io import read_dataset, write_dataset
 from shared.materials import ClayParameters, clay_parameters
 from shared.mesh import mesh_from_tetrahedra
 from shared.progress import ConvergenceProgress, PhaseClock, Progress
-from shared.provenance import config_sha256
+from shared.provenance import config_sha256, module_sha256
 
 __all__ = [
     "phase_wall_times",
@@ -282,7 +282,8 @@ def run(
     checkpoints = np.asarray(config["micro"]["checkpoints_suction_pa"], dtype=float)
     output = Path(output)
     state_file = output.with_suffix(".checkpoint.npz")
-    digest = config_sha256(section)
+    # the code too (this module and what it imports): a checkpoint of other code is not resumed
+    digest = config_sha256({**section, "code": module_sha256(__file__)})
     grid = read_dataset(porosity_input, ["porosity"])["porosity"]
     material, parameters = case_parameters(config, case)
     resumed = load_checkpoint(state_file, digest, material)

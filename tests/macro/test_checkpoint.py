@@ -182,7 +182,7 @@ def test_a_snapshot_whose_records_differ_in_shape_is_named(table_path, tmp_path,
 
 
 def test_snapshot_of_other_code_is_ignored(table_path, tmp_path, monkeypatch, caplog):
-    """An edit of macro/ or shared/ between a kill and the rerun starts the case afresh."""
+    """An edit of the code macro.run imports between a kill and the rerun starts the case afresh."""
     import macro.run
 
     out = tmp_path / "case.nc"
@@ -191,7 +191,7 @@ def test_snapshot_of_other_code_is_ignored(table_path, tmp_path, monkeypatch, ca
         run(_config(3), "small", table_path, out)
     monkeypatch.setattr(MacroModel, "step", original)
     assert (tmp_path / ".case.snapshot.pkl").is_file()
-    monkeypatch.setattr(macro.run, "code_sha256", lambda *packages: "edited")
+    monkeypatch.setattr(macro.run, "module_sha256", lambda path: "edited")
     with caplog.at_level("INFO", logger="claychain.macro"):
         assert run(_config(3), "small", table_path, out).attrs["resumed"] == 0
     assert "of another configuration, table or code" in caplog.text

@@ -305,6 +305,31 @@ def test_killed_run_resumes_to_the_same_result(micro_config, tmp_path, monkeypat
         np.testing.assert_array_equal(resumed[name].values, reference[name].values)
 
 
+def test_a_checkpoint_of_other_code_is_not_resumed(micro_config, tmp_path, monkeypatch):
+    """The checkpoint's digest holds the hash of the code micro.run imports: after an
+    edit, the file left by a killed run is found and ignored, and the case starts afresh."""
+    config, grid = micro_config
+    original = micro_run.advance_to_balance
+
+    def dies_at_the_second(*args, **kwargs):
+        if dies_at_the_second.calls == 1:
+            raise DivergenceError("simulated crash")
+        dies_at_the_second.calls += 1
+        return original(*args, **kwargs)
+
+    dies_at_the_second.calls = 0
+    monkeypatch.setattr(micro_run, "advance_to_balance", dies_at_the_second)
+    with pytest.raises(DivergenceError):
+        micro_run.run(config, "c", grid, tmp_path / "b.nc", tmp_path / "b.png")
+    monkeypatch.setattr(micro_run, "advance_to_balance", original)
+    loaded = []
+    load = micro_run.load_checkpoint
+    monkeypatch.setattr(micro_run, "load_checkpoint", lambda *a: loaded.append(load(*a)) or loaded[-1])
+    monkeypatch.setattr(micro_run, "module_sha256", lambda path: "edited")
+    micro_run.run(config, "c", grid, tmp_path / "b.nc", tmp_path / "b.png")
+    assert loaded == [None] and not (tmp_path / "b.checkpoint.npz").exists()
+
+
 def test_cracks_open_in_a_heterogeneous_specimen_only():
     """Thesis Sec. 3.5.5 (Fig. 3.12): same points, same bonds, same loading; the
     homogeneous specimen keeps every bond intact and the heterogeneous one cracks.
