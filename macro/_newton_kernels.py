@@ -48,16 +48,17 @@ def _inverse_retention(saturation, porosity, law):  # type: ignore[no-untyped-de
 @njit(cache=True)
 def _target(suction, v0, stress, solid_mass, fixed, law):  # type: ignore[no-untyped-def]
     """Swelling volume under the confining stress [m3] (:func:`macro.laws.confined_volume`):
-    the free swelling V_f = V_0 (1 + eps(s)) (Eq. 4.28) without stress, else the volume
-    whose swelling pressure S_ret(s) [p'_vc(m_s / V) - p'_vc(m_s / V_f)] meets it."""
+    the free swelling V_f = V_0 (1 + eps(s)) (Eq. 4.28) while the stress is below the
+    swelling pressure S_ret(s) p'_vc(m_s / V_f), else the volume where it meets it."""
     alpha, beta, s0 = law[5], law[6], law[7]
     free = v0 * (1.0 + beta / alpha * (np.exp(-alpha * suction) - np.exp(-alpha * s0)))
     if not stress > 0.0:
         return free
     beta_v, alpha_v = law[8], law[9]
-    sat = _retention(suction, fixed if fixed == fixed else law[4], law)
-    line = stress / sat + beta_v * np.exp(alpha_v * solid_mass / free)
-    return min(free, alpha_v * solid_mass / np.log(line / beta_v))
+    line = stress / (_retention(suction, fixed if fixed == fixed else law[4], law) * beta_v)
+    if not line > 1.0:
+        return free
+    return min(free, alpha_v * solid_mass / np.log(line))
 
 
 @njit(cache=True)

@@ -8,10 +8,10 @@ Units are SI and per Pa: suction s = -p > 0 [Pa], alpha and beta [1/Pa].
 - Swelling (Eq. 4.28, sign of docs/design.md §3): eps(s) = (beta/alpha)
   [exp(-alpha s) - exp(-alpha s_0)].
 - Pellet Young's modulus (Eq. 4.3): E(s) = 3 (1 - 2 nu) exp(alpha s) / beta, capped.
-- Swelling under confinement (Eqs. 4.31-4.33, our reading): the pressure
-  P = S_ret(s) [p'_vc(m_s / V) - p'_vc(m_s / V_f)] of clay held below its free volume
-  V_f, and the volume where P = sigma (:func:`confined_volume`). In full: docs/macro.md,
-  "Swelling limited by confinement" and "macro.laws".
+- Swelling under confinement (Eqs. 4.31-4.33, our reading): one pressure of the clay's
+  state, P(rho_d, s) = S_ret(s) p'_vc(rho_d), for clay held below its free volume V_f(s),
+  and the volume where P = sigma (:func:`confined_volume`). In full: docs/macro.md,
+  "Swelling limited by confinement".
 """
 
 from __future__ import annotations
@@ -39,8 +39,10 @@ __all__ = [
     "swelling_strain",
     "young_modulus",
     "consolidation_pressure",
-    "confined_volume",
+    "free_volume",
     "swelling_pressure",
+    "confined_pressure",
+    "confined_volume",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -235,15 +237,44 @@ def consolidation_pressure(dry_density: npt.ArrayLike, m: MixtureParameters) -> 
     return m.beta_v * np.exp(m.alpha_v * np.asarray(dry_density, dtype=np.float64))
 
 
-def _free_volume(suction: FloatArray, reference_volume: FloatArray, m: MixtureParameters) -> FloatArray:
-    return reference_volume * (1.0 + swelling_strain(suction, m))
+def free_volume(suction: npt.ArrayLike, reference_volume: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
+    """Free swelling volume V_f(s) = V_0 (1 + eps(s)) [m3] (Eq. 4.28): the largest volume
+    of clay at suction ``suction`` [Pa] whose volume at the initial suction is
+    ``reference_volume`` [m3]."""
+    return np.asarray(reference_volume, dtype=np.float64) * (1.0 + swelling_strain(suction, m))
 
 
-def swelling_pressure(volume: npt.ArrayLike, suction: npt.ArrayLike, solid_mass: npt.ArrayLike,
+def swelling_pressure(dry_density: npt.ArrayLike, suction: npt.ArrayLike, porosity: npt.ArrayLike,
+                      m: MixtureParameters) -> FloatArray:
+    """Swelling pressure of confined clay, one law of its state [Pa]:
+    P(rho_d, s) = S_ret(s) p'_vc(rho_d) (Eq. 4.31 at saturation, scaled by the water
+    saturation as Eq. 4.33 reads: s_w p).
+
+    The same for pellet and powder clay, whatever its history: at saturation, clay of
+    dry density 1 490 kg/m3 presses 4.15 MPa (Wang et al. 2013 find one relation between
+    swelling pressure and dry density for homogeneous and heterogeneous samples). The
+    law holds for clay held below its free swelling volume (:func:`confined_pressure`).
+
+    Parameters
+    ----------
+    dry_density
+        rho_d = m_s / V [kg/m3] (Eq. 4.32).
+    suction
+        Suction s [Pa].
+    porosity
+        Porosity of the retention curve S_ret [1].
+    """
+    return saturation(suction, porosity, m) * consolidation_pressure(dry_density, m)
+
+
+def confined_pressure(volume: npt.ArrayLike, suction: npt.ArrayLike, solid_mass: npt.ArrayLike,
                       reference_volume: npt.ArrayLike, porosity: npt.ArrayLike,
                       m: MixtureParameters) -> FloatArray:
-    """Pressure of clay held at ``volume`` below its free swelling volume [Pa]:
-    S_ret(s) [p'_vc(m_s / V) - p'_vc(m_s / V_f(s))], 0 at or above V_f (Eqs. 4.28, 4.31-4.33).
+    """Pressure of clay held at ``volume`` [Pa]: :func:`swelling_pressure` at its dry
+    density m_s / V below its free swelling volume V_f(s) (Eq. 4.28), 0 at or above it.
+
+    At V_f itself the clay holds any stress between 0 and P(m_s / V_f, s): it swells
+    no further without stress and is compressed only beyond that (:func:`confined_volume`).
 
     Parameters
     ----------
@@ -258,26 +289,24 @@ def swelling_pressure(volume: npt.ArrayLike, suction: npt.ArrayLike, solid_mass:
     porosity
         Porosity of the retention curve S_ret [1].
     """
-    s = np.asarray(suction, dtype=np.float64)
-    mass = np.asarray(solid_mass, dtype=np.float64)
-    free = _free_volume(s, np.asarray(reference_volume, dtype=np.float64), m)
-    held = consolidation_pressure(mass / np.asarray(volume, dtype=np.float64), m)
-    excess = held - consolidation_pressure(mass / free, m)
-    return saturation(s, porosity, m) * np.maximum(excess, 0.0)
+    volume = np.asarray(volume, dtype=np.float64)
+    pressure = swelling_pressure(np.asarray(solid_mass, dtype=np.float64) / volume, suction, porosity, m)
+    return np.where(volume < free_volume(suction, reference_volume, m), pressure, 0.0)
 
 
 def confined_volume(suction: npt.ArrayLike, stress: npt.ArrayLike, solid_mass: npt.ArrayLike,
                     reference_volume: npt.ArrayLike, porosity: npt.ArrayLike,
                     m: MixtureParameters) -> FloatArray:
-    """Volume to which clay swells under a confining ``stress`` [m3]: the inverse of
-    :func:`swelling_pressure` in V, V_f(s) (Eq. 4.28) when the stress is 0.
+    """Volume to which clay swells under a confining ``stress`` [m3]: the free swelling
+    volume V_f(s) (Eq. 4.28) while the stress is below P(m_s / V_f, s), else the volume
+    where :func:`swelling_pressure` meets it, V = alpha_v m_s / ln(sigma / (S_ret beta_v)).
 
-    Parameters are those of :func:`swelling_pressure`; ``stress`` >= 0 [Pa].
+    Parameters are those of :func:`confined_pressure`; ``stress`` >= 0 [Pa].
     """
     s = np.asarray(suction, dtype=np.float64)
     mass = np.asarray(solid_mass, dtype=np.float64)
-    free = _free_volume(s, np.asarray(reference_volume, dtype=np.float64), m)
-    line = np.maximum(stress, 0.0) / saturation(s, porosity, m) + consolidation_pressure(mass / free, m)
+    free = free_volume(s, reference_volume, m)
+    line = np.maximum(np.asarray(stress, dtype=np.float64), 0.0) / (saturation(s, porosity, m) * m.beta_v)
     with np.errstate(divide="ignore", invalid="ignore"):
-        held = m.alpha_v * mass / np.log(line / m.beta_v)
-    return np.where(np.asarray(stress) > 0.0, np.minimum(free, held), free)
+        held = np.where(line > 1.0, m.alpha_v * mass / np.log(np.maximum(line, 1.0)), np.inf)
+    return np.minimum(free, held)

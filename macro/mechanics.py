@@ -13,10 +13,8 @@ import numpy as np
 import numpy.typing as npt
 
 from macro.laws import (
-    consolidation_pressure,
-    saturation,
+    free_volume,
     swelling_pressure,
-    swelling_strain,
     yield_force,
     yield_pressure,
     young_modulus,
@@ -37,17 +35,16 @@ class Mechanics:
     """Mechanics part of :class:`macro.model.MacroModel`."""
 
     def powder_pressure(self) -> tuple[FloatArray, FloatArray]:
-        """Effective pressure of the powder on its cell contour [Pa] (Eqs. 4.31-4.35) and
-        its derivative with respect to the cell's void [Pa/m3], both (n_c,).
+        """Pressure of the powder on its cell contour [Pa] (Eqs. 4.31-4.35) and the
+        magnitude of its derivative with respect to the cell's void [Pa/m3], both (n_c,).
 
         The powder swells freely until it fills its cell's void V_c; held there, it
-        presses with the swelling pressure of the confined clay
-        (:func:`macro.laws.swelling_pressure`, zero at the moment of confinement), scaled
-        by the powder's share of the tetrahedron V / V_t (Eq. 4.35). A cell squeezed below
-        the powder's densest state (its solid at the smallest porosity, or solid and
-        water) presses as at that state. With the pellets' yield (Eq. 4.4) on, at most
-        the yield pressure of the cell's weakest pellet. Zero everywhere when
-        ``macro.powder_swelling_pressure`` is off.
+        presses with the swelling pressure of its state (:func:`macro.laws.swelling_pressure`
+        at m_s / V_c). Eq. 4.35's V / V_t is read as the powder's share of the void, 1
+        whenever it presses. A cell squeezed below the powder's densest state (its solid at
+        the smallest porosity, or solid and water) presses as at that state. With the
+        pellets' yield (Eq. 4.4) on, at most the yield pressure of the cell's weakest
+        pellet. Zero everywhere when ``macro.powder_swelling_pressure`` is off.
         """
         cells = slice(self.n_pellets, None)
         if not self.settings.powder_pressure:
@@ -56,18 +53,15 @@ class Mechanics:
         held = np.maximum(self._void, self.densest_volume(cells))
         suction = -self.pressure[cells]
         solid_mass = self.solid_mass()[cells]
-        porosity = self.retention_porosity()[cells]
-        free = self.reference_volume[cells] * (1.0 + swelling_strain(suction, self.material))
-        share = np.minimum(free, held) / self.mesh.volumes
+        free = free_volume(suction, self.reference_volume[cells], self.material)
         active = ~self.inert[cells] & (free > held)
-        pressure = np.where(active, swelling_pressure(held, suction, solid_mass, self.reference_volume[cells],
-                                                      porosity, self.material) * share, 0.0)
+        pressure = np.where(active, swelling_pressure(solid_mass / held, suction, self.retention_porosity()[cells],
+                                                      self.material), 0.0)
         bound = self._pressure_bound()
         capped = pressure > bound
         pressure = np.where(capped, bound, pressure)
-        # d/dV_c of S p'_vc(m_s / V_c) V_c / V_t
-        line = saturation(suction, porosity, self.material) * consolidation_pressure(solid_mass / held, self.material)
-        slope = line * self.material.alpha_v * solid_mass / held**2 * share
+        # |dP/dV_c| of S p'_vc(m_s / V_c)
+        slope = pressure * self.material.alpha_v * solid_mass / held**2
         return pressure, np.where(active & ~capped, slope, 0.0)
 
     def _pressure_bound(self) -> FloatArray:
