@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial.transform import Rotation
 
+from macro.extrusion import Extrusion
 from macro.field import cell_porosity
 from macro.geometry import VOID_FLOOR, Geometry, _cell_roles
 from macro.hydraulics import Hydraulics
@@ -36,7 +37,7 @@ FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass
-class MacroModel(Geometry, Hydraulics, PressureVolume, Mechanics, WallReadings):
+class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, WallReadings):
     """State of the mixture; :meth:`step` advances it.
 
     Systems 0..n_p-1 are pellets, n_p..n_p+n_c-1 cells. Arrays over systems: water mass
@@ -69,12 +70,15 @@ class MacroModel(Geometry, Hydraulics, PressureVolume, Mechanics, WallReadings):
     boundary_inflow: float = 0.0
     fallbacks: int = 0
     remeshes: int = 0
-    floored_cells: int = 0
+    capped_cells: int = 0
+    overflowed_cells: int = 0
     newton_iterations: int = 0
     dem_substeps_used: int = 0
     limited_systems: int = 0
+    extrusion_limited: int = 0
+    extruded_volume: float = 0.0
     phase_seconds: dict[str, float] = field(default_factory=lambda: {
-        "remesh": 0.0, "transport": 0.0, "newton": 0.0, "dem": 0.0})
+        "remesh": 0.0, "transport": 0.0, "extrusion": 0.0, "newton": 0.0, "dem": 0.0})
     _omega: FloatArray | None = None
     _exchanges: Exchanges | None = None
     _cell_pressure: FloatArray | None = None
@@ -168,6 +172,11 @@ class MacroModel(Geometry, Hydraulics, PressureVolume, Mechanics, WallReadings):
             self.transport(dt, conductance)
         now = time.perf_counter()
         self.phase_seconds["transport"] += now - clock
+        clock = now
+        if self.settings.extrusion.enabled:
+            self.extrude(dt)
+        now = time.perf_counter()
+        self.phase_seconds["extrusion"] += now - clock
         clock = now
         self.solve_local()
         now = time.perf_counter()

@@ -38,17 +38,44 @@ class PressureVolume:
             densest = np.maximum(densest, solid + self.water_mass[systems] / self.settings.density)
         return densest
 
+    def growth_room(self) -> FloatArray:
+        """(n_p,) largest growth of each pellet's clay volume in this step [m3]: as much as
+        every active cell around it can give up before its powder reaches its densest
+        state, the cell's room shared among its pellets by solid angle (a cell's void is
+        its tetrahedron less Omega / (4 pi) of each pellet's clay volume, so pellets that
+        all grow by dV take sum(Omega) / (4 pi) dV of it)."""
+        assert self._void is not None and self._omega is not None
+        n_p = self.n_pellets
+        tet = self.mesh.tetrahedra
+        room = np.maximum(self._void - self.densest_volume(slice(n_p, None)), 0.0)
+        share = np.where(tet < n_p, self._omega / (4.0 * np.pi), 0.0)
+        total = share.sum(axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            growth = np.where((total > 0.0) & ~self.inert[n_p:], room / total, np.inf)
+        bound = np.full(n_p, np.inf)
+        pellet = tet < n_p
+        np.minimum.at(bound, tet[pellet], np.broadcast_to(growth[:, None], tet.shape)[pellet])
+        return bound
+
     def solve_local(self) -> None:
-        """Pressure-volume problem of every system not held (Sec. 4.3)."""
+        """Pressure-volume problem of every system not held (Sec. 4.3).
+
+        A pellet grows at most by its :meth:`growth_room`, so that no cell is squeezed
+        below its powder's densest state by the swelling; a cell whose void is still
+        below it (squeezed by the pellets' motion) is capped there, holding more than
+        its void (counted in ``capped_cells``: an event, not a state the model relies on).
+        """
+        if self.settings.extrusion.enabled:
+            self.overflow()
         free = np.flatnonzero(~self.held & ~self.inert)
         n_p = self.n_pellets
-        # a cell squeezed by swollen pellets keeps at least its solid at the smallest
-        # porosity (the lower porosity clamp, minPoroClamp) and its water (counted)
         needed = self.densest_volume(slice(None)) * (1.0 + 1e-6)
-        floored = (self.max_volume < needed) & ~self.held & ~self.inert
-        floored[:n_p] = False
-        self.floored_cells += int(np.count_nonzero(floored))
-        self.max_volume = np.where(floored, needed, self.max_volume)
+        capped = (self.max_volume < needed) & ~self.inert
+        capped[:n_p] = False
+        self.capped_cells += int(np.count_nonzero(capped))
+        self.max_volume = np.where(capped, needed, self.max_volume)
+        limit = self.max_volume.copy()
+        limit[:n_p] = np.minimum(limit[:n_p], np.maximum(self.volume[:n_p] + self.growth_room(), needed[:n_p]))
 
         def names(k: int) -> str:
             i = int(free[k])
@@ -57,7 +84,7 @@ class PressureVolume:
         assert self.stress is not None
         problem = PVProblem(
             self.water_mass[free], self.solid_volume[free], self.reference_volume[free],
-            self.max_volume[free], self.settings.density, self.settings.max_suction, names,
+            limit[free], self.settings.density, self.settings.max_suction, names,
             None if self.settings.retention_follows_porosity else self.retention_porosity()[free],
             self.stress[free], self.solid_mass()[free],
         )
@@ -66,4 +93,3 @@ class PressureVolume:
         self.volume[free], self.pressure[free] = volume, pressure
         self.newton_iterations += iterations
         self.fallbacks += fallbacks
-

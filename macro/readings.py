@@ -28,36 +28,30 @@ class Readings:
 class WallReadings:
     """Readings part of :class:`macro.model.MacroModel`."""
 
-    def _wall_cell_pressure(self) -> FloatArray:
-        """(n_c,) the powder's pressure with the inert cells given their active neighbours'
-        mean: the hull's slivers between container points hold no powder, and the powder
-        beside them presses on the container through them."""
-        assert self._cell_pressure is not None
-        pressure = self._cell_pressure.copy()
-        known = ~self.inert[self.n_pellets:]
-        neighbours = self.mesh.neighbours
-        for _ in range(4):
-            if known.all():
-                break
-            inside = neighbours >= 0
-            hits = np.where(inside, known[np.where(inside, neighbours, 0)], False)
-            total = np.where(hits, pressure[np.where(inside, neighbours, 0)], 0.0).sum(axis=1)
-            count = hits.sum(axis=1)
-            fill = ~known & (count > 0)
-            pressure[fill] = total[fill] / count[fill]
-            known = known | fill
-        return pressure
+    def wall_point_pressure(self) -> FloatArray:
+        """(n_w,) the powder's pressure at each container point [Pa]: the mean over the
+        active cells around the point, weighted by their solid angle at it. The hull's
+        slivers (cells between container points only, inert) hold no powder and do not
+        count: the powder around a point presses on the container there, whatever the
+        slivers the triangulation puts between the points."""
+        assert self._cell_pressure is not None and self._omega is not None
+        n_p, tet = self.n_pellets, self.mesh.tetrahedra
+        weight = np.where((tet >= n_p) & ~self.inert[n_p:, None], self._omega, 0.0)
+        total = np.bincount(tet.ravel(), (weight * self._cell_pressure[:, None]).ravel(),
+                            minlength=self.n_vertices)[n_p:]
+        covered = np.bincount(tet.ravel(), weight.ravel(), minlength=self.n_vertices)[n_p:]
+        return np.where(covered > 0.0, total / np.where(covered > 0.0, covered, 1.0), 0.0)
 
     def _powder_wall_loads(self) -> tuple[FloatArray, FloatArray, float, float]:
-        """Sec. 4.10: confined powder of the cells on the container pushes on it through their
-        triangles on the wall and plates (the mesh's hull).
+        """Sec. 4.10: the powder pushes on the container through the mesh's hull, each
+        triangle at the mean of its three points' :meth:`wall_point_pressure`.
 
         Returns the height above the lower plate [m] and the radial force [N] of each
         triangle on the curved wall (its centroid is its contact point), and the forces on
         the upper and lower plates [N]."""
-        assert self._cell_pressure is not None
         mesh = self.mesh
-        force = self._wall_cell_pressure()[mesh.boundary_cells] * mesh.boundary_areas
+        point = np.concatenate([np.zeros(self.n_pellets), self.wall_point_pressure()])
+        force = point[mesh.boundary_vertices].mean(axis=1) * mesh.boundary_areas
         normals, centroids = mesh.boundary_normals, mesh.boundary_centroids
         rho = np.maximum(np.hypot(centroids[:, 0], centroids[:, 1]), 1e-300)
         radial = (normals[:, 0] * centroids[:, 0] + normals[:, 1] * centroids[:, 1]) / rho

@@ -7,6 +7,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from macro.extrusion import ExtrusionSettings, extrusion_settings
 from macro.newton import NewtonSettings
 from macro.sensors import WallBands, equal_bands, named_sensors
 
@@ -60,6 +61,7 @@ class MacroSettings:
     dem_damping: float
     dem_balance_tolerance: float
     stress_relaxation: float
+    extrusion: ExtrusionSettings
 
 
 def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
@@ -133,6 +135,7 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         dem_damping=float(num["dem_damping"]),
         dem_balance_tolerance=float(num["dem_balance_tolerance"]),
         stress_relaxation=float(num["stress_relaxation"]),
+        extrusion=extrusion_settings(macro, over),
     )
 
 

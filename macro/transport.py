@@ -22,7 +22,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from sksparse.cholmod import cholesky
 
-__all__ = ["conductances", "harmonic_mean", "implicit_pressures", "limited_rates", "mass_rates", "stable_time_step"]
+__all__ = ["conductances", "edge_rates", "harmonic_mean", "implicit_pressures", "limited_fluxes", "limited_rates",
+           "mass_rates", "stable_time_step"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -50,9 +51,7 @@ def conductances(
 def mass_rates(pairs: IntArray, conductance: FloatArray, pressure: FloatArray,
                n_systems: int) -> FloatArray:
     """dm_i/dt = sum_j G_ij (p_j - p_i) [kg/s] (Eq. 4.22), antisymmetric by construction."""
-    flux = conductance * (pressure[pairs[:, 1]] - pressure[pairs[:, 0]])
-    return (np.bincount(pairs[:, 0], flux, minlength=n_systems)
-            - np.bincount(pairs[:, 1], flux, minlength=n_systems))
+    return edge_rates(pairs, conductance * (pressure[pairs[:, 1]] - pressure[pairs[:, 0]]), n_systems)
 
 
 def stable_time_step(
@@ -142,22 +141,34 @@ def implicit_pressures(
     return out
 
 
-def limited_rates(pairs: IntArray, conductance: FloatArray, pressure: FloatArray, water: FloatArray,
-                  dt: float, free: npt.NDArray[np.bool_], keep: float) -> tuple[FloatArray, int]:
-    """dm_i/dt of Eq. 4.22 with the outflows of a free system scaled down so that it keeps
-    at least ``keep`` of its water over ``dt`` (a positivity-preserving flux limiter:
-    each exchange's flux scaled by the factor of the system it leaves, so the update stays
-    antisymmetric and conserves the water exactly). Returns the rates [kg/s] and the
-    number of systems limited.
+def limited_fluxes(pairs: IntArray, conductance: FloatArray, pressure: FloatArray, amount: FloatArray,
+                   dt: float, free: npt.NDArray[np.bool_], keep: float) -> tuple[FloatArray, int]:
+    """Fluxes G_ij (p_j - p_i) into ``pairs[:, 0]`` with the outflows of a free system
+    scaled down so that it keeps at least ``keep`` of its ``amount`` over ``dt`` (a
+    positivity-preserving flux limiter: each exchange's flux scaled by the factor of the
+    system it leaves, so the update stays antisymmetric and conserves the amount exactly).
+    Returns the fluxes and the number of systems limited.
     """
     n = pressure.size
-    flux = conductance * (pressure[pairs[:, 1]] - pressure[pairs[:, 0]])  # into pairs[:, 0]
+    flux = conductance * (pressure[pairs[:, 1]] - pressure[pairs[:, 0]])
     source = np.where(flux < 0.0, pairs[:, 0], pairs[:, 1])
     outflow = np.bincount(source, np.abs(flux), minlength=n)
-    allowed = (1.0 - keep) * water
+    allowed = (1.0 - keep) * amount
     limited = free & (dt * outflow > allowed)
     factor = np.ones(n)
     factor[limited] = allowed[limited] / (dt * outflow[limited])
-    flux = flux * factor[source]
-    rate = np.bincount(pairs[:, 0], flux, minlength=n) - np.bincount(pairs[:, 1], flux, minlength=n)
-    return rate, int(np.count_nonzero(limited))
+    return flux * factor[source], int(np.count_nonzero(limited))
+
+
+def edge_rates(pairs: IntArray, flux: FloatArray, n_systems: int) -> FloatArray:
+    """(n,) net inflow of every system from the fluxes into ``pairs[:, 0]``."""
+    return np.bincount(pairs[:, 0], flux, minlength=n_systems) - np.bincount(pairs[:, 1], flux, minlength=n_systems)
+
+
+def limited_rates(pairs: IntArray, conductance: FloatArray, pressure: FloatArray, water: FloatArray,
+                  dt: float, free: npt.NDArray[np.bool_], keep: float) -> tuple[FloatArray, int]:
+    """dm_i/dt of Eq. 4.22 [kg/s] with the outflows of a free system limited so that it
+    keeps at least ``keep`` of its water over ``dt`` (:func:`limited_fluxes`); also the
+    number of systems limited."""
+    flux, limited = limited_fluxes(pairs, conductance, pressure, water, dt, free, keep)
+    return edge_rates(pairs, flux, pressure.size), limited

@@ -1,0 +1,188 @@
+"""The powder as a conserved, mobile solid: wet clay extruded down swelling-pressure
+differences, between neighbouring cells and from the pellets' surface into looser cells.
+
+Beyond the thesis (whose powder stays in its cell, Sec. 4.8): the mock-up homogenises
+by the extrusion of the swelling clay into the looser zones (Molinero-Guerra et al.
+2020). The solid volume flux across an exchange is q_ij = M A_ij / L_ij (P_i - P_j)
+[m3/s], P the clay's swelling pressure (:func:`macro.laws.swelling_pressure`; a
+pellet's is its confining stress), M = M_0 f(S) the mobility of the donor's clay
+[m2/(Pa s)]: dry clay is granular and does not flow, wet clay is a gel (Darde et al.
+2020's switch from a granular to a continuous state, here on the donor's saturation:
+f = clip((S - S_c) / (1 - S_c), 0, 1)). Pellets only give clay (their pressure is
+set by the DEM, not by their solid). Water and the reference volume travel with the
+solid at the donor's ratios, so solid, water and V_0 are conserved to round-off. The
+step is linearised backward Euler in the cells' pressures (the SPD system of
+:func:`macro.transport.implicit_pressures`), with each cell's capacity dV_s/dP.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from macro.laws import free_volume, swelling_pressure
+from macro.transport import edge_rates, implicit_pressures, limited_fluxes
+
+__all__ = ["Extrusion", "ExtrusionSettings", "extrusion_settings", "mobility"]
+
+FloatArray = npt.NDArray[np.float64]
+OVERFLOW_PASSES = 4
+"""Rounds of :meth:`Extrusion.overflow` (what a neighbour received may spill on)."""
+
+
+@dataclass(frozen=True)
+class ExtrusionSettings:
+    """``macro.homogenisation`` and ``macro.extrusion`` (workflow/schemas/config.schema.yaml).
+
+    Attributes
+    ----------
+    enabled
+        ``homogenisation: extrusion``; False: the thesis's immobile powder (``none``).
+    mobility
+        M_0 [m2/(Pa s)].
+    mobile_saturation
+        S_c, the saturation below which clay does not flow [1].
+    max_solid_change
+        Largest fraction of a system's solid that leaves it in one step [1].
+    """
+
+    enabled: bool
+    mobility: float
+    mobile_saturation: float
+    max_solid_change: float
+
+
+def extrusion_settings(macro: Mapping[str, Any], case: Mapping[str, Any]) -> ExtrusionSettings:
+    """The extrusion settings of a case (its own ``homogenisation`` and ``extrusion`` first)."""
+    section = {**macro["extrusion"], **case.get("extrusion", {})}
+    return ExtrusionSettings(
+        enabled=str(case.get("homogenisation", macro["homogenisation"])) == "extrusion",
+        mobility=float(section["mobility_m2_per_pa_s"]),
+        mobile_saturation=float(section["mobile_saturation"]),
+        max_solid_change=float(section["max_solid_change"]),
+    )
+
+
+def mobility(saturation: npt.ArrayLike, settings: ExtrusionSettings) -> FloatArray:
+    """M(S) = M_0 clip((S - S_c) / (1 - S_c), 0, 1) [m2/(Pa s)]."""
+    ramp = (np.asarray(saturation, dtype=np.float64) - settings.mobile_saturation) / (1.0 - settings.mobile_saturation)
+    return settings.mobility * np.clip(ramp, 0.0, 1.0)
+
+
+class Extrusion:
+    """Extrusion part of :class:`macro.model.MacroModel`."""
+
+    def extrusion_pressure(self) -> FloatArray:
+        """(n,) the pressure that drives the clay [Pa]: a pellet's confining stress, a
+        cell's powder at its swelling pressure where it fills its void (0 where it does not),
+        as it pushes on the pellets (:meth:`macro.mechanics.Mechanics.powder_pressure`)."""
+        assert self.stress is not None and self._cell_pressure is not None
+        return np.concatenate([self.stress[:self.n_pellets], self._cell_pressure])
+
+    def extrude(self, dt: float) -> None:
+        """Move clay for ``dt`` [s] down the swelling-pressure differences (module docstring).
+
+        Counts the systems whose outflow was limited to ``max_solid_change`` of their
+        solid in ``extrusion_limited``; the water crossing between held and free systems
+        is booked as boundary inflow (the held cells are the water supply's side).
+        """
+        settings = self.settings.extrusion
+        ex = self._exchanges
+        assert ex is not None
+        n_p, n = self.n_pellets, self.volume.size
+        pressure = self.extrusion_pressure()
+        pairs = ex.pairs[ex.kind > 0]
+        i, j = pairs[:, 0], pairs[:, 1]
+        donor = np.where(pressure[i] >= pressure[j], i, j)
+        moving = mobility(self.saturations(), settings)
+        # pellets give clay, never take it: a pellet-cell exchange flows only outwards
+        outwards = (i >= n_p) | (pressure[i] > pressure[j])
+        geometry = ex.area[ex.kind > 0] / ex.length[ex.kind > 0]
+        conductance = np.where(outwards, moving[donor] * geometry, 0.0)
+        if not conductance.any():
+            return
+        cells = np.arange(n) >= n_p
+        free = cells & ~self.inert
+        # dV_s/dP of confined clay, V / (alpha_v rho_s P), at least at the onset of confinement
+        rho_s, m = self.material.grain_density, self.material
+        onset = swelling_pressure(self.solid_mass() / free_volume(-self.pressure, self.reference_volume, m),
+                                  -self.pressure, self.retention_porosity(), m)
+        capacity = self.volume / (m.alpha_v * rho_s * np.maximum(np.maximum(pressure, onset), 1.0))
+        new = implicit_pressures(pairs, conductance, pressure, capacity, dt, free)
+        new[~free] = pressure[~free]
+        flux, limited = limited_fluxes(pairs, conductance, new, self.solid_volume, dt, free | ~cells,
+                                       1.0 - settings.max_solid_change)
+        self.extrusion_limited += limited
+        # each exchange carries the donor's clay: solid, water, V_0 and (pellets) volume
+        source = np.where(flux < 0.0, i, j)
+        moved = dt * flux
+        interior_before = self.interior_water()
+        reference = self.reference_volume[:n_p].copy()
+        per_solid = {name: getattr(self, name) / self.solid_volume
+                     for name in ("water_mass", "reference_volume", "volume")}
+        self.solid_volume = self.solid_volume + edge_rates(pairs, moved, n)
+        for name, ratio in per_solid.items():
+            setattr(self, name, getattr(self, name) + edge_rates(pairs, moved * ratio[source], n))
+        # a pellet's largest volume (its free swelling at zero suction) follows its V_0
+        self.max_volume[:n_p] *= self.reference_volume[:n_p] / reference
+        self.extruded_volume += float(np.abs(moved).sum())
+        self.boundary_inflow += self.interior_water() - interior_before
+
+    def overflow(self) -> None:
+        """Hand what no longer fits in a squeezed cell to its face neighbours.
+
+        The pellets' motion and the clay received by extrusion can leave a cell's void
+        below its contents. Its clay beyond the powder's densest state (solid at the
+        smallest porosity: solid, water, V_0 and volume at the cell's own ratios) goes to
+        the neighbours with room; then water beyond its pore space goes to the
+        neighbours with air (a saturated cell squeezed drains at once: its consolidation
+        time, L^2 mu m_v / k, is seconds at the cells' size), each in proportion to the
+        neighbours' room. Counted in ``overflowed_cells``; conservative to round-off;
+        what no neighbour can take stays (then capped in the local problem, counted)."""
+        assert self._void is not None
+        n_p = self.n_pellets
+        cells = slice(n_p, None)
+        active = ~self.inert[cells]
+        interior_before = self.interior_water()
+        for _ in range(OVERFLOW_PASSES):
+            densest = self.densest_volume(cells, with_water=False)
+            room = np.maximum(self._void - self.densest_volume(cells), 0.0)
+            excess = np.where(active, densest - self._void, 0.0)
+            moved = self._spill(excess / densest, room, ("solid_volume", "water_mass", "reference_volume", "volume"))
+            wet = self.densest_volume(cells) * (1.0 + 1e-9)
+            air = np.maximum(self._void - wet, 0.0)
+            moved += self._spill(np.where(active, (wet - self._void) / np.maximum(wet - self.solid_volume[cells], 1e-300),
+                                          0.0), air, ("water_mass",))
+            if not moved:
+                break
+        self.boundary_inflow += self.interior_water() - interior_before
+
+    def _spill(self, fraction: FloatArray, room: FloatArray, names: tuple[str, ...]) -> int:
+        """Move ``fraction`` (n_c,) of the named quantities of each cell (those with a
+        positive fraction) to its face neighbours in proportion to their ``room`` [m3]
+        (n_c,), at most the neighbours' room; returns the number of cells that gave."""
+        n_p = self.n_pellets
+        giving = np.flatnonzero(fraction > 0.0)
+        if giving.size == 0:
+            return 0
+        targets = self.mesh.neighbours[giving]
+        room_of = np.where(targets >= 0, np.append(room, 0.0)[targets], 0.0)
+        capacity = room_of.sum(axis=1)
+        # the volume a fraction frees: the quantity's share of the densest clay volume
+        wanted = fraction[giving] * self.densest_volume(n_p + giving)
+        share = np.where(wanted > 0.0, np.minimum(wanted, capacity) / np.where(wanted > 0.0, wanted, 1.0), 0.0)
+        given_fraction = np.minimum(fraction[giving] * share, 1.0)
+        weights = room_of / np.where(capacity > 0.0, capacity, 1.0)[:, None]
+        hit = targets >= 0
+        for name in names:
+            values = getattr(self, name)
+            given = values[n_p + giving] * given_fraction
+            values[n_p + giving] -= given
+            np.add.at(values, n_p + targets[hit], (given[:, None] * weights)[hit])
+        count = int(np.count_nonzero(given_fraction > 0.0))
+        self.overflowed_cells += count
+        return count
