@@ -32,6 +32,9 @@ __all__ = ["Extrusion", "ExtrusionSettings", "extrusion_settings", "mobility"]
 FloatArray = npt.NDArray[np.float64]
 OVERFLOW_PASSES = 4
 """Rounds of :meth:`Extrusion.overflow` (what a neighbour received may spill on)."""
+OVERFLOW_MARGIN = 1e-4
+"""Contents left below the void after an overflow, relative to it (the local problem
+needs room: V_s + m_w / rho < V_max)."""
 
 
 @dataclass(frozen=True)
@@ -79,9 +82,10 @@ class Extrusion:
     def extrusion_pressure(self) -> FloatArray:
         """(n,) the pressure that drives the clay [Pa]: a pellet's confining stress, a
         cell's powder at its swelling pressure where it fills its void (0 where it does not),
-        as it pushes on the pellets (:meth:`macro.mechanics.Mechanics.powder_pressure`)."""
-        assert self.stress is not None and self._cell_pressure is not None
-        return np.concatenate([self.stress[:self.n_pellets], self._cell_pressure])
+        as it pushes on the pellets (:meth:`macro.mechanics.Mechanics.powder_pressure`, at
+        the current cells)."""
+        assert self.stress is not None
+        return np.concatenate([self.stress[:self.n_pellets], self.powder_pressure()[0]])
 
     def extrude(self, dt: float) -> None:
         """Move clay for ``dt`` [s] down the swelling-pressure differences (module docstring).
@@ -148,14 +152,15 @@ class Extrusion:
         cells = slice(n_p, None)
         active = ~self.inert[cells]
         interior_before = self.interior_water()
+        void = self._void / (1.0 + OVERFLOW_MARGIN)
         for _ in range(OVERFLOW_PASSES):
             densest = self.densest_volume(cells, with_water=False)
-            room = np.maximum(self._void - self.densest_volume(cells), 0.0)
-            excess = np.where(active, densest - self._void, 0.0)
+            room = np.where(active, np.maximum(void - self.densest_volume(cells), 0.0), 0.0)
+            excess = np.where(active, densest - void, 0.0)
             moved = self._spill(excess / densest, room, ("solid_volume", "water_mass", "reference_volume", "volume"))
-            wet = self.densest_volume(cells) * (1.0 + 1e-9)
-            air = np.maximum(self._void - wet, 0.0)
-            moved += self._spill(np.where(active, (wet - self._void) / np.maximum(wet - self.solid_volume[cells], 1e-300),
+            wet = self.densest_volume(cells)
+            air = np.where(active, np.maximum(void - wet, 0.0), 0.0)
+            moved += self._spill(np.where(active, (wet - void) / np.maximum(wet - self.solid_volume[cells], 1e-300),
                                           0.0), air, ("water_mass",))
             if not moved:
                 break

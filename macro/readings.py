@@ -79,7 +79,8 @@ class WallReadings:
         pellets and active cells over the container's volume, and the pellets' clay with
         the powder's solid and water over it [1]; the largest overfill of a cell, its
         powder's solid and water over its void less 1 [1]; the dry density of the
-        pellets and active cells over the container [kg/m3]."""
+        pellets and active cells over the container [kg/m3]; the spread of the dry density
+        (:meth:`dry_density_spread`) [kg/m3]."""
         n_p, rho = self.n_pellets, self.settings.density
         cells = n_p + np.flatnonzero(~self.inert[n_p:])
         free_cells = cells[~self.held[cells]]
@@ -97,7 +98,17 @@ class WallReadings:
             "occupied_fraction": float((self.volume[:n_p].sum() + powder.sum()) / container),
             "largest_overfill": float(np.max(powder / self._void[cells - n_p]) - 1.0),
             "dry_density": float(self.material.grain_density * solid / container),
+            "dry_density_spread": self.dry_density_spread(),
         }
+
+    def dry_density_spread(self) -> float:
+        """Volume-weighted standard deviation of the dry density m_s / V over the pellets
+        and the active cells [kg/m3]: 0 for a homogeneous mixture."""
+        n_p = self.n_pellets
+        systems = np.concatenate([np.arange(n_p), n_p + np.flatnonzero(~self.inert[n_p:])])
+        density = self.solid_mass()[systems] / self.volume[systems]
+        mean = np.average(density, weights=self.volume[systems])
+        return float(np.sqrt(np.average((density - mean) ** 2, weights=self.volume[systems])))
 
     def dry_mass_ratio(self) -> float:
         """Dry mass of the pellets over that of the powder in the active cells [1]."""

@@ -53,6 +53,7 @@ INVARIANTS = {
     "occupied_fraction": ("1", "pellets' clay volume with the powder's solids and water over the container's volume"),
     "largest_overfill": ("1", "largest powder solid and water volume over its cell's void, less 1 (> 0: a cell holds more than its void)"),
     "dry_density": ("kg m-3", "dry mass of pellets and powder over the container's volume"),
+    "dry_density_spread": ("kg m-3", "volume-weighted standard deviation of the dry density of pellets and powder cells (0: homogeneous)"),
 }
 """Invariants recorded at every record (:meth:`macro.model.MacroModel.invariants`): units, long name."""
 MEASUREMENT_ROWS = ("permeability_time", "column_permeability", "passage")
