@@ -8,8 +8,8 @@ by the extrusion of the swelling clay into the looser zones (Molinero-Guerra et 
 pellet's is its confining stress), M = M_0 f(S) the mobility of the donor's clay
 [m2/(Pa s)]: dry clay is granular and does not flow, wet clay is a gel (Darde et al.
 2020's switch from a granular to a continuous state, here on the donor's saturation:
-f = clip((S - S_c) / (1 - S_c), 0, 1)). Pellets only give clay (their pressure is
-set by the DEM, not by their solid). Water and the reference volume travel with the
+f = clip((S - S_c) / (1 - S_c), 0, 1)). Pellets only give clay, while confined and
+while they hold half their initial solid (the DEM's sphere stays a pellet). Water and the reference volume travel with the
 solid at the donor's ratios, so solid, water and V_0 are conserved to round-off. The
 step is linearised backward Euler in the cells' pressures (the SPD system of
 :func:`macro.transport.implicit_pressures`), with each cell's capacity dV_s/dP.
@@ -24,12 +24,14 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from macro.laws import free_volume, swelling_pressure
+from macro.laws import confined_pressure, free_volume, swelling_pressure
 from macro.transport import edge_rates, implicit_pressures, limited_fluxes
 
 __all__ = ["Extrusion", "ExtrusionSettings", "extrusion_settings", "mobility"]
 
 FloatArray = npt.NDArray[np.float64]
+PELLET_KEEPS = 0.5
+"""Fraction of its initial solid below which a pellet gives no more clay."""
 OVERFLOW_PASSES = 4
 """Rounds of :meth:`Extrusion.overflow` (what a neighbour received may spill on)."""
 OVERFLOW_MARGIN = 1e-4
@@ -80,12 +82,15 @@ class Extrusion:
     """Extrusion part of :class:`macro.model.MacroModel`."""
 
     def extrusion_pressure(self) -> FloatArray:
-        """(n,) the pressure that drives the clay [Pa]: a pellet's confining stress, a
-        cell's powder at its swelling pressure where it fills its void (0 where it does not),
+        """(n,) the pressure that drives the clay [Pa]: a pellet's swelling pressure where it is
+        confined (0 at its free volume: a free pellet is not squeezed), a cell's powder at
+        its swelling pressure where it fills its void (0 where it does not),
         as it pushes on the pellets (:meth:`macro.mechanics.Mechanics.powder_pressure`, at
         the current cells)."""
-        assert self.stress is not None
-        return np.concatenate([self.stress[:self.n_pellets], self.powder_pressure()[0]])
+        n_p = self.n_pellets
+        pellets = confined_pressure(self.volume[:n_p], -self.pressure[:n_p], self.solid_mass()[:n_p],
+                                    self.reference_volume[:n_p], self.retention_porosity()[:n_p], self.material)
+        return np.concatenate([pellets, self.powder_pressure()[0]])
 
     def extrude(self, dt: float) -> None:
         """Move clay for ``dt`` [s] down the swelling-pressure differences (module docstring).
@@ -103,8 +108,11 @@ class Extrusion:
         i, j = pairs[:, 0], pairs[:, 1]
         donor = np.where(pressure[i] >= pressure[j], i, j)
         moving = mobility(self.saturations(), settings)
-        # pellets give clay, never take it: a pellet-cell exchange flows only outwards
-        outwards = (i >= n_p) | (pressure[i] > pressure[j])
+        # pellets give clay, never take it, and keep at least PELLET_KEEPS of their own
+        # (the DEM's sphere stays a pellet): a pellet-cell exchange flows only outwards
+        assert self.pellet_initial_solid is not None
+        keeps = self.solid_volume[:n_p] > PELLET_KEEPS * self.pellet_initial_solid
+        outwards = (i >= n_p) | ((pressure[i] > pressure[j]) & keeps[np.minimum(i, n_p - 1)])
         geometry = ex.area[ex.kind > 0] / ex.length[ex.kind > 0]
         conductance = np.where(outwards, moving[donor] * geometry, 0.0)
         if not conductance.any():

@@ -97,6 +97,7 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
     powder_porosity: float = 0.0
     initial_interior_water: float = 0.0
     _occupied_loss: FloatArray | None = None
+    pellet_initial_solid: FloatArray | None = None
 
 
     @classmethod
@@ -140,6 +141,7 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
             container=container, on_plate=on_plate,
         )
         model._omega = omega
+        model.pellet_initial_solid = solid[:n_p].copy()
         model.powder_porosity = phi_powder
         model.stress = np.zeros(n_p + n_c)
         model._occupied_loss = np.zeros(n_p)
