@@ -42,7 +42,7 @@ FloatArray = npt.NDArray[np.float64]
 SHRINK = 0.05
 """Radius of the one-material limit's pellets over the packing's [1]."""
 END_TIME = 12000.0
-"""Hydration time compared [s] (the mean saturation is 0.96 of its final value)."""
+"""Hydration time compared [s] (the mean saturation reaches 0.962, its final value 0.964)."""
 
 
 def _one_material_model(tmp_path: Path) -> MacroModel:
