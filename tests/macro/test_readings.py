@@ -34,18 +34,29 @@ def test_uniform_powder_push_reads_its_pressure_on_walls_and_plates(table_path):
 def test_a_new_models_means_and_invariants_are_its_initial_state(table_path):
     """The hand-placed pellets and the cells around them, new: the pellets are at the
     configured initial suction, the powder between it and the held ends' boundary
-    suction; no water has moved, and nothing has shrunk (only the held cells, wetter,
-    have swollen); the dry density of pellets and
-    active cells is the configured target (the powder's porosity is chosen for it, an
-    independent route through the pellets' and cells' volumes)."""
+    suction; the pellets hold rho phi_p (4/3 pi r^3) S(s_0) each and the held cells
+    rho S(s_b) of their pores, with Table 4.2's retention curve at its reference
+    porosity written out here, S = [1 + (s / zeta)^(1 / (1 - lambda))]^(-lambda); and
+    nothing has shrunk (only the held cells, wetter, have swollen)."""
     config, model = hand_placed_model(table_path)
     s0 = config["materials"]["mixture_pellet"]["initial_suction_pa"]
     pellets, powder = model.mean_suction()
     assert pellets == pytest.approx(s0, rel=1e-12)
     assert model.held.any() and model.settings.boundary_suction < powder < s0
+    retention = config["materials"]["mixture_powder"]
+    zeta, lam = retention["retention_pressure_reference_pa"], retention["retention_exponent_reference"]
+
+    def saturation(suction):
+        return (1.0 + (suction / zeta) ** (1.0 / (1.0 - lam))) ** -lam
+
+    macro = config["macro"]
+    density = macro["water_density_kg_m3"]
+    pellet = density * macro["pellet_porosity"] * 4.0 / 3.0 * np.pi * macro["pellet_radius_m"] ** 3 * saturation(s0)
     invariants = model.invariants()
-    assert invariants["water_residual"] == 0.0
-    assert invariants["dry_density"] == pytest.approx(config["macro"]["mixture"]["dry_density_kg_m3"], rel=1e-9)
-    half = 0.5 * config["macro"]["cylinder_height_m"]
+    assert invariants["water_pellets"] == pytest.approx(model.n_pellets * pellet, rel=1e-12, abs=0.0)
+    pores = (model.volume - model.solid_volume)[model.held].sum()
+    assert invariants["water_held"] == pytest.approx(
+        density * saturation(macro["boundary_suction_pa"]) * pores, rel=1e-12, abs=0.0)
+    half = 0.5 * macro["cylinder_height_m"]
     swelling, _ = model.profiles(np.linspace(-half, half, 6))
     assert (swelling[np.isfinite(swelling)] >= -1e-12).all()
