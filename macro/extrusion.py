@@ -83,14 +83,16 @@ class Extrusion:
 
     def extrusion_pressure(self) -> FloatArray:
         """(n,) the pressure that drives the clay [Pa]: a pellet's swelling pressure where it is
-        confined (0 at its free volume: a free pellet is not squeezed), a cell's powder at
+        confined (0 at its free volume: a free pellet is not squeezed), at most its
+        confining stress (what its surface carries, from the DEM), a cell's powder at
         its swelling pressure where it fills its void (0 where it does not),
         as it pushes on the pellets (:meth:`macro.mechanics.Mechanics.powder_pressure`, at
         the current cells)."""
         n_p = self.n_pellets
         pellets = confined_pressure(self.volume[:n_p], -self.pressure[:n_p], self.solid_mass()[:n_p],
                                     self.reference_volume[:n_p], self.retention_porosity()[:n_p], self.material)
-        return np.concatenate([pellets, self.powder_pressure()[0]])
+        assert self.stress is not None
+        return np.concatenate([np.minimum(pellets, self.stress[:n_p]), self.powder_pressure()[0]])
 
     def extrude(self, dt: float) -> None:
         """Move clay for ``dt`` [s] down the swelling-pressure differences (module docstring).
@@ -132,7 +134,7 @@ class Extrusion:
         # each exchange carries the donor's clay: solid, water, V_0 and (pellets) volume
         source = np.where(flux < 0.0, i, j)
         moved = dt * flux
-        interior_before = self.interior_water()
+        held_before = self.water_mass[self.held].sum()
         reference = self.reference_volume[:n_p].copy()
         per_solid = {name: getattr(self, name) / self.solid_volume
                      for name in ("water_mass", "reference_volume", "volume")}
@@ -142,7 +144,8 @@ class Extrusion:
         # a pellet's largest volume (its free swelling at zero suction) follows its V_0
         self.max_volume[:n_p] *= self.reference_volume[:n_p] / reference
         self.extruded_volume += float(np.abs(moved).sum())
-        self.boundary_inflow += self.interior_water() - interior_before
+        # what the held cells lost entered the interior
+        self.boundary_inflow += float(held_before - self.water_mass[self.held].sum())
 
     def overflow(self) -> None:
         """Hand what no longer fits in a squeezed cell to its face neighbours.
@@ -159,7 +162,7 @@ class Extrusion:
         n_p = self.n_pellets
         cells = slice(n_p, None)
         active = ~self.inert[cells]
-        interior_before = self.interior_water()
+        held_before = self.water_mass[self.held].sum()
         void = self._void / (1.0 + OVERFLOW_MARGIN)
         for _ in range(OVERFLOW_PASSES):
             densest = self.densest_volume(cells, with_water=False)
@@ -172,7 +175,8 @@ class Extrusion:
                                           0.0), air, ("water_mass",))
             if not moved:
                 break
-        self.boundary_inflow += self.interior_water() - interior_before
+        # what the held cells lost entered the interior
+        self.boundary_inflow += float(held_before - self.water_mass[self.held].sum())
 
     def _spill(self, fraction: FloatArray, room: FloatArray, names: tuple[str, ...]) -> int:
         """Move ``fraction`` (n_c,) of the named quantities of each cell (those with a

@@ -39,23 +39,21 @@ class PressureVolume:
         return densest
 
     def growth_room(self) -> FloatArray:
-        """(n_p,) largest growth of each pellet's clay volume in this step [m3]: as much as
-        every active cell around it can give up before its powder reaches its densest
-        state, the cell's room shared among its pellets by solid angle (a cell's void is
+        """(n_p,) largest growth of each pellet's clay volume in this step [m3]: its share of
+        the room of the active cells around it (their void less their powder's densest
+        state), each cell's room shared among its pellets by solid angle. A cell's void is
         its tetrahedron less Omega / (4 pi) of each pellet's clay volume, so pellets that
-        all grow by dV take sum(Omega) / (4 pi) dV of it)."""
+        take their shares leave every cell its densest state on the whole; a cell that
+        one pellet squeezes more than its share hands the excess on (:meth:`overflow`)."""
         assert self._void is not None and self._omega is not None
         n_p = self.n_pellets
         tet = self.mesh.tetrahedra
-        room = np.maximum(self._void - self.densest_volume(slice(n_p, None)), 0.0)
-        share = np.where(tet < n_p, self._omega / (4.0 * np.pi), 0.0)
+        room = np.where(self.inert[n_p:], 0.0, np.maximum(self._void - self.densest_volume(slice(n_p, None)), 0.0))
+        share = np.where(tet < n_p, self._omega, 0.0)
         total = share.sum(axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            growth = np.where((total > 0.0) & ~self.inert[n_p:], room / total, np.inf)
-        bound = np.full(n_p, np.inf)
+        parts = room[:, None] * share / np.where(total > 0.0, total, 1.0)[:, None]
         pellet = tet < n_p
-        np.minimum.at(bound, tet[pellet], np.broadcast_to(growth[:, None], tet.shape)[pellet])
-        return bound
+        return np.bincount(tet[pellet], parts[pellet], minlength=n_p)
 
     def solve_local(self) -> None:
         """Pressure-volume problem of every system not held (Sec. 4.3).
