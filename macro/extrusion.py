@@ -4,12 +4,12 @@ differences, between neighbouring cells and from the pellets' surface into loose
 Beyond the thesis (whose powder stays in its cell, Sec. 4.8): the mock-up homogenises
 by the extrusion of the swelling clay into the looser zones (Molinero-Guerra et al.
 2020). The solid volume flux across an exchange is q_ij = M A_ij / L_ij (P_i - P_j)
-[m3/s], P the clay's swelling pressure (:func:`macro.laws.swelling_pressure`; a
-pellet's is its confining stress), M = M_0 f(S) the mobility of the donor's clay
-[m2/(Pa s)]: dry clay is granular and does not flow, wet clay is a gel (Darde et al.
-2020's switch from a granular to a continuous state, here on the donor's saturation:
-f = clip((S - S_c) / (1 - S_c), 0, 1)). Pellets only give clay, while confined and
-while they hold half their initial solid (the DEM's sphere stays a pellet). Water and the reference volume travel with the
+[m3/s], P the clay's swelling pressure (:func:`macro.laws.swelling_pressure`), M =
+M_0 f(S) the mobility of the donor's clay [m2/(Pa s)]: dry clay is granular and does
+not flow, wet clay is a gel (Darde et al. 2020's switch from a granular to a continuous
+state, here on the donor's saturation: f = clip((S - S_c) / (1 - S_c), 0, 1)).
+Pellets only give clay, while confined and while they hold half their initial solid
+(the DEM's sphere stays a pellet). Water and the reference volume travel with the
 solid at the donor's ratios, so solid, water and V_0 are conserved to round-off. The
 step is linearised backward Euler in the cells' pressures (the SPD system of
 :func:`macro.transport.implicit_pressures`), with each cell's capacity dV_s/dP.
