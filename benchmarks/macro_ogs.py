@@ -40,7 +40,7 @@ import numpy.typing as npt
 from benchmarks.parameters import CONFIG
 from shared.figures import new_figure, save_figure
 from shared.permeability import porosity_permeability
-from shared.retention import van_genuchten_saturation
+from shared.retention import van_genuchten_saturation, van_genuchten_suction
 
 __all__ = ["ColumnSetup", "bench_macro_ogs", "column_setup", "run_ogs"]
 
@@ -426,6 +426,12 @@ def read_ours(path: Path, setup: ColumnSetup) -> dict | None:
                     **{f"{k}_plate": float(v) for k, v in zip(ds["plate"].values, ds["axial_passage_time"].values,
                                                              strict=True)}}
         if "sensor_passage_time" in ds else {},
+        # our suction at each sensor's height when it passed, linear in time between records
+        "passage_suction": {str(k): float(np.interp(float(v), ds["time"].values,
+                                                    ds["suction_profile"].sel(z=h, method="nearest").values))
+                            for k, v, h in zip(ds["sensor"].values, ds["sensor_passage_time"].values,
+                                               ds["sensor_height"].values, strict=True)}
+        if "sensor_passage_time" in ds else {},
         "path": str(path),
     }
 
@@ -553,6 +559,10 @@ def _record(setup: ColumnSetup, flow: dict, rm: dict, ours: dict | None) -> dict
     record["ogs_days_to_rise_by_passage_pressure"] = {
         k: days(first_passage(rm["time"], v - v[0], PASSAGE_PRESSURE)) for k, v in readings.items()}
     record["passage_pressure_pa"] = PASSAGE_PRESSURE
+    # a sensor of the continuum rises by PASSAGE_PRESSURE where S passes S_0 + PASSAGE / p'_vc
+    rise = setup.saturation_range[0] + PASSAGE_PRESSURE / setup.swelling_pressure
+    record["ogs_suction_at_sensor_rise_mpa"] = float(
+        van_genuchten_suction(rise, setup.zeta, setup.exponent)) * MPA
     if ours is None:
         record["ours"] = None
         return record
@@ -577,6 +587,7 @@ def _record(setup: ColumnSetup, flow: dict, rm: dict, ours: dict | None) -> dict
             t[-1], rm["time"], np.mean(list(rm["sensors"].values()), axis=0))) * MPA,
         "ogs_mean_saturation_at_our_final_day": float(np.interp(t[-1], rm["time"], rm["mean_saturation"])),
         "days_to_passage_pressure": {k: days(v) for k, v in ours["passage"].items()},
+        "suction_at_sensor_at_passage_mpa": {k: v * MPA for k, v in ours["passage_suction"].items()},
         "profile_saturation_differences": _profile_differences(rm, ours),
     }
     return record
