@@ -292,7 +292,8 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
         "powder_heterogeneity": str(s.powder["heterogeneity"]),
         "powder_swelling_pressure": int(s.powder_pressure),
         "powder_pressure_on_walls": int(s.powder_on_walls),
-        "sensor_area_convention": "force / (2 pi R dz); the thesis's getPressure divides by pi R dz",
+        "sensor_area_convention": ("force / (2 pi R dz)" if s.sensors.area_share == 1.0
+                                   else "force / (pi R dz), the thesis's getPressure"),
         "stop_monitored": ", ".join(MONITORED),
         **{f"seconds_{k}": v for k, v in model.phase_seconds.items()},
     }

@@ -6,7 +6,7 @@ column; SP40 and SP80 are equidistant from the wetted ends). A sensor here is a 
 the curved wall centred on its height: it reads the radial forces whose contact point
 lies in the band, divided by the band's wall area 2 pi R w. The Appendix .1 script's
 ``getPressure`` reads equal height bands instead (:func:`equal_bands`); it divides by
-pi R w, half the band's area.
+pi R w, half the band's area (``macro.sensor_area: script``).
 """
 
 from __future__ import annotations
@@ -34,11 +34,15 @@ class WallBands:
     lower, upper
         Bottom and top of each band above the lower plate [m]; a load at height z is in
         a band when lower <= z < upper (bands may overlap).
+    area_share
+        The area a band's forces are divided by, as a share of its wall area 2 pi R w:
+        1 (``macro.sensor_area: band``), or 0.5, the script's pi R w (``script``).
     """
 
     names: tuple[str, ...]
     lower: tuple[float, ...]
     upper: tuple[float, ...]
+    area_share: float = 1.0
 
     @property
     def heights(self) -> FloatArray:
@@ -64,10 +68,10 @@ class WallBands:
         """
         lower, upper = np.asarray(self.lower)[:, None], np.asarray(self.upper)[:, None]
         inside = (heights >= lower) & (heights < upper)
-        return (inside @ forces) / (2.0 * np.pi * radius * self.widths)
+        return (inside @ forces) / (self.area_share * 2.0 * np.pi * radius * self.widths)
 
 
-def named_sensors(sensors: Mapping[str, Mapping[str, Any]], height: float) -> WallBands:
+def named_sensors(sensors: Mapping[str, Mapping[str, Any]], height: float, area_share: float = 1.0) -> WallBands:
     """The bands of ``macro.sensors`` (name -> {height_m, band_width_m}).
 
     Parameters
@@ -76,6 +80,8 @@ def named_sensors(sensors: Mapping[str, Mapping[str, Any]], height: float) -> Wa
         The validated ``macro.sensors`` mapping; heights above the lower plate [m].
     height
         Height of the container [m].
+    area_share
+        :attr:`WallBands.area_share`.
 
     Raises
     ------
@@ -94,10 +100,10 @@ def named_sensors(sensors: Mapping[str, Mapping[str, Any]], height: float) -> Wa
         names.append(str(name))
         lower.append(middle - half)
         upper.append(middle + half)
-    return WallBands(tuple(names), tuple(lower), tuple(upper))
+    return WallBands(tuple(names), tuple(lower), tuple(upper), area_share)
 
 
-def equal_bands(count: int, height: float) -> WallBands:
+def equal_bands(count: int, height: float, area_share: float = 1.0) -> WallBands:
     """``count`` equal bands covering the wall (Appendix .1 getPressure), named ``band k``
     from the bottom.
 
@@ -107,6 +113,8 @@ def equal_bands(count: int, height: float) -> WallBands:
         Number of bands.
     height
         Height of the container [m].
+    area_share
+        :attr:`WallBands.area_share`.
     """
     edges = np.linspace(0.0, height, count + 1).tolist()
-    return WallBands(tuple(f"band {k}" for k in range(count)), tuple(edges[:-1]), tuple(edges[1:]))
+    return WallBands(tuple(f"band {k}" for k in range(count)), tuple(edges[:-1]), tuple(edges[1:]), area_share)

@@ -11,6 +11,9 @@ from macro.extrusion import ExtrusionSettings, extrusion_settings
 from macro.newton import NewtonSettings
 from macro.sensors import WallBands, equal_bands, named_sensors
 
+SENSOR_AREA_SHARES = {"band": 1.0, "script": 0.5}
+"""``macro.sensor_area``: the share of a band's wall area 2 pi R w its forces are divided by."""
+
 __all__ = ["MacroSettings", "macro_settings", "mixture_fractions", "powder_porosity"]
 
 
@@ -82,6 +85,7 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
     if "heterogeneity" in over:
         powder["heterogeneity"] = over["heterogeneity"]
     mixture = {**macro["mixture"], **over.get("mixture", {})}
+    share = SENSOR_AREA_SHARES[str(macro["sensor_area"])]
     fraction, dry_density = mixture_fractions(mixture, float(macro["pellet_porosity"]),
                                               float(powder["grain_density_kg_m3"]))
     return MacroSettings(
@@ -103,8 +107,8 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         retention_follows_porosity=bool(macro["retention_follows_porosity"]),
         powder_pressure=bool(over.get("powder_swelling_pressure", macro["powder_swelling_pressure"])),
         powder_on_walls=bool(over.get("powder_pressure_on_walls", macro["powder_pressure_on_walls"])),
-        sensors=named_sensors(macro["sensors"], float(macro["cylinder_height_m"])),
-        bands=equal_bands(int(macro["sensor_bands"]), float(macro["cylinder_height_m"])),
+        sensors=named_sensors(macro["sensors"], float(macro["cylinder_height_m"]), share),
+        bands=equal_bands(int(macro["sensor_bands"]), float(macro["cylinder_height_m"]), share),
         vtk_snapshots=int(macro["vtk_snapshots"]),
         column_permeability_times=tuple(sorted(float(t) for t in macro["column_permeability_times_s"])),
         seed=int(over.get("seed", macro["seed"])),

@@ -10,18 +10,20 @@ from tests._macro_cases import small_config
 from tests.macro._hand_placed import hand_placed_model, hertz_forces
 
 
-def test_hand_placed_pellets_give_hertz_force_over_band_area(table_path):
+@pytest.mark.parametrize(("sensor_area", "share"), [("band", 1.0), ("script", 0.5)])
+def test_hand_placed_pellets_give_hertz_force_over_band_area(table_path, sensor_area, share):
     """Each pellet pushes the wall with its Hertz force; a sensor reads the forces in its
-    band over 2 pi R w, a band without contact reads zero, and the equal bands together
-    carry every force."""
-    config, model = hand_placed_model(table_path)
+    band over 2 pi R w (the script's pi R w with ``sensor_area: script``), a band without
+    contact reads zero, and the equal bands together carry every force. The dry powder
+    does not yet fill its voids: it pushes nothing."""
+    config, model = hand_placed_model(table_path, sensor_area=sensor_area)
     force = hertz_forces(config)
     radius = config["macro"]["cylinder_radius_m"]
-    band_area = 2 * np.pi * radius * 0.008
+    band_area = share * 2 * np.pi * radius * 0.008
     readings = model.readings
     np.testing.assert_allclose(readings.sensors,
                                [(force[0] + force[1]) / band_area, force[2] / band_area, 0.0], rtol=1e-9)
-    equal_area = 2 * np.pi * radius * 0.01
+    equal_area = share * 2 * np.pi * radius * 0.01
     np.testing.assert_allclose(readings.bands, [force[1] / equal_area, (force[0] + force[3]) / equal_area,
                                                 force[2] / equal_area, 0.0, 0.0], rtol=1e-9)
     assert readings.axial_upper == 0.0 and readings.axial_lower == 0.0
