@@ -26,6 +26,7 @@ CASE_MODULES = (
     "benchmarks.macro_kill_resume",
     "benchmarks.macro_homogenised",
     "benchmarks.macro_ogs",
+    "benchmarks.macro_balance",
     "benchmarks.micro_profile",
 )
 OUT = Path("results/benchmarks")

@@ -2,9 +2,10 @@
 4.31-4.38), Hertz-Mindlin contacts between pellets and against the container, and the
 quasi-static relaxation that balances them; the confining stress of each pellet.
 
-The quasi-static DEM uses a fictitious mass per pellet equal to its contact stiffness
-(time unit 1), so every substep is stable whatever the moduli (density scaling, as
-the thesis's script scales the density by 1e10); it is a relaxation, not dynamics.
+The quasi-static DEM is a static solve by FIRE (:func:`shared.dem.fire_step`) with a
+fictitious mass per pellet equal to its contact stiffness (time unit 1), so every step
+is stable whatever the moduli (density scaling, as the thesis's script scales the
+density by 1e10); it seeks the balanced state, it is not dynamics.
 """
 
 from __future__ import annotations
@@ -21,12 +22,20 @@ from macro.laws import (
 )
 from macro.mixture import facet_angles
 from macro.readings import Readings
-from shared.dem import cylinder_contacts, damped_update, detect_contacts, yielding_hertz_mindlin
+from shared.dem import FireState, cylinder_contacts, detect_contacts, fire_step, yielding_hertz_mindlin
 
 FloatArray = npt.NDArray[np.float64]
 
 POWDER_REFRESH = 50
-"""DEM substeps between two updates of the powder's push to the pellets' positions."""
+"""Largest number of DEM steps between two updates of the powder's push to the pellets'
+positions."""
+STALE_MARGIN = 0.5
+"""Fraction of ``dem_balance_tolerance`` at which the pellets, balanced against a push
+linearised about older positions, update it: the update's change of the push then has
+the other half of the tolerance."""
+MAX_STEP = 1e-3
+"""Largest displacement of a pellet (and rotation times its radius) in one DEM step, in
+radii: a pellet entering a contact stiffer than its mass moves at most this far."""
 MAX_OVERLAP_LOSS = 0.3
 """Largest fraction of a pellet's sphere that its overlaps may cut off."""
 
@@ -103,65 +112,98 @@ class Mechanics:
         return forces[:self.n_pellets]
 
     def relax(self, substeps: int) -> Readings:
-        """Quasi-static DEM under the current radii, moduli and powder: damped substeps
-        until the unbalanced force ratio is below ``dem_balance_tolerance``, at most
-        ``substeps`` (counted in ``dem_substeps_used``).
+        """Quasi-static DEM under the current radii, moduli and powder: FIRE steps
+        (:func:`shared.dem.fire_step`) until the unbalanced force ratio is below
+        ``dem_balance_tolerance``, at most ``substeps`` (counted in ``dem_substeps_used``).
 
-        The powder's push and its stiffness (dP/dV_c A^2 over a pellet's cells, added to
-        the fictitious mass) are those of the step's geometry.
+        The degrees of freedom are the pellets' translations and their rotations times
+        the radii, with one mass per pellet: its normal contact stiffness plus the
+        powder's (time unit 1; the rotations' inertia m r^2). One power and one mixing
+        act on both, so that the friction's torques and forces stay consistent. The
+        powder's push is recomputed at the moved positions every ``POWDER_REFRESH``
+        steps and whenever the pellets balance against a push of older positions, so a
+        balanced state is balanced against the push of its own geometry; in between it
+        is linearised about its positions with the isotropic stiffness dP/dV_c A^2 over
+        the pellet's cells (see docs/macro.md, "Quasi-static DEM and balanced readings",
+        for why the damped relaxation this replaces diverged at 0.01). The container's
+        friction (``wall_friction``) keeps its tangential forces per pellet and surface
+        from one relaxation to the next, as the pairs keep theirs.
+
+        FIRE rather than Newton or CG on the contact network: the force model (yield,
+        Coulomb sliding, contacts that open and close, the powder's push) is
+        non-smooth and history dependent, so its tangent matrix changes at every step,
+        while FIRE needs only the forces the damped relaxation already computed, and its
+        power test stops the motion whenever it turns uphill instead of overshooting.
         """
         s = self.settings
         n_p = self.n_pellets
         young = young_modulus(-self.pressure[:n_p], self.material)
         strength = yield_force(-self.pressure[:n_p], self.material)
-        assert self._wall_plastic is not None
+        assert self._wall_plastic is not None and self._wall_shear is not None
         nu = self.material.poisson_ratio
         z_lo, z_hi = -0.5 * s.height, 0.5 * s.height
         skin = 0.2 * float(self.radii.mean())
         pairs, shear, plastic = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin))
         reference = self.positions.copy()
-        # fictitious mass floor: the stiffness of a contact overlapping by 1e-3 r
+        # mass floor: the stiffness of a contact overlapping by 1e-3 r
         floor = 2.0 * young / (1.0 - nu * nu) * self.radii * np.sqrt(1e-3)
-        cap = 1e-3 * self.radii
+        # FIRE's rows: 0..n_p-1 the translations, n_p..2 n_p-1 the rotations times the radii [m]
+        cap = np.tile(MAX_STEP * self.radii, 2)
         external, powder_stiffness = self._powder_load()
         refresh = substeps > 0
-        # displacement and rotation of the last substep (none before the first)
+        fire = FireState()
+        rates = np.zeros((2 * n_p, 3))
+        # displacement and rotation of the last step (none before the first)
         moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))
         anchor = self.positions.copy()
-        for k in range(substeps + 1):
-            if refresh and k > 0 and k % POWDER_REFRESH == 0:
-                # the powder's push follows the pellets: voids reopen as they move apart
+        since = 0
+        k = 0
+        while True:
+            stale = bool(since) and refresh
+            # the push follows the pellets: voids reopen as they move apart
+            if stale and since >= POWDER_REFRESH:
                 refresh = self._moved_geometry()
                 if refresh:
                     external, powder_stiffness = self._powder_load()
                     anchor = self.positions.copy()
+                    since, stale = 0, False
             if 2.0 * np.sqrt(((self.positions - reference) ** 2).sum(axis=1)).max() > skin:
                 pairs, shear, plastic = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin),
                                                        pairs, shear, plastic)
                 reference = self.positions.copy()
-            # between two updates, the push linearised about them (isotropic mean of the
-            # cells' stiffness: moving into a cell squeezes it and opens the opposite one)
-            forces = external - powder_stiffness[:, None] / 3.0 * (self.positions - anchor)
+            # between two updates, the push linearised about them with the isotropic
+            # stiffness k = sum dP/dV_c A^2, the bound of its rank-one terms in every
+            # direction (the measured response is about k; k / 3, the trace mean, let the
+            # updates diverge, see docs/macro.md)
+            forces = external - powder_stiffness[:, None] * (self.positions - anchor)
             torques = np.zeros((n_p, 3))
             stiffness = powder_stiffness.copy()
             normal = yielding_hertz_mindlin(self.positions, moved, turned, self.radii, young, nu,
-                                                  self.material.friction, pairs, shear, forces, torques,
-                                                  stiffness, strength, plastic)
+                                            self.material.friction, pairs, shear, forces, torques,
+                                            stiffness, strength, plastic)
             radial, lower, upper = cylinder_contacts(
-                self.positions, self.radii, young, nu, s.radius, z_lo, z_hi, forces, stiffness, strength,
-                self._wall_plastic)
+                self.positions, moved, turned, self.radii, young, nu, s.wall_friction, s.radius, z_lo, z_hi,
+                forces, torques, stiffness, strength, self._wall_plastic, self._wall_shear)
             carried = np.concatenate([normal[normal > 0.0], radial[radial > 0.0],
                                       lower[lower > 0.0], upper[upper > 0.0]])
             resultant = np.sqrt((forces**2).sum(axis=1)).mean()
             unbalanced = float(resultant / carried.mean()) if carried.size else 0.0
-            if k == substeps or unbalanced < s.dem_balance_tolerance:
+            if k == substeps:
                 break
-            mass = np.maximum(stiffness, floor)[:, None]
-            self.velocities = damped_update(self.velocities, forces, mass, s.dem_damping, cap)
-            self.spins = damped_update(self.spins, torques, mass * self.radii[:, None] ** 2, s.dem_damping,
-                                        cap / self.radii)
-            moved, turned = self.velocities, self.spins
-            self.positions += self.velocities
+            if unbalanced < s.dem_balance_tolerance and not stale:
+                break
+            if unbalanced < STALE_MARGIN * s.dem_balance_tolerance:
+                # balanced against an older push: update it and check again, same positions
+                since = POWDER_REFRESH
+                moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))
+                continue
+            mass = np.tile(np.maximum(stiffness, floor), 2)
+            step = fire_step(fire, rates, np.concatenate([forces, torques / self.radii[:, None]]), mass, cap)
+            moved, turned = step[:n_p], step[n_p:] / self.radii[:, None]
+            self.positions += moved
+            since += 1
+            k += 1
+        self.velocities, self.spins = rates[:n_p], rates[n_p:] / self.radii[:, None]
         self._contact_pairs, self._shear, self._plastic = pairs, shear, plastic
         self.dem_substeps_used += k
         self._confine(pairs, normal, np.maximum(radial, 0.0) + np.maximum(lower, 0.0) + np.maximum(upper, 0.0))

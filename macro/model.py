@@ -89,6 +89,7 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
     _shear: FloatArray | None = None
     _plastic: FloatArray | None = None
     _wall_plastic: FloatArray | None = None
+    _wall_shear: FloatArray | None = None
     _void: FloatArray | None = None
     _edges: npt.NDArray[np.int64] | None = None
     _edges_of: npt.NDArray[np.int64] | None = None
@@ -147,6 +148,7 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
         model._occupied_loss = np.zeros(n_p)
         model.spins = np.zeros_like(packing.positions)
         model._wall_plastic = np.zeros((n_p, 3))
+        model._wall_shear = np.zeros((n_p, 3, 3))
         if settings.pellet_permeability == "tensor":
             frames = Rotation.random(n_p, random_state=np.random.default_rng(settings.seed + 2))
             model.pellet_frames = frames.as_matrix()

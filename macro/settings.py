@@ -7,6 +7,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from macro.extrusion import ExtrusionSettings, extrusion_settings
 from macro.newton import NewtonSettings
 from macro.sensors import WallBands, equal_bands, named_sensors
@@ -61,8 +63,8 @@ class MacroSettings:
     min_cell_void_fraction: float
     container_spacing: float
     dem_substeps: int
-    dem_damping: float
     dem_balance_tolerance: float
+    wall_friction: float
     stress_relaxation: float
     extrusion: ExtrusionSettings
 
@@ -136,8 +138,8 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         min_cell_void_fraction=float(num["min_cell_void_fraction"]),
         container_spacing=float(num["container_point_spacing"]),
         dem_substeps=int(num["dem_substeps"]),
-        dem_damping=float(num["dem_damping"]),
         dem_balance_tolerance=float(num["dem_balance_tolerance"]),
+        wall_friction=float(np.tan(np.radians(float(macro["wall_friction_angle_deg"])))),
         stress_relaxation=float(num["stress_relaxation"]),
         extrusion=extrusion_settings(macro, over),
     )

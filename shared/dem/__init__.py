@@ -1,4 +1,5 @@
-"""DEM core shared by the micro and macro models: points, contacts, Hertz-Mindlin, walls.
+"""DEM core shared by the micro and macro models: points, contacts, Hertz-Mindlin, walls,
+and the FIRE static solver.
 
 Typical use in a coupled loop::
 
@@ -30,10 +31,10 @@ if TYPE_CHECKING:
         point_bins,
         update_contacts,
     )
+    from shared.dem.fire import FireParameters, FireState, fire_step
     from shared.dem.hertz import bond_stretches, bond_tension, contact_forces
     from shared.dem.integrator import (
         StepReport,
-        damped_update,
         integrate,
         limit_speed,
         stable_time_step,
@@ -81,7 +82,9 @@ __all__ = [
     "walls_around",
     "limit_speed",
     "cylinder_contacts",
-    "damped_update",
+    "FireParameters",
+    "FireState",
+    "fire_step",
     "hertz_yield",
     "yielding_hertz_mindlin",
 ]
@@ -115,7 +118,9 @@ _EXPORTS = {
     "servo_walls": "walls",
     "wall_forces": "walls",
     "walls_around": "walls",
-    "damped_update": "integrator",
+    "FireParameters": "fire",
+    "FireState": "fire",
+    "fire_step": "fire",
     "cylinder_contacts": "yielding",
     "hertz_yield": "yielding",
     "yielding_hertz_mindlin": "yielding",

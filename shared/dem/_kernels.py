@@ -306,6 +306,24 @@ def _turned_shear(sx, sy, sz, nx, ny, nz):
 
 
 @njit(cache=True)
+def _mindlin_shear(sx, sy, sz, vx, vy, vz, nx, ny, nz, k_t, limit):  # type: ignore[no-untyped-def]
+    """A contact's new shear force: the stored one (sx, sy, sz) turned into the tangent
+    plane of n (:func:`_turned_shear`), minus ``k_t`` times the tangential part of the
+    contact point's relative displacement (vx, vy, vz), scaled down to Coulomb's
+    ``limit`` [N] if above it."""
+    vn = vx * nx + vy * ny + vz * nz
+    sx, sy, sz = _turned_shear(sx, sy, sz, nx, ny, nz)
+    sx -= k_t * (vx - vn * nx)
+    sy -= k_t * (vy - vn * ny)
+    sz -= k_t * (vz - vn * nz)
+    magnitude = np.sqrt(sx * sx + sy * sy + sz * sz)
+    if magnitude > limit:
+        scale = limit / magnitude
+        sx, sy, sz = sx * scale, sy * scale, sz * scale
+    return sx, sy, sz
+
+
+@njit(cache=True)
 def gershgorin_rates(positions, radii, pairs, masses, inertia, effective_modulus,
                      shear_coefficient, rates):
     """Add, per point, block-Gershgorin row sums of M^-1/2 K M^-1/2 [1/s^2].
@@ -578,17 +596,10 @@ def yielding_hertz_mindlin(positions, velocities, spins, radii, young, poisson, 
         normal[k] = fn
         arm_i, arm_j = radii[i] - 0.5 * overlap, radii[j] - 0.5 * overlap
         vx, vy, vz = contact_velocity(velocities, spins, i, j, nx, ny, nz, arm_i, arm_j)
-        vn = vx * nx + vy * ny + vz * nz
-        sx, sy, sz = _turned_shear(shear[k, 0], shear[k, 1], shear[k, 2], nx, ny, nz)
         shear_modulus = 0.25 * (young[i] + young[j]) / (1.0 + poisson)
         k_t = 4.0 * shear_modulus * a / (2.0 - poisson)
-        sx -= k_t * (vx - vn * nx)
-        sy -= k_t * (vy - vn * ny)
-        sz -= k_t * (vz - vn * nz)
-        magnitude = np.sqrt(sx * sx + sy * sy + sz * sz)
-        if magnitude > friction * fn:
-            scale = friction * fn / magnitude
-            sx, sy, sz = sx * scale, sy * scale, sz * scale
+        sx, sy, sz = _mindlin_shear(shear[k, 0], shear[k, 1], shear[k, 2], vx, vy, vz, nx, ny, nz, k_t,
+                                    friction * fn)
         shear[k, 0], shear[k, 1], shear[k, 2] = sx, sy, sz
         apply_contact(forces, torques, i, j, fn, nx, ny, nz, sx, sy, sz, arm_i, arm_j)
         stiffness[i] += 2.0 * e_star * a
@@ -597,16 +608,26 @@ def yielding_hertz_mindlin(positions, velocities, spins, radii, young, poisson, 
 
 
 @njit(cache=True)
-def cylinder_contacts(positions, radii, young, poisson, cylinder_radius, z_low, z_high,
-                       forces, stiffness, yield_force, plastic):
-    """Frictionless Hertz contacts with a rigid cylinder and two rigid end plates.
+def cylinder_contacts(positions, velocities, spins, radii, young, poisson, friction, cylinder_radius,
+                      z_low, z_high, forces, torques, stiffness, yield_force, plastic, shear):
+    """Hertz-Mindlin contacts with a rigid cylinder and two rigid end plates, with
+    Coulomb friction.
 
     A pellet of radius r at distance rho from the axis overlaps the curved wall by
     rho + r - R and a plate by r - (distance to the plate); force 4/3 E* sqrt(r) delta^(3/2)
     with E* = E / (1 - nu^2) (rigid wall, R* = r; the wall's curvature is neglected),
     yielding at the pellet's ``yield_force`` (:func:`hertz_yield`; ``plastic`` (n, 3) [m]
-    per pellet for the wall, lower and upper plate, updated in place). Returns per pellet
-    the force on the curved wall (radial, outwards), on the lower and on the upper plate [N].
+    per pellet for the wall, lower and upper plate, updated in place). With ``friction``
+    = tan(phi_w) > 0, the tangential force ``shear[i, w]`` [N] (n, 3, 3, updated in
+    place) is Mindlin's against a rigid surface: turned into the current tangent plane, it
+    changes by -k_t times the tangential displacement of the contact point (``velocities``
+    and ``spins`` are per substep, the contact point ``r - delta`` from the centre),
+    k_t = 8 G a / (2 - nu), G = E / (2 (1 + nu)), a = sqrt(r delta), within Coulomb's
+    |F_t| <= tan(phi_w) F_n; it is reset when the pellet leaves the surface, and adds its
+    torque about the centre. ``friction`` 0 leaves the contacts frictionless (``shear``
+    and ``torques`` untouched). Adds the normal tangent stiffness 2 E* a per pellet.
+    Returns per pellet the normal force on the curved wall (radial, outwards), on the
+    lower and on the upper plate [N].
     """
     n = positions.shape[0]
     loads = np.zeros((n, 3))
@@ -622,13 +643,32 @@ def cylinder_contacts(positions, radii, young, poisson, cylinder_radius, z_low, 
         for w in range(3):
             if overlaps[w] <= 0.0:
                 plastic[i, w] = 0.0
+                shear[i, w, 0] = shear[i, w, 1] = shear[i, w, 2] = 0.0
                 continue
             fn, plastic[i, w], a = hertz_yield(e_star, radii[i], overlaps[w], plastic[i, w], yield_force[i])
             loads[i, w] = fn
-            forces[i, 0] -= fn * normals[w][0]
-            forces[i, 1] -= fn * normals[w][1]
-            forces[i, 2] -= fn * normals[w][2]
+            nx, ny, nz = normals[w]
+            forces[i, 0] -= fn * nx
+            forces[i, 1] -= fn * ny
+            forces[i, 2] -= fn * nz
             stiffness[i] += 2.0 * e_star * a
+            if friction <= 0.0:
+                continue
+            arm = radii[i] - overlaps[w]
+            # the contact point's displacement: the centre's plus spin x (arm n)
+            vx = velocities[i, 0] + arm * (spins[i, 1] * nz - spins[i, 2] * ny)
+            vy = velocities[i, 1] + arm * (spins[i, 2] * nx - spins[i, 0] * nz)
+            vz = velocities[i, 2] + arm * (spins[i, 0] * ny - spins[i, 1] * nx)
+            k_t = 4.0 * young[i] * a / ((1.0 + poisson) * (2.0 - poisson))
+            sx, sy, sz = _mindlin_shear(shear[i, w, 0], shear[i, w, 1], shear[i, w, 2], vx, vy, vz, nx, ny, nz,
+                                        k_t, friction * fn)
+            shear[i, w, 0], shear[i, w, 1], shear[i, w, 2] = sx, sy, sz
+            forces[i, 0] += sx
+            forces[i, 1] += sy
+            forces[i, 2] += sz
+            torques[i, 0] += arm * (ny * sz - nz * sy)
+            torques[i, 1] += arm * (nz * sx - nx * sz)
+            torques[i, 2] += arm * (nx * sy - ny * sx)
     return loads[:, 0].copy(), loads[:, 1].copy(), loads[:, 2].copy()
 
 

@@ -237,13 +237,3 @@ def limit_speed(state: DEMState, max_speed: float) -> None:
     """
     _kernels.sized(_kernels.cap_speed, _kernels.cap_speed_serial,
                    state.velocities.shape[0])(state.velocities, max_speed)
-
-
-def damped_update(rate: FloatArray, drive: FloatArray, inertia: FloatArray, damping: float,
-                   cap: FloatArray) -> FloatArray:
-    """A damped substep of a velocity (or spin) per substep: Cundall's damping of the
-    drive (force or torque) against the half-step rate, then the rate capped per pellet."""
-    mid = rate + 0.5 * drive / inertia
-    rate = rate + drive * (1.0 - damping * np.sign(drive * mid)) / inertia
-    speed = np.sqrt((rate**2).sum(axis=1))
-    return rate * np.minimum(1.0, cap / np.maximum(speed, 1e-300))[:, None]

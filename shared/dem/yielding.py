@@ -1,6 +1,7 @@
 """Contacts of swelling pellets: Hertz-Mindlin between points of their own moduli, with
 Coulomb friction and the yield of Eq. 4.4 (Thornton's elastic-perfectly plastic
-contact), and frictionless contacts with a rigid cylinder closed by two plates.
+contact), and contacts with a rigid cylinder closed by two plates (frictionless unless
+given a wall friction).
 
 The macro model's pellets use these (Caulk 2022, Eqs. 4.1-4.9); the micro model's
 bonded points use :func:`shared.dem.contact_forces`. Both share the contact geometry,

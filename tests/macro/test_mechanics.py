@@ -1,12 +1,16 @@
 """macro.mechanics: the powder's push on a pellet through its sectors of the cells' facets
-(Eqs. 4.34-4.38) against the pressure on a hemisphere."""
+(Eqs. 4.34-4.38) against the pressure on a hemisphere; the relaxation's balance."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from macro.laws import yield_force, young_modulus
 from macro.mechanics import Mechanics
+from shared.dem import cylinder_contacts
 from shared.mesh import build_mesh
 
 
@@ -37,3 +41,38 @@ def test_pressure_on_one_half_pushes_the_pellet_with_p_times_its_cross_section(a
     expected[axis] = -2.0e5 * np.pi * 0.3**2
     np.testing.assert_allclose(force[0], expected, rtol=1e-12, atol=1e-9)
     np.testing.assert_allclose(model.hydro_forces(np.full(8, 2.0e5))[0], 0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("tolerance", [1e-2, 1e-3])
+def test_relaxation_of_the_small_column_balances_to_the_tolerance(model, tolerance):
+    """After hydration steps (the pellets swollen and pushed by their powder), FIRE
+    balances the small column to the unbalanced force ratio asked, 0.01 (the default)
+    and 0.001, within the default cap of 400 steps."""
+    model.settings = replace(model.settings, dem_balance_tolerance=tolerance)
+    for _ in range(5):
+        model.step()
+    used = model.dem_substeps_used
+    readings = model.relax(400)
+    assert readings.unbalanced < tolerance
+    assert model.dem_substeps_used - used < 400
+
+
+def test_frictional_walls_keep_the_balance_and_carry_shear(model):
+    """With a wall friction angle of 20 deg the column still balances to 0.01, and the
+    wall's tangential forces stay within Coulomb's tan(20 deg) times their normal force."""
+    model.settings = replace(model.settings, wall_friction=float(np.tan(np.radians(20.0))))
+    for _ in range(5):
+        model.step()
+    assert model.readings.unbalanced < 0.01
+    tangential = np.linalg.norm(model._wall_shear, axis=2)
+    assert tangential.max() > 0.0
+    # the normal forces of the same contacts (plastic overlaps of a copy)
+    n_p, s, rest = model.n_pellets, model.settings, np.zeros((model.n_pellets, 3))
+    young = young_modulus(-model.pressure[:n_p], model.material)
+    strength = yield_force(-model.pressure[:n_p], model.material)
+    normal = np.column_stack(cylinder_contacts(
+        model.positions, rest, rest, model.radii, young, model.material.poisson_ratio, 0.0, s.radius,
+        -0.5 * s.height, 0.5 * s.height, np.zeros((n_p, 3)), np.zeros((n_p, 3)), np.zeros(n_p), strength,
+        model._wall_plastic.copy(), np.zeros((n_p, 3, 3))))
+    assert np.all(tangential <= s.wall_friction * normal * (1.0 + 1e-12))
+    assert np.all(tangential[normal == 0.0] == 0.0)

@@ -101,7 +101,9 @@ def test_plate_contact_yields_like_a_pair_with_a_rigid_flat():
     d_y = (f_y / hertz) ** (2.0 / 3.0)
     positions = np.array([[0.0, 0.0, -0.05 + r - 2.0 * d_y]])
     forces, stiffness, plastic = np.zeros((1, 3)), np.zeros(1), np.zeros((1, 3))
-    radial, lower, upper = container_contacts(positions, np.array([r]), np.array([young]), nu, 0.03,
-                                              -0.05, 0.05, forces, stiffness, np.array([f_y]), plastic)
+    rest = np.zeros((1, 3))
+    radial, lower, upper = container_contacts(positions, rest, rest, np.array([r]), np.array([young]), nu, 0.0,
+                                              0.03, -0.05, 0.05, forces, np.zeros((1, 3)), stiffness,
+                                              np.array([f_y]), plastic, np.zeros((1, 3, 3)))
     assert lower[0] == pytest.approx(2.0 * f_y, rel=1e-9) and forces[0, 2] == pytest.approx(2.0 * f_y, rel=1e-9)
     assert radial[0] == 0.0 and upper[0] == 0.0 and plastic[0, 1] > 0.0
