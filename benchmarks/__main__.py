@@ -25,6 +25,7 @@ CASE_MODULES = (
     "benchmarks.macro",
     "benchmarks.macro_kill_resume",
     "benchmarks.macro_homogenised",
+    "benchmarks.macro_packing",
     "benchmarks.micro_profile",
 )
 OUT = Path("results/benchmarks")

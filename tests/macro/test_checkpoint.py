@@ -110,6 +110,9 @@ def test_a_run_killed_three_times_resumes_to_the_uninterrupted_result(table_path
     of the uninterrupted run, bit for bit (records thinned in between)."""
     steps = 36
     config = _swelling_config(steps)
+    # a packing that remeshes early and often (steps 5, 8 and 18); with most seeds this
+    # loose column remeshes once or never in 36 steps
+    config["macro"]["seed"] = 14
     monkeypatch.setattr("macro.run.THIN_ABOVE", THIN_ABOVE)
     whole, remeshed = _remesh_steps(monkeypatch, table_path, config, tmp_path / "whole.nc")
     assert len(remeshed) >= 2 and remeshed[1] + 3 < steps, remeshed
