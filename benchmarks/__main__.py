@@ -27,6 +27,7 @@ CASE_MODULES = (
     "benchmarks.macro_homogenised",
     "benchmarks.macro_ogs",
     "benchmarks.macro_balance",
+    "benchmarks.macro_packing",
     "benchmarks.micro_profile",
 )
 OUT = Path("results/benchmarks")

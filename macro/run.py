@@ -75,8 +75,8 @@ def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) 
         raise ValueError(
             f"macro.mixture: a pellet packing fraction of {settings.packing_fraction:.3g}: the packing left pellets overlapping "
             f"each other or the container by {packing.largest_overlap / settings.pellet_radius:.2g} of a "
-            f"radius after {settings.packing_sweeps} sweeps (macro.numerics.packing_iterations); lower the "
-            "packing fraction or raise the sweeps")
+            f"radius within {settings.packing_sweeps} minimiser iterations (macro.numerics.packing_iterations); "
+            "lower the packing fraction or raise the iterations")
     model = MacroModel.create(settings, material, table, packing)
     model.packing = packing  # type: ignore[attr-defined]
     return model

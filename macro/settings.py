@@ -18,6 +18,13 @@ SENSOR_AREA_SHARES = {"band": 1.0, "script": 0.5}
 
 __all__ = ["MacroSettings", "macro_settings", "mixture_fractions", "powder_porosity"]
 
+RANDOM_CLOSE_PACKING = 0.64
+"""Densest random packing of equal spheres, in bulk [1]: the ceiling of the pellet
+packing fraction. The container's walls lower what it holds (0.585-0.589 with pellet
+radius 3.5 mm in the default container, 0.548-0.550 with 5.99 mm; radius 2 mm holds 0.60:
+benchmarks/reference/macro_packing.json); :func:`macro.run.build_model` refuses a
+packing left overlapping."""
+
 
 @dataclass(frozen=True)
 class MacroSettings:
@@ -159,7 +166,8 @@ def mixture_fractions(mixture: Mapping[str, Any], pellet_porosity: float,
     ------
     ValueError
         Naming ``macro.mixture`` when the pellets alone are denser than the target or
-        the fraction cannot be packed.
+        the fraction exceeds random close packing (the packing itself refuses the
+        fractions that a container's walls put out of reach, :func:`macro.run.build_model`).
     """
     dry_density = float(mixture["dry_density_kg_m3"])
     pellet_density = grain_density * (1.0 - pellet_porosity)
@@ -168,11 +176,12 @@ def mixture_fractions(mixture: Mapping[str, Any], pellet_porosity: float,
         fraction = float(mixture["packing_fraction"])
     else:
         fraction = dry_density * float(ratio) / ((1.0 + float(ratio)) * pellet_density)
-    if not 0.0 < fraction <= 0.6:
+    if not 0.0 < fraction <= RANDOM_CLOSE_PACKING:
         raise ValueError(
             f"macro.mixture: a pellet packing fraction of {fraction:.3g} (dry density "
             f"{dry_density:g} kg/m3, pellet/powder dry-mass ratio {ratio}, pellet dry density "
-            f"{pellet_density:.4g} kg/m3) cannot be packed at random (at most 0.6)")
+            f"{pellet_density:.4g} kg/m3) cannot be packed at random (at most {RANDOM_CLOSE_PACKING}, "
+            "random close packing; the container's walls lower it further)")
     if fraction * pellet_density > dry_density:
         raise ValueError(
             f"macro.mixture: the pellets alone (packing fraction {fraction:.3g}, dry density "

@@ -252,8 +252,8 @@ def test_clamped_table_lookups_are_counted(tmp_path):
 
 
 def test_jammed_packing_is_refused_naming_the_keys(table_path, tmp_path):
-    """A packing fraction the radius growth cannot reach leaves pellets overlapping the
-    container or each other: refused, naming the key, nothing written."""
+    """A packing fraction the minimiser cannot reach in its iterations leaves pellets
+    overlapping the container or each other: refused, naming the key, nothing written."""
     config = small_config()
     config["macro"]["mixture"]["packing_fraction"] = 0.58
     config["macro"]["numerics"]["packing_iterations"] = 20
