@@ -48,7 +48,10 @@ class PressureVolume:
         assert self._void is not None and self._omega is not None
         n_p = self.n_pellets
         tet = self.mesh.tetrahedra
-        room = np.where(self.inert[n_p:], 0.0, np.maximum(self._void - self.densest_volume(slice(n_p, None)), 0.0))
+        # a held cell's water leaves through the boundary as it is squeezed: its solid alone counts
+        densest = np.where(self.held[n_p:], self.densest_volume(slice(n_p, None), with_water=False),
+                           self.densest_volume(slice(n_p, None)))
+        room = np.where(self.inert[n_p:], 0.0, np.maximum(self._void - densest, 0.0))
         share = np.where(tet < n_p, self._omega, 0.0)
         total = share.sum(axis=1)
         parts = room[:, None] * share / np.where(total > 0.0, total, 1.0)[:, None]

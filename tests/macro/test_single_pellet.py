@@ -31,7 +31,7 @@ def _hydrated(tmp_path, box: float) -> MacroModel:
     pellet's radius. The powder does not push (the pellet alone meets the container)."""
     radius = box * PELLET_RADIUS
     fraction = PELLET_RADIUS**3 / (1.5 * radius**3)
-    config = small_config(pellet_permeability="scalar", powder_swelling_pressure=False,
+    config = small_config(pellet_permeability="scalar", powder_swelling_pressure=False, homogenisation="none",
                           cylinder_radius_m=radius, cylinder_height_m=2.0 * radius,
                           cases={"one": {}}, sensors={"wall": {"height_m": radius, "band_width_m": radius}})
     config["macro"]["powder"]["heterogeneity"] = "homogeneous"
