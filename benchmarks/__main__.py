@@ -28,6 +28,7 @@ CASE_MODULES = (
     "benchmarks.macro_ogs",
     "benchmarks.macro_balance",
     "benchmarks.macro_packing",
+    "benchmarks.macro_mixture",
     "benchmarks.micro_profile",
 )
 OUT = Path("results/benchmarks")
