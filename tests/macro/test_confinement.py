@@ -116,3 +116,24 @@ def test_first_passages_are_the_first_records_above_half_a_megapascal(tmp_path_f
         expected = ds["time"].values[above[0]] if above.size else np.nan
         np.testing.assert_equal(passage, expected)
     assert np.isfinite(passages).any()
+
+
+def test_a_compressed_pellet_is_wetter_than_the_water_it_took_in():
+    """The mechanism that puts pellets below the boundary suction: a pellet that took in
+    its water at 1 MPa without stress (free, V_f(1 MPa)), then confined by 5 MPa with the
+    same water, is compressed until its water fills its pores (V = V_s + m_w / rho, by
+    hand): saturated, at a suction near zero (the pore water would be pressed; it leaves by
+    transport in the next steps), and still larger than the confined volume at that
+    suction, which it cannot reach without draining."""
+    v0, vs, ms = pellet(1e6)
+    free = v0 * (1.0 + swelling(1e6))
+    sat = (1.0 + (1e6 / MATERIAL.zeta0) ** (1.0 / (1.0 - MATERIAL.lambda0))) ** -MATERIAL.lambda0
+    water = 1000.0 * sat * (free - vs)
+    problem = PVProblem(np.array([water]), np.array([vs]), np.array([v0]), np.array([10.0 * v0]),
+                        1000.0, 1.38e8, None, np.array([PHI0]), np.array([5e6]), np.array([ms]))
+    v, p, _, _ = solve_pressure_volume(problem, MATERIAL, NEWTON, np.array([free]), np.array([1e6]))
+    volume, suction = float(v[0]), float(-p[0])
+    assert volume == pytest.approx(vs + water / 1000.0, rel=1e-5)
+    assert volume < free
+    assert suction < 1e3
+    assert volume > float(confined_volume(suction, 5e6, ms, v0, PHI0, MATERIAL))
