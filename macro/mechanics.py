@@ -134,6 +134,9 @@ class Mechanics:
         non-smooth and history dependent, so its tangent matrix changes at every step,
         while FIRE needs only the forces the damped relaxation already computed, and its
         power test stops the motion whenever it turns uphill instead of overshooting.
+        On the default case it balances about as fast as the damped substeps in the same
+        loop (docs/macro.md): the updates of the push set the cost, and FIRE has no
+        damping coefficient to choose.
         """
         s = self.settings
         n_p = self.n_pellets
