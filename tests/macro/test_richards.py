@@ -49,8 +49,8 @@ def _one_material_model(tmp_path: Path) -> MacroModel:
     """A column 50 mm x 10 mm of powder cells on the Delaunay mesh of a packing of 2.5 mm
     pellets (shrunk and impervious), swelling off, the implicit step held to 0.3 % of a
     pore volume (its time discretisation), conductivities x100 (a time scaling)."""
-    config = small_config(cylinder_radius_m=0.01, pellet_radius_m=2.5e-3, powder_swelling_pressure=False, homogenisation="none",
-                          conductivity_factor=100.0)
+    config = small_config(cylinder_radius_m=0.01, pellet_radius_m=2.5e-3, powder_swelling_pressure=False,
+                          homogenisation="none", conductivity_factor=100.0)
     macro_section = config["macro"]
     macro_section["powder"]["heterogeneity"] = "homogeneous"
     # the container's points keep the packing's spacing (a mean pellet diameter)
