@@ -216,7 +216,8 @@ class Mechanics:
         upper_force, lower_force = float(upper.sum()), float(lower.sum())
         if s.powder_on_walls:
             wall_heights, wall_loads, extra_upper, extra_lower = self._powder_wall_loads()
-            heights, loads = np.concatenate([heights, wall_heights]), np.concatenate([loads, wall_loads])
+            heights = np.concatenate([np.repeat(heights[:, None], 3, axis=1), wall_heights])
+            loads = np.concatenate([loads, wall_loads])
             upper_force += extra_upper
             lower_force += extra_lower
         return Readings(s.sensors.pressures(heights, loads, s.radius),

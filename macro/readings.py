@@ -46,9 +46,9 @@ class WallReadings:
         """Sec. 4.10: the powder pushes on the container through the mesh's hull, each
         triangle at the mean of its three points' :meth:`wall_point_pressure`.
 
-        Returns the height above the lower plate [m] and the radial force [N] of each
-        triangle on the curved wall (its centroid is its contact point), and the forces on
-        the upper and lower plates [N]."""
+        Returns the heights of the vertices above the lower plate (n, 3) [m] and the radial
+        force [N] of each triangle on the curved wall, and the forces on the upper and
+        lower plates [N]."""
         mesh = self.mesh
         point = np.concatenate([np.zeros(self.n_pellets), self.wall_point_pressure()])
         force = point[mesh.boundary_vertices].mean(axis=1) * mesh.boundary_areas
@@ -58,8 +58,8 @@ class WallReadings:
         side = np.abs(normals[:, 2]) <= np.sqrt(0.5)
         upper = float((force * np.maximum(normals[:, 2], 0.0))[~side].sum())
         lower = float((force * np.maximum(-normals[:, 2], 0.0))[~side].sum())
-        return (centroids[side, 2] + 0.5 * self.settings.height, (force * np.maximum(radial, 0.0))[side],
-                upper, lower)
+        heights = mesh.points[mesh.boundary_vertices[side], 2] + 0.5 * self.settings.height
+        return heights, (force * np.maximum(radial, 0.0))[side], upper, lower
 
 
     @property

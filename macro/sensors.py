@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["WallBands", "named_sensors", "equal_bands"]
+__all__ = ["WallBands", "equal_bands", "height_fractions", "named_sensors"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -60,15 +60,46 @@ class WallBands:
         Parameters
         ----------
         heights
-            (n,) height of each load's contact point above the lower plate [m].
+            (n,) height of each point load above the lower plate [m], or (n, 3) the
+            heights of the vertices of each triangle a load is spread over (the powder's
+            push on a hull triangle): its force is shared among the bands by the
+            triangle's area in each (:func:`height_fractions`), not put at its centroid,
+            so that bands about as high as the triangles read no rows twice.
         forces
             (n,) radial force of each load on the wall, outwards [N].
         radius
             Radius of the container [m].
         """
+        heights = np.asarray(heights, dtype=np.float64)
+        vertices = heights if heights.ndim == 2 else np.repeat(heights[:, None], 3, axis=1)
         lower, upper = np.asarray(self.lower)[:, None], np.asarray(self.upper)[:, None]
-        inside = (heights >= lower) & (heights < upper)
+        inside = height_fractions(vertices, upper) - height_fractions(vertices, lower)
         return (inside @ forces) / (self.area_share * 2.0 * np.pi * radius * self.widths)
+
+
+def height_fractions(vertices: FloatArray, level: FloatArray) -> FloatArray:
+    """Fraction of each triangle's area below each ``level`` [1], (levels, n).
+
+    A planar triangle's area is spread along any axis as a tent over its vertices'
+    coordinates z_1 <= z_2 <= z_3: the fraction below h is (h - z_1)^2 / ((z_3 - z_1)
+    (z_2 - z_1)) up to z_2 and 1 - (z_3 - h)^2 / ((z_3 - z_1) (z_3 - z_2)) above. A point
+    (three equal heights) is below h when its height is (a step: z < h).
+
+    Parameters
+    ----------
+    vertices
+        (n, 3) heights of each triangle's vertices [m].
+    level
+        (levels, 1) heights [m].
+    """
+    z1, z2, z3 = np.sort(vertices, axis=1).T
+    h = np.asarray(level, dtype=np.float64)
+    span = z3 - z1
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rising = (h - z1) ** 2 / (span * (z2 - z1))
+        falling = 1.0 - (z3 - h) ** 2 / (span * (z3 - z2))
+    fraction = np.where(h <= z1, 0.0, np.where(h >= z3, 1.0, np.where(h <= z2, rising, falling)))
+    return np.where(span > 0.0, fraction, (h > z1).astype(np.float64))
 
 
 def named_sensors(sensors: Mapping[str, Mapping[str, Any]], height: float, area_share: float = 1.0) -> WallBands:
