@@ -20,6 +20,7 @@ import numpy as np
 import xarray as xr
 
 from benchmarks.parameters import CONFIG
+from macro.laws import mixture_parameters, swelling_pressure
 
 __all__ = ["bench_macro_mixture", "mixture_record"]
 
@@ -38,10 +39,9 @@ def _plateau(time: np.ndarray, values: np.ndarray) -> float:
 def homogenised_pressure(dry_density: float, config: dict = CONFIG) -> float:
     """Eq. 4.31 at ``dry_density`` [kg/m3] times the retention curve's saturation at the
     boundary suction (Eq. 4.33): the wall pressure of the homogenised column [Pa]."""
-    powder, curve = config["macro"]["powder"], config["materials"]["mixture_powder"]
-    lam, zeta = curve["retention_exponent_reference"], curve["retention_pressure_reference_pa"]
-    sat = (1.0 + (config["macro"]["boundary_suction_pa"] / zeta) ** (1.0 / (1.0 - lam))) ** -lam
-    return float(sat * powder["swelling_beta_v_pa"] * np.exp(powder["swelling_alpha_v_m3_per_kg"] * dry_density))
+    material = mixture_parameters(config["materials"], config["macro"]["powder"])
+    return float(swelling_pressure(dry_density, config["macro"]["boundary_suction_pa"],
+                                   material.reference_porosity, material))
 
 
 def mixture_record(path: str | Path = RESULT) -> dict:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from macro.laws import powder_permeability, saturation, suction_derivative, swelling_strain
+from macro.laws import free_volume, powder_permeability, saturation, suction_derivative
 from macro.transport import (
     conductances,
     harmonic_mean,
@@ -35,7 +35,7 @@ class Hydraulics:
         leaves through the boundary (it is not interior water)."""
         h = np.flatnonzero(self.held)
         s_b = self.settings.boundary_suction
-        target = self.reference_volume[h] * (1.0 + swelling_strain(s_b, self.material))
+        target = free_volume(s_b, self.reference_volume[h], self.material)
         densest = self.densest_volume(h, with_water=False)
         self.volume[h] = np.maximum(np.minimum(target, self.max_volume[h] * (1.0 - 1e-9)), densest)
         porosity = self.retention_porosity()[h]

@@ -179,6 +179,7 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
         clock = now
         if self.settings.extrusion.enabled:
             self.extrude(dt)
+            self.overflow()
         now = time.perf_counter()
         self.phase_seconds["extrusion"] += now - clock
         clock = now

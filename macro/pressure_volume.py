@@ -66,8 +66,6 @@ class PressureVolume:
         below it (squeezed by the pellets' motion) is capped there, holding more than
         its void (counted in ``capped_cells``: an event, not a state the model relies on).
         """
-        if self.settings.extrusion.enabled:
-            self.overflow()
         free = np.flatnonzero(~self.held & ~self.inert)
         n_p = self.n_pellets
         needed = self.densest_volume(slice(None)) * (1.0 + 1e-6)
