@@ -1,4 +1,5 @@
-"""numba kernel of the macro packing: soft-sphere overlap energy in a cylinder.
+"""numba kernels of the macro model: the packing's soft-sphere overlap energy in a
+cylinder, and the powder's push on the pellets in one pass over cells and triangles.
 
 Arrays in, arrays out; serial loops that scatter into per-pellet arrays (deterministic).
 """
@@ -78,3 +79,132 @@ def overlap_energy(positions, radii, pairs, cylinder_radius, z_low, z_high, grad
             energy += 0.5 * high * high
             gradient[i, 2] += high
     return energy, largest
+
+
+@njit(cache=True)
+def _solid_angle(apex, a, b, c):  # type: ignore[no-untyped-def]
+    """Solid angle at ``apex`` of the triangle (a, b, c) [sr] (Van Oosterom-Strackee)."""
+    ax, ay, az = a[0] - apex[0], a[1] - apex[1], a[2] - apex[2]
+    bx, by, bz = b[0] - apex[0], b[1] - apex[1], b[2] - apex[2]
+    cx, cy, cz = c[0] - apex[0], c[1] - apex[1], c[2] - apex[2]
+    la = np.sqrt(ax * ax + ay * ay + az * az)
+    lb = np.sqrt(bx * bx + by * by + bz * bz)
+    lc = np.sqrt(cx * cx + cy * cy + cz * cz)
+    triple = abs(ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx))
+    denom = la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (ax * cx + ay * cy + az * cz) * lb \
+        + (bx * cx + by * cy + bz * cz) * la
+    return 2.0 * np.arctan2(triple, denom)
+
+
+@njit(cache=True)
+def _corner_angle(apex, a, b):  # type: ignore[no-untyped-def]
+    """Interior angle at ``apex`` of the triangle (apex, a, b) [rad]."""
+    ux, uy, uz = a[0] - apex[0], a[1] - apex[1], a[2] - apex[2]
+    vx, vy, vz = b[0] - apex[0], b[1] - apex[1], b[2] - apex[2]
+    cos = (ux * vx + uy * vy + uz * vz) / np.sqrt((ux * ux + uy * uy + uz * uz) * (vx * vx + vy * vy + vz * vz))
+    return np.arccos(min(1.0, max(-1.0, cos)))
+
+
+@njit(cache=True)
+def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sphere_radii, n_pellets,  # type: ignore[no-untyped-def]
+                solid_mass, densest, free, candidate, bound, scale, alpha, void_floor):
+    """The powder's push on the pellets at the mesh's current points, in one pass.
+
+    Per cell: the void (tetrahedron less the clay spheres' solid-angle shares, floored
+    at ``void_floor`` of the tetrahedron), the volume it holds, max(void, densest), and
+    its pressure P = scale exp(alpha m_s / held) where the cell is a ``candidate`` and
+    its clay is held below its ``free`` volume, at most ``bound``; per interior
+    triangle: each pellet's sector theta r^2 / 2 pushed by the pressure jump across it
+    along the normal from the first cell to the second (as :meth:`macro.mechanics.
+    Mechanics.hydro_forces`).
+
+    Returns
+    -------
+    forces
+        (n_pellets, 3) push on the pellets [N].
+    pressure
+        (n_c,) the cells' pressures [Pa].
+    slope
+        (n_c,) |dP/dV| of the uncapped pressing cells [Pa/m3], 0 elsewhere.
+    stiffness
+        (n_pellets,) sum over each pellet's cells of slope (Omega r^2)^2 [N/m].
+    inverted
+        True if a candidate cell is inverted (its signed volume is not positive).
+    """
+    n_cells = tetrahedra.shape[0]
+    pressure = np.zeros(n_cells)
+    slope = np.zeros(n_cells)
+    stiffness = np.zeros(n_pellets)
+    centroids = np.zeros((n_cells, 3))
+    inverted = False
+    omega = np.empty(4)
+    for c in range(n_cells):
+        t0, t1, t2, t3 = tetrahedra[c, 0], tetrahedra[c, 1], tetrahedra[c, 2], tetrahedra[c, 3]
+        p0, p1, p2, p3 = points[t0], points[t1], points[t2], points[t3]
+        e1x, e1y, e1z = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
+        e2x, e2y, e2z = p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]
+        e3x, e3y, e3z = p3[0] - p0[0], p3[1] - p0[1], p3[2] - p0[2]
+        signed = (e1x * (e2y * e3z - e2z * e3y) + e1y * (e2z * e3x - e2x * e3z) + e1z * (e2x * e3y - e2y * e3x)) / 6.0
+        for d in range(3):
+            centroids[c, d] = 0.25 * (p0[d] + p1[d] + p2[d] + p3[d])
+        if not candidate[c]:
+            continue
+        if signed <= 0.0:
+            inverted = True
+        volume = abs(signed)
+        omega[0] = _solid_angle(p0, p1, p2, p3)
+        omega[1] = _solid_angle(p1, p0, p2, p3)
+        omega[2] = _solid_angle(p2, p0, p1, p3)
+        omega[3] = _solid_angle(p3, p0, p1, p2)
+        inside = 0.0
+        for v in range(4):
+            inside += omega[v] * clay_radii[tetrahedra[c, v]] ** 3
+        void = max(volume - inside / 3.0, void_floor * volume)
+        held = max(void, densest[c])
+        if free[c] <= held:
+            continue
+        value = scale[c] * np.exp(alpha * solid_mass[c] / held)
+        if value > bound[c]:
+            pressure[c] = bound[c]
+            continue
+        pressure[c] = value
+        slope[c] = value * alpha * solid_mass[c] / (held * held)
+        for v in range(4):
+            vertex = tetrahedra[c, v]
+            if vertex < n_pellets:
+                area = omega[v] * sphere_radii[vertex] ** 2
+                stiffness[vertex] += slope[c] * area * area
+    forces = np.zeros((n_pellets, 3))
+    for f in range(facet_vertices.shape[0]):
+        c0, c1 = facet_cells[f, 0], facet_cells[f, 1]
+        jump = pressure[c0] - pressure[c1]
+        if jump == 0.0:
+            continue
+        a, b, c = points[facet_vertices[f, 0]], points[facet_vertices[f, 1]], points[facet_vertices[f, 2]]
+        nx = (b[1] - a[1]) * (c[2] - a[2]) - (b[2] - a[2]) * (c[1] - a[1])
+        ny = (b[2] - a[2]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[2] - a[2])
+        nz = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+        norm = max(np.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
+        # from the first cell to the second, read off a pressing cell (never inverted):
+        # away from its vertex off the triangle for the first, towards it for the second
+        side = c0 if pressure[c0] > 0.0 else c1
+        apex = tetrahedra[side, 0]
+        for v in range(4):
+            w = tetrahedra[side, v]
+            if w != facet_vertices[f, 0] and w != facet_vertices[f, 1] and w != facet_vertices[f, 2]:
+                apex = w
+        o = points[apex]
+        if (nx * (a[0] - o[0]) + ny * (a[1] - o[1]) + nz * (a[2] - o[2]) < 0.0) == (side == c0):
+            norm = -norm
+        nx, ny, nz = nx / norm, ny / norm, nz / norm
+        for k in range(3):
+            vertex = facet_vertices[f, k]
+            if vertex >= n_pellets:
+                continue
+            theta = _corner_angle(points[vertex], points[facet_vertices[f, (k + 1) % 3]],
+                                  points[facet_vertices[f, (k + 2) % 3]])
+            push = 0.5 * theta * sphere_radii[vertex] ** 2 * jump
+            forces[vertex, 0] += push * nx
+            forces[vertex, 1] += push * ny
+            forces[vertex, 2] += push * nz
+    return forces, pressure, slope, stiffness, inverted

@@ -89,15 +89,16 @@ class Geometry:
     def _remesh(self) -> None:
         """New Delaunay mesh when an active cell inverted; the powder moves with it.
 
-        Conservative transfer: 20 points (``_REMESH_WEIGHTS``) spread over each old cell (at the
-        pellets' current positions) carry equal shares of its powder solid, water and
-        volume into the new cells that contain them (Qhull point location); shares that
-        land in a new cell without powder (a sliver) go to the nearest active one. The
-        totals are conserved to round-off; what crosses between held and free cells is
-        booked as boundary inflow. The initial void is carried the same way (for the
-        neglected void fraction). Each new cell's reference volume follows from its solid
-        (V_0 = V_s / (1 - phi_powder)), its suction is the water-weighted mean of its
-        donors' (the next local solve corrects it); held cells are re-selected and reset.
+        The new mesh keeps most cells: a cell with the same four vertices before and
+        after keeps its whole state (powder, water, volume, V_0, suction, stress and role).
+        Only the cells that changed exchange powder, conservatively: 20 points
+        (``_REMESH_WEIGHTS``) spread over each old cell that went (at the pellets' current
+        positions) carry equal shares of its solid, water, volume, V_0 and initial void
+        into the new cells that contain them (Qhull point location); shares that land
+        elsewhere than in a new active cell go to the nearest one. The totals are
+        conserved to round-off; what crosses between held and free cells is booked as
+        boundary inflow. A new cell's suction is the water-weighted mean of its donors'
+        (the next local solve corrects it); held cells are re-selected among new cells.
         """
         from scipy.spatial import cKDTree
 
@@ -110,58 +111,76 @@ class Geometry:
         omega = solid_angles(mesh.points, mesh.tetrahedra)
         voids = cell_voids(mesh, self.clay_radii(), omega, VOID_FLOOR)
         inert, held = _cell_roles(mesh, voids, self.on_plate, n_p, self.settings)
-        # sample points of every old cell and the new cell holding each
-        corners = vertices[self.mesh.tetrahedra]  # (n_old, 4, 3)
+        n_new = mesh.n_cells
+        source = _same_cells(self.mesh.tetrahedra, mesh.tetrahedra, vertices.shape[0])
+        kept = source >= 0
+        gone = np.ones(self.mesh.n_cells, dtype=np.bool_)
+        gone[source[kept]] = False
+        inert[n_p:][kept] = self.inert[old][source[kept]]
+        held[n_p:][kept] = self.held[old][source[kept]]
+        # sample points of every old cell that went and the new cell holding each
+        corners = vertices[self.mesh.tetrahedra[gone]]  # (n_gone, 4, 3)
         samples = np.einsum("ks,csx->ckx", _REMESH_WEIGHTS, corners).reshape(-1, 3)
-        owner = np.repeat(np.arange(self.mesh.n_cells), _REMESH_WEIGHTS.shape[0])
+        owner = np.repeat(np.flatnonzero(gone), _REMESH_WEIGHTS.shape[0])
         # Qhull's point location calls LAPACK once per cell: threaded BLAS on a loaded
         # machine made it 1000x slower (seconds instead of milliseconds)
         with threadpool_limits(limits=1, user_api="blas"):
             target = triangulation.find_simplex(samples)
-        lost = target < 0
-        if lost.any():
-            target[lost] = cKDTree(mesh.centroids).query(samples[lost])[1]
         share = 1.0 / _REMESH_WEIGHTS.shape[0]
-        n_new = mesh.n_cells
-        initial_void = np.bincount(target, self.initial_void[owner] * share, minlength=n_new)
+        # new cells that take a share: the changed ones, and of them the active ones for powder
+        open_cells = ~kept
+        stray = (target < 0) | kept[np.maximum(target, 0)]
+        if stray.any():
+            candidates = np.flatnonzero(open_cells)
+            target[stray] = candidates[cKDTree(mesh.centroids[candidates]).query(samples[stray])[1]]
+        initial_void = np.zeros(n_new)
+        initial_void[kept] = self.initial_void[source[kept]]
+        initial_void += np.bincount(target, self.initial_void[owner] * share, minlength=n_new)
         # powder of the active old cells only; shares landing in new inert cells move on
         carries = ~self.inert[old][owner]
         dest = target[carries]
-        stray = inert[n_p:][dest]
+        receiving = open_cells & ~inert[n_p:]
+        stray = ~receiving[dest]
         if stray.any():
-            active = np.flatnonzero(~inert[n_p:])
+            active = np.flatnonzero(receiving)
             dest[stray] = active[cKDTree(mesh.centroids[active]).query(samples[carries][stray])[1]]
         donor = owner[carries]
 
         def moved(values: FloatArray) -> FloatArray:
-            return np.bincount(dest, values[old][donor] * share, minlength=n_new)
+            out = np.bincount(dest, values[old][donor] * share, minlength=n_new)
+            out[kept] = values[old][source[kept]]
+            return out
 
         solid, water, volume = moved(self.solid_volume), moved(self.water_mass), moved(self.volume)
+        reference = moved(self.reference_volume)
         suction = moved(-self.pressure * self.water_mass) / np.maximum(water, 1e-300)
-        empty = solid <= 0.0
+        suction[kept] = -self.pressure[old][source[kept]]
+        assert self.stress is not None
+        stress = np.zeros(n_new)
+        stress[kept] = self.stress[old][source[kept]]
+        empty = (solid <= 0.0) & open_cells
         inert = inert | np.concatenate([np.zeros(n_p, dtype=np.bool_), empty])
         held &= ~inert
         phi_powder = self.powder_porosity
-        v0 = np.where(empty, voids * (1.0 - phi_powder), solid / (1.0 - phi_powder))
-        solid = np.where(empty, (1.0 - phi_powder) * v0, solid)
+        reference = np.where(empty, voids * (1.0 - phi_powder), reference)
+        solid = np.where(empty, (1.0 - phi_powder) * reference, solid)
         low = solid + water / self.settings.density
-        volume = np.clip(volume, low * (1.0 + 1e-6), np.maximum(voids, low * (1.0 + 1e-3)))
+        fitted = np.clip(volume, low * (1.0 + 1e-6), np.maximum(voids, low * (1.0 + 1e-3)))
+        volume = np.where(kept, volume, fitted)
         self.mesh, self._omega = mesh, omega
         self.inert, self.held = inert, held
         self.initial_void = initial_void
         self.water_mass = np.concatenate([self.water_mass[:n_p], water])
         self.solid_volume = np.concatenate([self.solid_volume[:n_p], solid])
-        self.reference_volume = np.concatenate([self.reference_volume[:n_p], v0])
+        self.reference_volume = np.concatenate([self.reference_volume[:n_p], reference])
         self.volume = np.concatenate([self.volume[:n_p], volume])
         self.max_volume = np.concatenate([self.max_volume[:n_p], np.maximum(voids, volume * (1.0 + 1e-6))])
         self.pressure = np.concatenate([self.pressure[:n_p],
                                         -np.where(empty, self.material.initial_suction, suction)])
-        assert self.stress is not None
-        self.stress = np.concatenate([self.stress[:n_p], np.zeros(n_new)])
+        self.stress = np.concatenate([self.stress[:n_p], stress])
         self._hold_boundary()
         self.boundary_inflow += self.interior_water() - interior_before
         self.remeshes += 1
-
 
     def _moved_geometry(self) -> bool:
         """The cells' geometry and voids at the pellets' current positions (same
@@ -191,3 +210,13 @@ def _cell_roles(mesh: Mesh, voids: FloatArray, on_plate: npt.NDArray[np.bool_], 
     return np.concatenate([none, inert]), np.concatenate([none, held])
 
 
+def _same_cells(old: npt.NDArray[np.int64], new: npt.NDArray[np.int64], n_vertices: int) -> npt.NDArray[np.int64]:
+    """(n_new,) index of the old cell with the same four vertices as each new cell, -1 if none."""
+    def keys(tetrahedra: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+        ordered = np.sort(tetrahedra, axis=1).astype(np.int64)
+        return ((ordered[:, 0] * n_vertices + ordered[:, 1]) * n_vertices + ordered[:, 2]) * n_vertices + ordered[:, 3]
+
+    old_keys, new_keys = keys(old), keys(new)
+    order = np.argsort(old_keys)
+    where = np.clip(np.searchsorted(old_keys[order], new_keys), 0, old_keys.size - 1)
+    return np.where(old_keys[order][where] == new_keys, order[where], -1)

@@ -10,11 +10,16 @@ density by 1e10); it seeks the balanced state, it is not dynamics.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import numpy.typing as npt
 
+from macro._kernels import powder_push
+from macro.geometry import VOID_FLOOR
 from macro.laws import (
     free_volume,
+    saturation,
     swelling_pressure,
     yield_force,
     yield_pressure,
@@ -26,16 +31,11 @@ from shared.dem import FireState, cylinder_contacts, detect_contacts, fire_step,
 
 FloatArray = npt.NDArray[np.float64]
 
-POWDER_REFRESH = 50
-"""Largest number of DEM steps between two updates of the powder's push to the pellets'
-positions."""
-STALE_MARGIN = 0.5
-"""Fraction of ``dem_balance_tolerance`` at which the pellets, balanced against a push
-linearised about older positions, update it: the update's change of the push then has
-the other half of the tolerance."""
 MAX_STEP = 1e-3
 """Largest displacement of a pellet (and rotation times its radius) in one DEM step, in
 radii: a pellet entering a contact stiffer than its mass moves at most this far."""
+REMESHES = 2
+"""Largest number of new meshes within one relaxation."""
 MAX_OVERLAP_LOSS = 0.3
 """Largest fraction of a pellet's sphere that its overlaps may cut off."""
 
@@ -120,23 +120,26 @@ class Mechanics:
         the radii, with one mass per pellet: its normal contact stiffness plus the
         powder's (time unit 1; the rotations' inertia m r^2). One power and one mixing
         act on both, so that the friction's torques and forces stay consistent. The
-        powder's push is recomputed at the moved positions every ``POWDER_REFRESH``
-        steps and whenever the pellets balance against a push of older positions, so a
-        balanced state is balanced against the push of its own geometry; in between it
-        is linearised about its positions with the isotropic stiffness dP/dV_c A^2 over
-        the pellet's cells (see docs/macro.md, "Quasi-static DEM and balanced readings",
-        for why the damped relaxation this replaces diverged at 0.01). The container's
-        friction (``wall_friction``) keeps its tangential forces per pellet and surface
-        from one relaxation to the next, as the pairs keep theirs.
+        powder's push is evaluated exactly at every step's positions (one numba pass over
+        the cells and triangles, :meth:`_push_field`), so a balanced state is balanced
+        against the push of its own geometry. (Updating it only every 50 steps, with a
+        linearised push in between, left 1/3 of the records unbalanced at 0.01: each
+        update jolted the forces by a few per cent of the carried load, see
+        docs/macro.md, "Quasi-static DEM and balanced readings".) When the pellets invert
+        an active cell, the mesh is rebuilt at once (:meth:`_remesh`, its overflow
+        handed on), at most ``REMESHES`` times; beyond that the push stays linearised
+        about the last positions it held, with the isotropic stiffness dP/dV_c A^2 over
+        the pellet's cells. The container's friction (``wall_friction``) keeps its
+        tangential forces per pellet and surface from one relaxation to the next, as
+        the pairs keep theirs.
 
         FIRE rather than Newton or CG on the contact network: the force model (yield,
         Coulomb sliding, contacts that open and close, the powder's push) is
         non-smooth and history dependent, so its tangent matrix changes at every step,
         while FIRE needs only the forces the damped relaxation already computed, and its
         power test stops the motion whenever it turns uphill instead of overshooting.
-        On the default case it balances about as fast as the damped substeps in the same
-        loop (docs/macro.md): the updates of the push set the cost, and FIRE has no
-        damping coefficient to choose.
+        With the exact push it balances the default case in about 60-120 steps
+        (docs/macro.md), and FIRE has no damping coefficient to choose.
         """
         s = self.settings
         n_p = self.n_pellets
@@ -152,32 +155,39 @@ class Mechanics:
         floor = 2.0 * young / (1.0 - nu * nu) * self.radii * np.sqrt(1e-3)
         # FIRE's rows: 0..n_p-1 the translations, n_p..2 n_p-1 the rotations times the radii [m]
         cap = np.tile(MAX_STEP * self.radii, 2)
-        external, powder_stiffness = self._powder_load()
-        refresh = substeps > 0
+        push = self._push_field()
+        external, cell_pressure, powder_stiffness, frozen = push(self.positions)
         fire = FireState()
         rates = np.zeros((2 * n_p, 3))
         # displacement and rotation of the last step (none before the first)
         moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))
         anchor = self.positions.copy()
-        since = 0
-        k = 0
+        k = remeshes = 0
         while True:
-            stale = bool(since) and refresh
-            # the push follows the pellets: voids reopen as they move apart
-            if stale and since >= POWDER_REFRESH:
-                refresh = self._moved_geometry()
-                if refresh:
-                    external, powder_stiffness = self._powder_load()
+            # the push follows the pellets (voids reopen as they move apart); where an
+            # active cell has inverted, the mesh no longer holds the pellets' cells: a new
+            # one (at most REMESHES per relaxation), else the push stays linearised about
+            # the last positions it held
+            if k and not frozen:
+                trial = push(self.positions)
+                if trial[3] and remeshes < REMESHES:
+                    self._remesh()
+                    self._moved_geometry()
+                    if s.extrusion.enabled:
+                        self.overflow()
+                    remeshes += 1
+                    push = self._push_field()
+                    trial = push(self.positions)
+                frozen = trial[3]
+                if not frozen:
+                    external, cell_pressure, powder_stiffness = trial[:3]
                     anchor = self.positions.copy()
-                    since, stale = 0, False
             if 2.0 * np.sqrt(((self.positions - reference) ** 2).sum(axis=1)).max() > skin:
                 pairs, shear, plastic = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin),
                                                        pairs, shear, plastic)
                 reference = self.positions.copy()
-            # between two updates, the push linearised about them with the isotropic
-            # stiffness k = sum dP/dV_c A^2, the bound of its rank-one terms in every
-            # direction (the measured response is about k; k / 3, the trace mean, let the
-            # updates diverge, see docs/macro.md)
+            # past an inversion, the push linearised about its last positions with the
+            # isotropic stiffness k = sum dP/dV_c A^2, the bound of its rank-one terms
             forces = external - powder_stiffness[:, None] * (self.positions - anchor)
             torques = np.zeros((n_p, 3))
             stiffness = powder_stiffness.copy()
@@ -193,22 +203,18 @@ class Mechanics:
             unbalanced = float(resultant / carried.mean()) if carried.size else 0.0
             if k == substeps:
                 break
-            if unbalanced < s.dem_balance_tolerance and not stale:
+            if unbalanced < s.dem_balance_tolerance:
                 break
-            if unbalanced < STALE_MARGIN * s.dem_balance_tolerance:
-                # balanced against an older push: update it and check again, same positions
-                since = POWDER_REFRESH
-                moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))
-                continue
             mass = np.tile(np.maximum(stiffness, floor), 2)
             step = fire_step(fire, rates, np.concatenate([forces, torques / self.radii[:, None]]), mass, cap)
             moved, turned = step[:n_p], step[n_p:] / self.radii[:, None]
             self.positions += moved
-            since += 1
             k += 1
         self.velocities, self.spins = rates[:n_p], rates[n_p:] / self.radii[:, None]
         self._contact_pairs, self._shear, self._plastic = pairs, shear, plastic
         self.dem_substeps_used += k
+        self._cell_pressure = cell_pressure
+        self._moved_geometry()
         self._confine(pairs, normal, np.maximum(radial, 0.0) + np.maximum(lower, 0.0) + np.maximum(upper, 0.0))
         # radial loads on the curved wall at their contact's height above the lower plate
         heights, loads = self.positions[:, 2] + 0.5 * s.height, radial
@@ -224,17 +230,35 @@ class Mechanics:
                         s.bands.pressures(heights, loads, s.radius),
                         upper_force / area, lower_force / area, unbalanced)
 
-    def _powder_load(self) -> tuple[FloatArray, FloatArray]:
-        """The powder's push on the pellets (n_p, 3) [N] (Eqs. 4.34-4.38) and its stiffness
-        per pellet, dP/dV_c A^2 over the pellet's cells [N/m], at the current geometry."""
-        assert self._omega is not None
-        tet = self.mesh.tetrahedra
-        self._cell_pressure, slope = self.powder_pressure()
-        area = self._omega * self.vertex_radii()[tet] ** 2
-        stiffness = np.bincount(tet.ravel(), (slope[:, None] * area**2).ravel(),
-                                minlength=self.n_vertices)[:self.n_pellets]
-        return self.hydro_forces(self._cell_pressure), stiffness
+    def _push_field(self) -> Callable[[FloatArray], tuple[FloatArray, FloatArray, FloatArray, bool]]:
+        """The powder's push as a function of the pellets' positions, for one relaxation:
+        ``push(positions)`` is the push on the pellets (n_p, 3) [N], the cells' pressures
+        [Pa], the push's stiffness per pellet, dP/dV_c A^2 over its cells [N/m], and
+        whether an active cell is inverted at them (:func:`macro._kernels.powder_push`,
+        the kernel of :meth:`powder_pressure` and :meth:`hydro_forces` fused).
 
+        What the positions do not change within a relaxation (the radii, the suctions,
+        the solid, the densest and free volumes, the yield bounds) is evaluated once here.
+        """
+        n_p, cells = self.n_pellets, slice(self.n_pellets, None)
+        mesh, m = self.mesh, self.material
+        suction = -self.pressure[cells]
+        if self.settings.powder_pressure:
+            candidate = ~self.inert[cells]
+        else:
+            candidate = np.zeros(self.n_cells, dtype=np.bool_)
+        constants = (
+            mesh.tetrahedra, mesh.facet_vertices, mesh.facet_cells, self.clay_radii(), self.vertex_radii(), n_p,
+            self.solid_mass()[cells], self.densest_volume(cells),
+            free_volume(suction, self.reference_volume[cells], m), candidate, self._pressure_bound(),
+            m.beta_v * saturation(suction, self.retention_porosity()[cells], m), m.alpha_v, VOID_FLOOR)
+        container = self.container
+
+        def push(positions: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, bool]:
+            forces, pressure, _, stiffness, inverted = powder_push(np.concatenate([positions, container]), *constants)
+            return forces, pressure, stiffness, bool(inverted)
+
+        return push
 
     def _confine(self, pairs: npt.NDArray[np.int64], normal: FloatArray, walls: FloatArray) -> None:
         """Confining stress of every pellet from the relaxed state, and the volume its

@@ -77,3 +77,24 @@ def test_frictional_walls_keep_the_balance_and_carry_shear(model):
         model._wall_plastic.copy(), np.zeros((n_p, 3, 3))))
     assert np.all(tangential <= s.wall_friction * normal * (1.0 + 1e-12))
     assert np.all(tangential[normal == 0.0] == 0.0)
+
+
+def test_fused_push_equals_the_pressure_and_facet_forces_computed_apart(model):
+    """The relaxation's push (one numba pass, :meth:`Mechanics._push_field`) against
+    :meth:`Mechanics.powder_pressure` and :meth:`Mechanics.hydro_forces` (numpy, from the
+    moved mesh's voids and angles) at positions moved off the mesh's own: the same cell
+    pressures and forces to round-off, and the same inverted-cell verdict."""
+    for _ in range(3):
+        model.step()
+    push = model._push_field()
+    model.positions += np.random.default_rng(3).normal(scale=1e-3 * model.radii.mean(), size=model.positions.shape)
+    forces, pressure, stiffness, inverted = push(model.positions)
+    assert model._moved_geometry() is not inverted
+    reference, slope = model.powder_pressure()
+    assert (reference > 0.0).sum() > 10
+    np.testing.assert_allclose(pressure, reference, rtol=1e-10, atol=1e-6)
+    np.testing.assert_allclose(forces, model.hydro_forces(reference), rtol=1e-8, atol=1e-9 * np.abs(forces).max())
+    area = model._omega * model.vertex_radii()[model.mesh.tetrahedra] ** 2
+    by_pellet = np.bincount(model.mesh.tetrahedra.ravel(), (slope[:, None] * area**2).ravel(),
+                            minlength=model.n_vertices)[:model.n_pellets]
+    np.testing.assert_allclose(stiffness, by_pellet, rtol=1e-10)

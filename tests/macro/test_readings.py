@@ -19,7 +19,9 @@ def test_uniform_powder_push_reads_its_pressure_on_walls_and_plates(table_path):
     config, model = hand_placed_model(table_path, powder_pressure_on_walls=True)
     push = 2.0e5
     cells = model.n_cells
-    model.powder_pressure = lambda: (np.full(cells, push), np.zeros(cells))
+    uniform = np.full(cells, push)
+    model._push_field = lambda: lambda positions: (model.hydro_forces(uniform), uniform, np.zeros(model.n_pellets),
+                                                   False)
     readings = model.relax(0)
     macro = config["macro"]
     radius, height = macro["cylinder_radius_m"], macro["cylinder_height_m"]
