@@ -1,13 +1,14 @@
 """numba kernels of the macro model: the packing's soft-sphere overlap energy in a
 cylinder, and the powder's push on the pellets in one pass over cells and triangles.
 
-Arrays in, arrays out; serial loops that scatter into per-pellet arrays (deterministic).
+Arrays in, arrays out; parallel loops write only their own rows, serial loops sum them
+into per-pellet arrays in order (deterministic whatever the thread count).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True)
@@ -105,7 +106,7 @@ def _corner_angle(apex, a, b):  # type: ignore[no-untyped-def]
     return np.arccos(min(1.0, max(-1.0, cos)))
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sphere_radii, n_pellets,  # type: ignore[no-untyped-def]
                 solid_mass, densest, free, candidate, bound, scale, alpha, void_floor):
     """The powder's push on the pellets at the mesh's current points, in one pass.
@@ -131,34 +132,29 @@ def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sph
     inverted
         True if a candidate cell is inverted (its signed volume is not positive).
     """
-    n_cells = tetrahedra.shape[0]
+    n_cells, n_facets = tetrahedra.shape[0], facet_vertices.shape[0]
     pressure = np.zeros(n_cells)
     slope = np.zeros(n_cells)
-    stiffness = np.zeros(n_pellets)
-    centroids = np.zeros((n_cells, 3))
-    inverted = False
-    omega = np.empty(4)
-    for c in range(n_cells):
-        t0, t1, t2, t3 = tetrahedra[c, 0], tetrahedra[c, 1], tetrahedra[c, 2], tetrahedra[c, 3]
-        p0, p1, p2, p3 = points[t0], points[t1], points[t2], points[t3]
+    omega = np.zeros((n_cells, 4))
+    flipped = np.zeros(n_cells, dtype=np.bool_)
+    for c in prange(n_cells):
+        if not candidate[c]:
+            continue
+        p0, p1 = points[tetrahedra[c, 0]], points[tetrahedra[c, 1]]
+        p2, p3 = points[tetrahedra[c, 2]], points[tetrahedra[c, 3]]
         e1x, e1y, e1z = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
         e2x, e2y, e2z = p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]
         e3x, e3y, e3z = p3[0] - p0[0], p3[1] - p0[1], p3[2] - p0[2]
         signed = (e1x * (e2y * e3z - e2z * e3y) + e1y * (e2z * e3x - e2x * e3z) + e1z * (e2x * e3y - e2y * e3x)) / 6.0
-        for d in range(3):
-            centroids[c, d] = 0.25 * (p0[d] + p1[d] + p2[d] + p3[d])
-        if not candidate[c]:
-            continue
-        if signed <= 0.0:
-            inverted = True
+        flipped[c] = signed <= 0.0
         volume = abs(signed)
-        omega[0] = _solid_angle(p0, p1, p2, p3)
-        omega[1] = _solid_angle(p1, p0, p2, p3)
-        omega[2] = _solid_angle(p2, p0, p1, p3)
-        omega[3] = _solid_angle(p3, p0, p1, p2)
+        omega[c, 0] = _solid_angle(p0, p1, p2, p3)
+        omega[c, 1] = _solid_angle(p1, p0, p2, p3)
+        omega[c, 2] = _solid_angle(p2, p0, p1, p3)
+        omega[c, 3] = _solid_angle(p3, p0, p1, p2)
         inside = 0.0
         for v in range(4):
-            inside += omega[v] * clay_radii[tetrahedra[c, v]] ** 3
+            inside += omega[c, v] * clay_radii[tetrahedra[c, v]] ** 3
         void = max(volume - inside / 3.0, void_floor * volume)
         held = max(void, densest[c])
         if free[c] <= held:
@@ -166,16 +162,12 @@ def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sph
         value = scale[c] * np.exp(alpha * solid_mass[c] / held)
         if value > bound[c]:
             pressure[c] = bound[c]
-            continue
-        pressure[c] = value
-        slope[c] = value * alpha * solid_mass[c] / (held * held)
-        for v in range(4):
-            vertex = tetrahedra[c, v]
-            if vertex < n_pellets:
-                area = omega[v] * sphere_radii[vertex] ** 2
-                stiffness[vertex] += slope[c] * area * area
-    forces = np.zeros((n_pellets, 3))
-    for f in range(facet_vertices.shape[0]):
+        else:
+            pressure[c] = value
+            slope[c] = value * alpha * solid_mass[c] / (held * held)
+    # each triangle's push on its three vertices, then summed in order (deterministic)
+    parts = np.zeros((n_facets, 3, 3))
+    for f in prange(n_facets):
         c0, c1 = facet_cells[f, 0], facet_cells[f, 1]
         jump = pressure[c0] - pressure[c1]
         if jump == 0.0:
@@ -188,23 +180,35 @@ def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sph
         # from the first cell to the second, read off a pressing cell (never inverted):
         # away from its vertex off the triangle for the first, towards it for the second
         side = c0 if pressure[c0] > 0.0 else c1
-        apex = tetrahedra[side, 0]
-        for v in range(4):
-            w = tetrahedra[side, v]
-            if w != facet_vertices[f, 0] and w != facet_vertices[f, 1] and w != facet_vertices[f, 2]:
-                apex = w
-        o = points[apex]
+        o = points[tetrahedra[side, 0] + tetrahedra[side, 1] + tetrahedra[side, 2] + tetrahedra[side, 3]
+                   - facet_vertices[f, 0] - facet_vertices[f, 1] - facet_vertices[f, 2]]
         if (nx * (a[0] - o[0]) + ny * (a[1] - o[1]) + nz * (a[2] - o[2]) < 0.0) == (side == c0):
             norm = -norm
-        nx, ny, nz = nx / norm, ny / norm, nz / norm
         for k in range(3):
             vertex = facet_vertices[f, k]
             if vertex >= n_pellets:
                 continue
             theta = _corner_angle(points[vertex], points[facet_vertices[f, (k + 1) % 3]],
                                   points[facet_vertices[f, (k + 2) % 3]])
-            push = 0.5 * theta * sphere_radii[vertex] ** 2 * jump
-            forces[vertex, 0] += push * nx
-            forces[vertex, 1] += push * ny
-            forces[vertex, 2] += push * nz
+            push = 0.5 * theta * sphere_radii[vertex] ** 2 * jump / norm
+            parts[f, k, 0] = push * nx
+            parts[f, k, 1] = push * ny
+            parts[f, k, 2] = push * nz
+    stiffness = np.zeros(n_pellets)
+    inverted = False
+    for c in range(n_cells):
+        inverted = inverted or flipped[c]
+        if slope[c] > 0.0:
+            for v in range(4):
+                vertex = tetrahedra[c, v]
+                if vertex < n_pellets:
+                    area = omega[c, v] * sphere_radii[vertex] ** 2
+                    stiffness[vertex] += slope[c] * area * area
+    forces = np.zeros((n_pellets, 3))
+    for f in range(n_facets):
+        for k in range(3):
+            vertex = facet_vertices[f, k]
+            if vertex < n_pellets:
+                for d in range(3):
+                    forces[vertex, d] += parts[f, k, d]
     return forces, pressure, slope, stiffness, inverted

@@ -25,7 +25,7 @@ from macro.laws import (
     yield_pressure,
     young_modulus,
 )
-from macro.mixture import facet_angles
+from macro.mixture import cell_voids, facet_angles
 from macro.readings import Readings
 from shared.dem import FireState, cylinder_contacts, detect_contacts, fire_step, yielding_hertz_mindlin
 
@@ -172,7 +172,7 @@ class Mechanics:
                 trial = push(self.positions)
                 if trial[3] and remeshes < REMESHES:
                     self._remesh()
-                    self._moved_geometry()
+                    self._void = cell_voids(self.mesh, self.clay_radii(), self._omega, VOID_FLOOR)
                     if s.extrusion.enabled:
                         self.overflow()
                     remeshes += 1
