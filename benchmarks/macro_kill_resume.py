@@ -19,7 +19,6 @@ import copy
 import json
 import logging
 import os
-import pickle
 import signal
 import subprocess
 import sys
@@ -76,9 +75,9 @@ def _user_run(config: Path, table: Path, output: Path, kill_at: int) -> tuple[in
 
 def _snapshot(output: Path) -> tuple[int, int]:
     """Step and remesh count of the run's snapshot."""
-    with open(output.with_name(f".{output.stem}.snapshot.pkl"), "rb") as handle:
-        model = pickle.load(handle)["model"]
-    return int(model.steps), int(model.remeshes)
+    with np.load(output.with_name(f".{output.stem}.snapshot.npz")) as snapshot:
+        model = json.loads(str(snapshot["meta"]))["model"]
+    return int(model["steps"]), int(model["remeshes"])
 
 
 def _differences(whole: xr.Dataset, resumed: xr.Dataset) -> list[str]:

@@ -25,7 +25,7 @@ import xarray as xr
 
 from macro.checkpoint import load_snapshot, save_snapshot
 from macro.column_permeability import column_permeability
-from macro.laws import case_materials, mixture_parameters
+from macro.laws import MixtureParameters, case_materials, mixture_parameters
 from macro.model import MacroModel
 from macro.newton import NewtonError
 from macro.packing import pack_cylinder
@@ -63,11 +63,18 @@ resolution (Sec. 4.8 compares the order in which the sensors rise) [Pa]."""
 """Records of the column permeability, on their own time coordinate (neither thinned nor picked)."""
 
 
-def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) -> MacroModel:
-    """The initial model of a case from the validated ``macro`` and ``materials`` sections."""
+def case_parameters(config: Mapping[str, Any], case: str) -> tuple[MacroSettings, MixtureParameters]:
+    """The settings and material parameters of a case from the validated ``macro`` and
+    ``materials`` sections."""
     settings = macro_settings(config["macro"], case)
     material = mixture_parameters(case_materials(config["materials"], config["macro"]["cases"][case]),
                                   settings.powder)
+    return settings, material
+
+
+def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) -> MacroModel:
+    """The initial model of a case from the validated ``macro`` and ``materials`` sections."""
+    settings, material = case_parameters(config, case)
     packing = pack_cylinder(settings.height, settings.radius, settings.pellet_radius,
                             settings.packing_fraction, np.random.default_rng(settings.seed),
                             settings.packing_sweeps, settings.pellet_radius_spread)
@@ -78,7 +85,7 @@ def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) 
             f"radius within {settings.packing_sweeps} minimiser iterations (macro.numerics.packing_iterations); "
             "lower the packing fraction or raise the iterations")
     model = MacroModel.create(settings, material, table, packing)
-    model.packing = packing  # type: ignore[attr-defined]
+    model.packing = packing
     return model
 
 
@@ -104,7 +111,7 @@ def simulate(
     s: MacroSettings = model.settings
     # bins of about one initial pellet diameter (finer bins alternate between pellets and
     # powder): the packing's radii, not the current ones, which grow as the pellets swell
-    packing = model.packing  # type: ignore[attr-defined]
+    packing = model.packing
     bins = max(2, int(round(s.height / (2.0 * float(packing.radii.mean())))))
     edges = np.linspace(-0.5 * s.height, 0.5 * s.height, bins + 1)
     new = rows is None
@@ -224,7 +231,7 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
     keep = _keep(np.asarray(rows["step"]), s.records)
     pick = {k: np.asarray(v)[keep] for k, v in rows.items() if k not in MEASUREMENT_ROWS}
     z = 0.5 * (edges[:-1] + edges[1:]) + 0.5 * s.height
-    packing = model.packing  # type: ignore[attr-defined]
+    packing = model.packing
     coords = {
         "time": ("time", pick["time"], {"units": "s", "long_name": "simulated time"}),
         "sensor": ("sensor", list(s.sensors.names), {"units": "1", "long_name": "radial pressure sensor (macro.sensors)"}),
@@ -335,7 +342,7 @@ def run(
         Naming a local system without a solution.
     """
     start = time.monotonic()
-    settings = macro_settings(config["macro"], case)
+    settings, material = case_parameters(config, case)
     table = PermeabilityTable.from_file(table_path, settings.table_condition)
     section = {"macro": config["macro"], "case": case,
                "materials": case_materials(config["materials"], config["macro"]["cases"][case])}
@@ -344,12 +351,12 @@ def run(
     digest = hashlib.sha256((json.dumps(section, sort_keys=True, default=str) + file_sha256(table_path)
                              + module_sha256(__file__)).encode()).hexdigest()
     output_path = Path(output_path)
-    snapshot_path = output_path.with_name(f".{output_path.stem}.snapshot.pkl")
-    resumed = load_snapshot(snapshot_path, digest)
+    snapshot_path = output_path.with_name(f".{output_path.stem}.snapshot.npz")
+    resumed = load_snapshot(snapshot_path, digest, settings, material, table)
     if resumed is None:
         model, rows, earlier = build_model(config, case, table), None, 0.0
         LOG.info("case %s: %d pellets (packing fraction %.3f), %d cells (%d held, %.2g %% void inert)",
-                 case, model.n_pellets, model.packing.packing_fraction,  # type: ignore[attr-defined]
+                 case, model.n_pellets, model.packing.packing_fraction,  # type: ignore[union-attr]
                  model.n_cells, int(model.held.sum()), 100 * model.neglected_void_fraction())
     else:
         model, rows, earlier = resumed

@@ -9,6 +9,8 @@ from typing import Any
 import jsonschema
 import yaml
 
+from shared.errors import ConfigError
+
 _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 """libyaml's loader where PyYAML has it: the schema loads in 0.02 s instead of 0.18 s."""
 
@@ -29,10 +31,6 @@ SCHEMA_PATH = _ROOT / "workflow" / "schemas" / "config.schema.yaml"
 DEFAULT_CONFIG_PATH = _ROOT / "config" / "config.yaml"
 
 Check = Callable[[Mapping[str, Any]], None]
-
-
-class ConfigError(ValueError):
-    """An invalid configuration; the message names the offending key."""
 
 
 def _with_defaults(validator_class: type) -> type:

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from shared.errors import OutputError
 from shared.imports import PACKAGES
 from shared.provenance import code_sha256, code_version, config_sha256, inputs_record, module_sha256
 
@@ -37,10 +38,6 @@ def _entry_sha256(entry: str) -> str:
     if not Path(entry).is_file():
         return code_sha256(*PACKAGES)
     return module_sha256(entry)
-
-
-class OutputError(ValueError):
-    """A dataset that does not meet the data contract, or a file that cannot be read."""
 
 
 def netcdf_safe_attrs(attrs: Mapping[str, Any]) -> dict[str, Any]:

@@ -21,6 +21,7 @@ import numpy.typing as npt
 import xarray as xr
 from dask.base import tokenize
 
+from shared.errors import ImageError
 from shared.io import atomic_write
 
 __all__ = [
@@ -44,10 +45,6 @@ _SLICE_SUFFIXES = (".tif", ".tiff", ".png")
 DEFAULT_CHUNK_BYTES = 64 << 20
 """Greyscale bytes per chunk when the caller gives none (``imaging.chunk_mb``)."""
 _SUPPORTED_DTYPES = (np.uint8, np.uint16)
-
-
-class ImageError(ValueError):
-    """An image that is missing, unreadable, or of the wrong shape or type."""
 
 
 def _check_volume(volume: np.ndarray, source: str | Path) -> np.ndarray:

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-
-class SolverError(RuntimeError):
-    """The linear solve failed: singular/indefinite matrix or non-finite values."""
+from shared.errors import SolverError
 
 
 @dataclass
