@@ -32,6 +32,7 @@ import xarray as xr
 from benchmarks.macro import synthetic_table
 from benchmarks.parameters import CONFIG
 from shared.io import write_dataset
+from shared.snapshot import read_meta
 
 __all__ = ["bench_macro_kill_resume"]
 
@@ -75,8 +76,7 @@ def _user_run(config: Path, table: Path, output: Path, kill_at: int) -> tuple[in
 
 def _snapshot(output: Path) -> tuple[int, int]:
     """Step and remesh count of the run's snapshot."""
-    with np.load(output.with_name(f".{output.stem}.snapshot.npz")) as snapshot:
-        model = json.loads(str(snapshot["meta"]))["model"]
+    model = read_meta(output.with_name(f".{output.stem}.snapshot.npz"))["model"]
     return int(model["steps"]), int(model["remeshes"])
 
 

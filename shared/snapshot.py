@@ -28,7 +28,7 @@ import numpy as np
 from shared.errors import SnapshotError
 from shared.io import atomic_write
 
-__all__ = ["FORMAT", "content_sha256", "read_snapshot", "set_aside", "write_snapshot"]
+__all__ = ["FORMAT", "content_sha256", "read_meta", "read_snapshot", "set_aside", "write_snapshot"]
 
 FORMAT = "claychain-snapshot/1"
 """The format name in every header; a file without it is not one of ours (or older)."""
@@ -100,6 +100,14 @@ def _read(path: Path, digest: str) -> tuple[dict[str, Any], dict[str, np.ndarray
     if content_sha256(text, arrays) != header.get("sha256"):
         raise SnapshotError("its content does not match its checksum (damaged)")
     return json.loads(text), arrays
+
+
+def read_meta(path: Path) -> dict[str, Any]:
+    """The plain metadata of a snapshot, read as data without its checks (for a report on
+    a file that :func:`read_snapshot` has accepted, or in a test)."""
+    with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as data:
+        meta: dict[str, Any] = json.loads(str(data["meta"]))
+    return meta
 
 
 def set_aside(path: Path, reason: str, log: logging.Logger) -> Path:

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 from shared.errors import SolverError
 
+__all__ = ["Since", "SolverError", "SolverStats"]
+
 
 @dataclass
 class SolverStats:

@@ -20,6 +20,7 @@ import xarray as xr
 from macro.checkpoint import load_snapshot, save_snapshot
 from macro.model import MacroModel
 from macro.run import case_parameters, run
+from shared.snapshot import read_meta
 from shared.upscaling import PermeabilityTable
 from tests._macro_cases import small_config
 
@@ -103,8 +104,7 @@ def _remesh_steps(monkeypatch, table_path, config, output):
 
 def _snapshot_model(path):
     """The saved model's plain attributes (the file read as data, no checks)."""
-    with np.load(path) as snapshot:
-        return json.loads(str(snapshot["meta"]))["model"]
+    return read_meta(path)["model"]
 
 
 def test_a_run_killed_three_times_resumes_to_the_uninterrupted_result(table_path, tmp_path,

@@ -417,30 +417,40 @@ def test_an_unknown_case_is_refused_naming_the_key(tmp_path):
     assert not _files(tmp_path / "results")
 
 
-@pytest.mark.parametrize("damage", ["garbage", "cut", "empty"])
-def test_a_damaged_checkpoint_file_is_named_and_kept(damage, tmp_path):
-    """A checkpoint file that cannot be read stops the case with one line naming it; the
-    file is neither used nor overwritten, and no result is written."""
-    from micro.checkpoint import CheckpointError
+@pytest.mark.parametrize("damage", ["garbage", "cut", "empty", "older", "random-bytes"])
+def test_a_damaged_checkpoint_file_is_set_aside_and_the_case_starts_afresh(damage, tmp_path, caplog):
+    """A checkpoint file that cannot be read, was written without a header (an older
+    version, or not by us), or has 1 KB of random bytes in one array under an intact zip
+    is not resumed: it is moved aside unchanged with one log line naming it and the
+    reason, and the case starts from the beginning (None)."""
+    from micro.checkpoint import load_checkpoint, save_checkpoint
+    from micro.hydration import FlowSystem
+    from micro.pellet import SpecimenSpec, initial_state
+    from tests._defaults import CLAY, DEM
 
-    path = _grid_file(tmp_path, _grid(np.full((20, 20, 20), 0.3)))
-    results = tmp_path / "results" / "micro"
-    results.mkdir(parents=True)
-    state_file = results / "heterogeneous.checkpoint.npz"
-    content = {"garbage": b"PK\x03\x04 not a zip archive",
-               "cut": b"",
-               "empty": b""}[damage]
-    if damage == "cut":
-        np.savez(state_file, meta=np.array("{}"), x=np.zeros(1000))
-        content = state_file.read_bytes()[:300]
+    state_file = tmp_path / "heterogeneous.checkpoint.npz"
+    content = {"garbage": b"PK\x03\x04 not a zip archive", "empty": b""}.get(damage)
+    reason = "does not match its checksum" if damage == "random-bytes" else (
+        "no header" if damage == "older" else "unreadable")
+    if damage in ("cut", "older", "random-bytes"):
+        state = initial_state(SpecimenSpec(edge_length=4e-3, n_points=125, seed=3), None, None, CLAY, DEM)
+        save_checkpoint(state_file, "abc", state, FlowSystem.for_mesh(state.mesh), [], 1.0)
+        content = state_file.read_bytes()[:300] if damage == "cut" else None
+        if content is None:
+            with np.load(state_file) as data:
+                members = {k: data[k] for k in data.files if damage != "older" or k != "header"}
+            spoilt = members["dem_positions"].view(np.uint8).reshape(-1).copy()
+            spoilt[:1024] = np.random.default_rng(1).integers(0, 256, 1024, dtype=np.uint8)
+            members["dem_positions"] = spoilt.view(np.float64).reshape(members["dem_positions"].shape)
+            np.savez(state_file, **members)
+            content = state_file.read_bytes()
     state_file.write_bytes(content)
-    with pytest.raises(CheckpointError) as err:
-        micro_run.run(MICRO, "heterogeneous", path, results / "heterogeneous.nc",
-                      results / "heterogeneous.png")
-    message = str(err.value)
-    assert str(state_file) in message and "\n" not in message
-    assert state_file.read_bytes() == content
-    assert _files(tmp_path / "results") == {state_file}
+    with caplog.at_level("WARNING", logger="micro.checkpoint"):
+        assert load_checkpoint(state_file, "abc", CLAY) is None
+    aside = tmp_path / "heterogeneous.checkpoint.npz.rejected"
+    assert not state_file.exists() and aside.read_bytes() == content
+    [line] = [r.getMessage() for r in caplog.records]
+    assert str(state_file) in line and reason in line and "\n" not in line
 
 
 def test_a_divergence_names_the_case_and_leaves_no_result(tmp_path, monkeypatch):
