@@ -32,6 +32,7 @@ from macro.packing import pack_cylinder
 from macro.settings import MacroSettings, macro_settings
 from macro.stopping import DAY, MONITORED, RunProgress, stop_distance
 from macro.vtk import SnapshotSeries
+from shared.errors import ConfigError
 from shared.io import write_dataset
 from shared.provenance import file_sha256, module_sha256
 from shared.upscaling import PermeabilityTable
@@ -79,7 +80,7 @@ def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) 
                             settings.packing_fraction, np.random.default_rng(settings.seed),
                             settings.packing_sweeps, settings.pellet_radius_spread)
     if packing.largest_overlap > PACKING_TOLERANCE * settings.pellet_radius:
-        raise ValueError(
+        raise ConfigError(
             f"macro.mixture: a pellet packing fraction of {settings.packing_fraction:.3g}: the packing left pellets overlapping "
             f"each other or the container by {packing.largest_overlap / settings.pellet_radius:.2g} of a "
             f"radius within {settings.packing_sweeps} minimiser iterations (macro.numerics.packing_iterations); "
