@@ -108,10 +108,11 @@ def centred_grid(
 
     Raises
     ------
-    ValueError
-        If the grid is not ``(z, y, x)``, holds no finite value, does not span the cube,
-        or holds NaN around it (the cube reaches outside the specimen, or the grid has a
-        hole inside it); the message names the grid file and the config key to change.
+    shared.errors.InputError
+        If the grid is not ``(z, y, x)``, holds no finite value, is coarser than half the
+        cube (coordinates in mm read as m), does not span the cube, or holds NaN around it
+        (the cube reaches outside the specimen, or the grid has a hole inside it); the
+        message names the grid file and the config key to change.
     """
     name = _grid_name(porosity)
     if porosity.ndim != 3 or set(porosity.dims) != {"z", "y", "x"}:
@@ -124,6 +125,14 @@ def centred_grid(
         raise InputError(f"{name}: no finite value (no block inside the specimen; see "
                          "imaging.mask and imaging.min_specimen_fraction)")
     keys = "micro.specimen_size_m (or the case's specimen_size_m and offset_m)"
+    for axis in porosity.dims:
+        spacing = float(np.median(np.abs(np.diff(porosity[axis].values)))) if porosity[axis].size > 1 else np.inf
+        if not spacing <= 0.5 * edge_length:
+            raise InputError(
+                f"{name}: its spacing along {axis} ({spacing:.4g} m) exceeds half the "
+                f"{edge_length * 1e3:g} mm cube ({keys}): fewer than two grid blocks across "
+                "it; are the grid's coordinates in metres?"
+            )
     shifted = {}
     for axis_index, axis in enumerate(porosity.dims):
         coordinate = porosity[axis].values

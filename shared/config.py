@@ -120,7 +120,7 @@ def validate_config(
     if errors:
         first = errors[0]
         raise ConfigError(f"{_key_path(first)}: {first.message}")
-    for check in (_check_samples, _check_micro, _check_upscaling, *checks):
+    for check in (_check_samples, _check_lengths, _check_micro, _check_upscaling, *checks):
         check(config)
     _check_case_materials(config, schema)
     for sample in config["samples"]:
@@ -188,6 +188,23 @@ def _check_samples(config: Mapping[str, Any]) -> None:
         if entry["source"] != "phantom" and not entry["path"]:
             raise ConfigError(
                 f"config key 'samples.{name}.path': required for a {entry['source']} scan"
+            )
+
+
+def _check_lengths(config: Mapping[str, Any]) -> None:
+    """Voxel sizes and grid spacings within ``plausible_length_m`` (a unit slip otherwise)."""
+    low, high = config["plausible_length_m"]
+    lengths = {f"samples.{name}.voxel_size_m": entry["voxel_size_m"]
+               for name, entry in config["samples"].items()}
+    lengths["imaging.grid_spacing_m"] = config.get("imaging", {}).get("grid_spacing_m")
+    for name, entry in config["samples"].items():
+        lengths[f"samples.{name}.imaging.grid_spacing_m"] = entry.get("imaging", {}).get("grid_spacing_m")
+    for key, value in lengths.items():
+        if value is not None and not low <= value <= high:
+            raise ConfigError(
+                f"config key '{key}': {value:g} m is outside the plausible range of a CT scan "
+                f"[{low:g}, {high:g}] m (a length in mm typed as m?); if it is right, widen "
+                "plausible_length_m"
             )
 
 

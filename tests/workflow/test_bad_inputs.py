@@ -37,6 +37,7 @@ from micro import run as micro_run
 from micro.config import check_studies
 from micro.hydration import DivergenceError
 from shared.config import ConfigError, default_config, load_config, validate_config
+from shared.errors import InputError
 from shared.io import OutputError, write_dataset
 from tests.workflow._chain import snakemake, workdir
 
@@ -373,6 +374,10 @@ GRIDS = {
     "grid_file_missing": ("missing", OutputError, ["no such file"]),
     "grid_file_is_a_folder": ("folder", OutputError, ["is a folder"]),
     "grid_file_not_netcdf": ("garbage", OutputError, ["not a readable netCDF"]),
+    # a grid of 0.5 mm blocks written with coordinates in mm read as m: the 4 mm cube
+    # would sit inside one block (a near-uniform specimen, accepted before)
+    "grid_in_millimetres": (_grid(np.full((20, 20, 20), 0.3), spacing=0.5), InputError,
+                            ["spacing along", "exceeds half the 4 mm cube", "in metres"]),
 }
 
 
@@ -530,7 +535,37 @@ CONFIGS = {
     "sample_cylinder_without_radius": (_set("samples.pellet.imaging",
                                             {"mask": {"mode": "cylinder"}}),
                                        "samples.pellet.imaging.mask.cylinder_radius_m"),
+    "nan_value": (_set("materials.pellet.swelling_beta_per_pa", float("nan")),
+                  "'materials.pellet.swelling_beta_per_pa': nan is not a finite number"),
+    "infinite_value": (_set("micro.specimen_size_m", float("inf")),
+                       "'micro.specimen_size_m': inf is not a finite number"),
+    "negative_infinity_in_an_array": (_set("upscaling.suction_range_pa", [float("-inf"), 1e8]),
+                                      "'upscaling.suction_range_pa.0': -inf is not a finite number"),
+    "voxel_size_in_mm_typed_as_m": (_set("samples.pellet.voxel_size_m", 0.3),
+                                    "'samples.pellet.voxel_size_m': 0.3 m is outside the plausible"),
+    "voxel_size_in_um_typed_as_m": (_set("samples.pellet.voxel_size_m", 3e-8),
+                                    "'samples.pellet.voxel_size_m': 3e-08 m is outside"),
+    "grid_spacing_in_mm_typed_as_m": (_set("imaging.grid_spacing_m", 0.5), "'imaging.grid_spacing_m'"),
+    "sample_grid_spacing_in_mm": (_set("samples.pellet.imaging", {"grid_spacing_m": 0.5}),
+                                  "'samples.pellet.imaging.grid_spacing_m'"),
 }
+
+
+def test_a_real_voxel_size_outside_the_plausible_range_is_accepted_once_the_range_is_widened():
+    config = copy.deepcopy(CONFIG)
+    _set("samples.pellet.voxel_size_m", 0.02)(config)
+    with pytest.raises(ConfigError, match="widen plausible_length_m"):
+        validate_config(copy.deepcopy(config))
+    config["plausible_length_m"] = [1e-7, 0.05]
+    assert validate_config(config)["samples"]["pellet"]["voxel_size_m"] == 0.02
+
+
+def test_a_swelling_strain_below_minus_one_names_the_swelling_keys():
+    from shared.swelling import swollen_radius
+
+    for strain in (np.array([0.1, -1.5]), np.array([np.nan])):
+        with pytest.raises(ConfigError, match=r"got (-1\.5|nan).*materials\.pellet\.swelling_beta_per_pa"):
+            swollen_radius(np.ones(strain.size), strain)
 
 
 @pytest.mark.parametrize("case", sorted(CONFIGS))
@@ -543,13 +578,21 @@ def test_a_bad_config_is_refused_naming_the_key(case):
     assert key in str(err.value)
 
 
-@pytest.mark.parametrize("content", ["absent", "- a list\n- not a mapping\n"])
-def test_a_bad_config_file_is_refused_naming_it(content, tmp_path):
+@pytest.mark.parametrize("content, words", [
+    ("absent", "no such configuration file"),
+    ("- a list\n- not a mapping\n", "not a YAML list"),
+    ("", "is empty"),
+    ("micro: {n_points: 64\n", "not valid YAML: line 2, column 1"),
+    ("micro:\n  n_points: 64\nmacro: {}\nmicro: {}\n", "key 'micro' is given twice, on lines 1 and 4"),
+    ("\x89PNG\r\n\x1a\n", "config.yaml: not"),
+])
+def test_a_bad_config_file_is_refused_naming_it(content, words, tmp_path):
     path = tmp_path / "config.yaml"
     if content != "absent":
-        path.write_text(content)
-    with pytest.raises(ConfigError, match="config.yaml"):
+        path.write_bytes(content.encode("latin-1"))
+    with pytest.raises(ConfigError, match="config.yaml") as err:
         load_config(path)
+    assert words in str(err.value) and "\n" not in str(err.value)
 
 
 # ------------------------------------------------------- one line, not a traceback
