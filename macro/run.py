@@ -35,7 +35,7 @@ from macro.vtk import SnapshotSeries
 from shared.errors import ConfigError
 from shared.io import write_dataset
 from shared.provenance import file_sha256, module_sha256
-from shared.upscaling import PermeabilityTable
+from shared.upscaling import PermeabilityTable, check_suction_coverage
 
 __all__ = ["run", "simulate"]
 
@@ -336,6 +336,9 @@ def run(
     ------
     shared.io.OutputError
         If the table is missing or malformed (naming the file).
+    shared.errors.InputError
+        If the table's suctions miss the case's range by more than a decade (naming the
+        file); look-ups outside the table within that are clamped, counted and logged.
     ValueError, KeyError
         Naming the configuration key at fault (pellets larger than the container,
         unknown case).
@@ -345,6 +348,8 @@ def run(
     start = time.monotonic()
     settings, material = case_parameters(config, case)
     table = PermeabilityTable.from_file(table_path, settings.table_condition)
+    check_suction_coverage(table, settings.boundary_suction, material.initial_suction, str(table_path),
+                           "macro.boundary_suction_pa to materials.mixture_pellet.initial_suction_pa")
     section = {"macro": config["macro"], "case": case,
                "materials": case_materials(config["materials"], config["macro"]["cases"][case])}
     # the code too (this module and what it imports, as the netCDF's code_sha256): a
@@ -378,6 +383,12 @@ def run(
         kept = f"; the last snapshot ({snapshot_path}) is kept" if snapshot_path.is_file() else ""
         raise NewtonError(f"macro case {case} at step {model.steps} (t = {model.time:.6g} s): "
                           f"{error}{kept}") from error
+    if model.table.clamped:
+        low, high = model.table.suction_range
+        LOG.warning("case %s: %d of %d table look-ups (%.2g %%) fell outside the table's suctions "
+                    "[%.3g, %.3g] Pa and were clamped to them (attribute table_clamped_lookups)", case,
+                    model.table.clamped, model.table.looked_up,
+                    100.0 * model.table.clamped / model.table.looked_up, low, high)
     ds.attrs["stop_reason"] = reason
     ds.attrs["runtime_s"] = earlier + time.monotonic() - start
     ds.attrs["resumed"] = int(resumed is not None)

@@ -475,6 +475,51 @@ def test_a_divergence_names_the_case_and_leaves_no_result(tmp_path, monkeypatch)
     assert not _files(tmp_path / "results")
 
 
+# ------------------------------------------------------------------ macro tables
+
+
+def _macro_table(tmp: Path, suction: np.ndarray) -> Path:
+    """The macro tests' synthetic table with its suction coordinate replaced [Pa]."""
+    from tests._macro_cases import synthetic_table
+
+    table = synthetic_table()
+    table = table.assign_coords(suction=("suction", suction, table["suction"].attrs))
+    return Path(write_dataset(table, tmp / "table.nc", stage="upscaling", title="table"))
+
+
+def _macro_config():
+    from tests._macro_cases import small_config
+
+    config = small_config()
+    config["macro"]["numerics"].update(max_steps=3, stop_tolerance=0.0)
+    return config
+
+
+def test_a_table_in_mpa_is_refused_naming_it_and_both_ranges(tmp_path):
+    """The case spans 1 to 132 MPa; a table whose suctions were written in MPa (0.1 to 200)
+    misses it by six decades: refused before anything runs, not clamped at every look-up."""
+    from macro import run as macro_run
+    from tests._macro_cases import SUCTION
+
+    table = _macro_table(tmp_path, SUCTION / 1e6)
+    with pytest.raises(InputError, match=r"table\.nc: its suctions \[0\.1, 200\] Pa miss the case's "
+                                         r"range \[1e\+06, 1\.32e\+08\] Pa \(macro\.boundary_suction_pa"):
+        macro_run.run(_macro_config(), "small", table, tmp_path / "out.nc")
+    assert not (tmp_path / "out.nc").exists()
+
+
+def test_a_table_missing_less_than_a_decade_is_clamped_and_the_count_logged(tmp_path, caplog):
+    from macro import run as macro_run
+
+    table = _macro_table(tmp_path, np.geomspace(5e6, 1.0e8, 12))
+    with caplog.at_level(logging.WARNING, logger="claychain.macro"):
+        ds = macro_run.run(_macro_config(), "small", table, tmp_path / "out.nc")
+    clamped, looked_up = ds.attrs["table_clamped_lookups"], ds.attrs["table_lookups"]
+    assert 0 < clamped <= looked_up
+    [line] = [r.getMessage() for r in caplog.records if "clamped" in r.getMessage()]
+    assert f"{clamped} of {looked_up} table look-ups" in line and "[5e+06, 1e+08] Pa" in line
+
+
 # ------------------------------------------------------------------------- configs
 
 
