@@ -99,8 +99,8 @@ def check_csv_export(path: str | Path) -> None:
     if recorded is not None and hashlib.sha256(export.read_bytes()).hexdigest() != recorded:
         raise InputError(
             f"{export}: edited since the upscaling stage wrote it (its sha256 differs from the "
-            f"one {path.name} records), but the macro stage reads {path} only: restore it "
-            "(rerun with --forcerun upscaling_table), and to run the macro model on "
+            f"one {path.name} records), but the macro stage reads {path} only: delete it to have "
+            "it written again, and to run the macro model on "
             "permeabilities of your own, write them to a table of your own and set "
             "macro.table_path (docs/howto-parameters.md, \"Your own permeability table\")"
         )
