@@ -132,6 +132,54 @@ def _float_tiff(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
     return "tiff", tmp / "float.tif"
 
 
+def _tiff_bytes(pages: int, width: int, height: int, bits: int, sample_format: int,
+                pixels: bytes) -> bytes:
+    """A little-endian multi-page TIFF whose pages all declare ``width`` x ``height``
+    pixels of ``bits`` bits and SampleFormat ``sample_format`` and hold ``pixels`` (what
+    OpenCV cannot write: 32-bit integers, or a header larger than the data)."""
+    import struct
+
+    tags = 9
+    directory = 2 + 12 * tags + 4
+    data_at = 8 + pages * directory
+    out = [b"II*\x00", struct.pack("<I", 8)]
+    for k in range(pages):
+        entries = [(256, 4, width), (257, 4, height), (258, 3, bits), (259, 3, 1), (262, 3, 1),
+                   (273, 4, data_at + k * len(pixels)), (278, 4, height), (279, 4, len(pixels)),
+                   (339, 3, sample_format)]
+        out.append(struct.pack("<H", tags))
+        out += [struct.pack("<HHII", tag, kind, 1, value) for tag, kind, value in entries]
+        out.append(struct.pack("<I", 0 if k == pages - 1 else 8 + (k + 1) * directory))
+    return b"".join(out) + pixels * pages
+
+
+def _uint32_tiff(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    pixels = volume[0, :8, :8].astype(np.uint32).tobytes()
+    (tmp / "u32.tif").write_bytes(_tiff_bytes(4, 8, 8, 32, 1, pixels))
+    return "tiff", tmp / "u32.tif"
+
+
+def _huge_header(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    (tmp / "huge.tif").write_bytes(_tiff_bytes(2, 65_000, 65_000, 16, 1, b"\0" * 64))
+    return "tiff", tmp / "huge.tif"
+
+
+def _cv2_tiff(dtype: type) -> Callable[[Path, np.ndarray], tuple[str, Path]]:
+    def make(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+        path = tmp / f"{np.dtype(dtype).name}.tif"
+        cv2.imwritemulti(str(path), list((volume[:4] >> 9).astype(dtype)))
+        return "tiff", path
+    return make
+
+
+def _int8_slices(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
+    folder = tmp / "int8"
+    folder.mkdir()
+    for k, page in enumerate(volume[:4]):
+        cv2.imwrite(str(folder / f"s{k}.tif"), (page >> 9).astype(np.int8))
+    return "slices", folder
+
+
 def _short_raw(tmp: Path, volume: np.ndarray) -> tuple[str, Path]:
     volume[:-1].tofile(tmp / "short.raw")
     return "raw", tmp / "short.raw"
@@ -162,7 +210,12 @@ SCANS = {
     "tiff_is_a_folder": (_folder_as_tiff, "is a folder"),
     "tiff_missing": (_missing, "no such file"),
     "tiff_uniform_black": (_uniform, "uniform"),
-    "tiff_32_bit_float": (_float_tiff, "8- or 16-bit"),
+    "tiff_32_bit_float": (_float_tiff, "its pixels are float32"),
+    "tiff_64_bit_float": (_cv2_tiff(np.float64), "its pixels are float64 (TIFF BitsPerSample"),
+    "tiff_8_bit_signed": (_cv2_tiff(np.int8), "its pixels are int8"),
+    "tiff_32_bit_unsigned": (_uint32_tiff, "its pixels are uint32"),
+    "tiff_header_beyond_opencv_limits": (_huge_header, "its pages are 65000 x 65000 pixels, beyond what OpenCV"),
+    "slices_8_bit_signed": (_int8_slices, "its pixels are int8"),
     "slices_given_a_file": (_file_as_slices, "is a file"),
     "slices_folder_missing": (_missing_folder, "no such folder"),
     "slices_folder_without_images": (_empty_folder, "no slice files"),
