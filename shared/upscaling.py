@@ -12,7 +12,6 @@ that the consumer can record how often it read beyond the micro model.
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,17 +24,12 @@ from shared.errors import InputError
 from shared.io import OutputError, read_dataset
 
 __all__ = [
-    "CSV_EXPORT_ATTRIBUTE",
     "TABLE_VARIABLES",
     "PermeabilityTable",
-    "check_csv_export",
     "check_suction_coverage",
     "check_table",
     "read_table",
 ]
-
-CSV_EXPORT_ATTRIBUTE = "csv_export_sha256"
-"""The table's attribute holding the sha256 of the CSV export written beside it."""
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -76,34 +70,6 @@ def check_table(table: xr.Dataset, source: str = "the upscaling table") -> None:
     eigenvalues = np.linalg.eigvalsh(0.5 * (tensor + np.swapaxes(tensor, -1, -2)))
     if not np.all(eigenvalues > 0):
         raise OutputError(f"{source}: a 'k_tensor' node is not positive definite")
-
-
-def check_csv_export(path: str | Path) -> None:
-    """Refuse a CSV export beside the table ``path`` that differs from the one written.
-
-    The macro stage reads the netCDF only, so an edit of ``<table>.csv`` would change
-    nothing; the table records its export's sha256 (``csv_export_sha256``). Nothing is
-    checked while either file is missing or for a table without the attribute.
-
-    Raises
-    ------
-    shared.errors.InputError
-        Naming the CSV file and the route to other permeabilities (``macro.table_path``).
-    """
-    path = Path(path)
-    export = path.with_suffix(".csv")
-    if not (path.is_file() and export.is_file()):
-        return
-    with xr.open_dataset(path, engine="netcdf4") as table:
-        recorded = table.attrs.get(CSV_EXPORT_ATTRIBUTE)
-    if recorded is not None and hashlib.sha256(export.read_bytes()).hexdigest() != recorded:
-        raise InputError(
-            f"{export}: edited since the upscaling stage wrote it (its sha256 differs from the "
-            f"one {path.name} records), but the macro stage reads {path} only: delete it to have "
-            "it written again, and to run the macro model on "
-            "permeabilities of your own, write them to a table of your own and set "
-            "macro.table_path (docs/howto-parameters.md, \"Your own permeability table\")"
-        )
 
 
 def check_suction_coverage(table: PermeabilityTable, low: float, high: float, source: str, key: str) -> None:

@@ -2,7 +2,7 @@
 
 Writes the netCDF table (the only thing macro reads from micro, docs/design.md §2), its CSV
 export (condition, suction, phase, axis, k) for users of other tools, whose sha256 the
-table records (a hand edit of the export is refused, :func:`shared.upscaling.check_csv_export`),
+table records (a hand edit of the export is refused, :func:`shared.table_export.check_csv_export`),
 and a figure. The
 table is checked before anything is written, and every file is replaced atomically, so
 a refused source leaves no partial table.
@@ -24,7 +24,7 @@ from micro.upscaling.figures import table_figure
 from micro.upscaling.table import SOURCE_VARIABLES, table_rows, upscaling_table
 from shared.config import ConfigError
 from shared.io import OutputError, atomic_write, read_dataset, write_dataset
-from shared.upscaling import CSV_EXPORT_ATTRIBUTE
+from shared.table_export import CSV_EXPORT_ATTRIBUTE
 
 __all__ = ["run"]
 

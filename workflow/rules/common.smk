@@ -16,7 +16,7 @@ from micro.config import (
 from shared.config import ConfigError, load_schema, sample_imaging, validate_config
 from shared.errors import InputError
 from shared.provenance import script_sha256
-from shared.upscaling import check_csv_export
+from shared.table_export import check_csv_export
 
 SCHEMA = load_schema(workflow.source_path("../schemas/config.schema.yaml"))
 try:

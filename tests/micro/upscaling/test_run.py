@@ -10,7 +10,8 @@ from micro.upscaling import run as upscaling_run
 from shared.config import ConfigError
 from shared.errors import InputError
 from shared.io import write_dataset
-from shared.upscaling import PermeabilityTable, check_csv_export, read_table
+from shared.table_export import check_csv_export
+from shared.upscaling import PermeabilityTable, read_table
 from tests.micro.upscaling.test_table import CHECKPOINTS, RANGE, _micro
 
 
