@@ -139,8 +139,9 @@ def read_snapshot(path: Path, digest: str, restore: Callable[[dict[str, Any], di
     digest
         The run's hash; a file of another is ignored (logged) and left to be overwritten.
     restore
-        Rebuilds the caller's state; raises :class:`shared.errors.SnapshotError` for
-        content it cannot use.
+        Rebuilds the caller's state; raises :class:`shared.errors.SnapshotError` (or a
+        ``KeyError``, ``TypeError``, ``ValueError``, ``AttributeError``) for content it
+        cannot use.
     log
         Where the one line of a file ignored or set aside goes.
 
@@ -156,7 +157,12 @@ def read_snapshot(path: Path, digest: str, restore: Callable[[dict[str, Any], di
         if content is None:
             log.info("%s: snapshot of another configuration or code: the run starts from the beginning", path)
             return None
-        return restore(*content)
+        try:
+            return restore(*content)
+        except (KeyError, TypeError, ValueError, AttributeError) as error:
+            if isinstance(error, SnapshotError):
+                raise
+            raise SnapshotError(f"its content does not fit the code ({type(error).__name__}: {error})") from error
     except SnapshotError as error:
         set_aside(path, str(error), log)
         return None

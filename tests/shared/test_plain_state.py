@@ -96,6 +96,11 @@ def test_a_snapshot_of_another_digest_is_left_and_a_failed_one_set_aside_each_un
     with caplog.at_level("INFO", logger="test.snapshot"):
         assert read_snapshot(path, "two", lambda meta, arrays: 1, log) is None
     assert path.is_file() and "another configuration or code" in caplog.text
+    # content that does not fit the code (here a key it lacks) is set aside as well
+    with caplog.at_level("WARNING", logger="test.snapshot"):
+        assert read_snapshot(path, "one", lambda meta, arrays: meta["absent"], log) is None
+    assert "does not fit the code (KeyError: 'absent')" in caplog.text
+    (tmp_path / "s.npz.rejected").unlink()
     for count, name in enumerate(("s.npz.rejected", "s.npz.rejected-2"), start=1):
         path.write_bytes(b"%d" % count)
         assert read_snapshot(path, "one", lambda meta, arrays: 1, log) is None
