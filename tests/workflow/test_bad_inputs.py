@@ -932,3 +932,28 @@ def test_a_coarse_grid_is_warned_with_the_spacing_to_set(volume, tmp_path, caplo
     assert "imaging.grid_spacing_m" in ds.attrs["warnings"]
     assert "0.0012 m" in ds.attrs["warnings"]
     assert any("grid_spacing_m" in r.getMessage() for r in caplog.records)
+
+
+def test_snakemake_refuses_a_hand_edited_table_export_at_start(tmp_path):
+    """The table and its CSV export as the upscaling stage leaves them, then one value of
+    the export multiplied by 1000: a dry run stops at once with one line naming the CSV and
+    macro.table_path (before: "Nothing to be done", the edit ignored)."""
+    import hashlib
+
+    from shared.table_export import CSV_EXPORT_ATTRIBUTE
+    from tests._macro_cases import synthetic_table
+
+    work = workdir(tmp_path, copy.deepcopy(TINY))
+    export = b"condition,suction_pa,phase,axis,k_m2\nfree,100000,water,x,1e-19\n"
+    table = synthetic_table()
+    table.attrs[CSV_EXPORT_ATTRIBUTE] = hashlib.sha256(export).hexdigest()
+    folder = work / "results" / "upscaling"
+    write_dataset(table, folder / "pellet_permeability.nc", stage="upscaling", title="table")
+    (folder / "pellet_permeability.csv").write_bytes(export)
+    snakemake(work, "-n")
+    (folder / "pellet_permeability.csv").write_bytes(export.replace(b"1e-19", b"1e-16"))
+    result = snakemake(work, "-n", ok=False)
+    ours = [line for line in result.stderr.splitlines() if line.startswith("claychain: ")]
+    assert len(ours) == 1 and "Traceback" not in result.stderr, result.stderr[-3000:]
+    assert "pellet_permeability.csv: edited since the upscaling stage wrote it" in ours[0]
+    assert "macro.table_path" in ours[0]

@@ -27,11 +27,14 @@ except ConfigError as err:
     sys.exit(f"claychain: invalid configuration: {err}")
 
 UPSCALING_TABLE = "results/upscaling/pellet_permeability.nc"
-try:
-    # a hand edit of the table's CSV export would be ignored without a word
-    check_csv_export(UPSCALING_TABLE)
-except InputError as err:
-    sys.exit(f"claychain: {err}")
+# a hand edit of the table's CSV export would be ignored without a word; checked by the
+# main process only (a job's own parse could fall between the table's and the export's
+# writes of a running upscaling_table job)
+if workflow.is_main_process:
+    try:
+        check_csv_export(UPSCALING_TABLE)
+    except InputError as err:
+        sys.exit(f"claychain: {err}")
 
 SAMPLES = sorted(config["samples"])
 CASES = sorted(config["micro"]["cases"])
