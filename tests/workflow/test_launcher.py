@@ -50,7 +50,8 @@ OVERLAY = ".snakemake/claychain/overrides.yaml"
 @pytest.fixture
 def launcher(tmp_path: Path) -> Path:
     """The launcher in a folder of its own, whose 'venv' holds this Python and a stand-in
-    snakemake that writes its arguments to $ARGS, one a line (and sleeps $HOLD s)."""
+    snakemake that writes its arguments to $ARGS, one a line, and becomes ``sleep $HOLD``
+    (the process that holds the run lock: killing it releases the lock)."""
     for name in ("config", "shared", "workflow"):
         (tmp_path / name).symlink_to(ROOT / name)
     for name in ("claychain", "pyproject.toml"):
@@ -58,7 +59,7 @@ def launcher(tmp_path: Path) -> Path:
     bin_dir = tmp_path / "venv" / "bin"
     bin_dir.mkdir(parents=True)
     (bin_dir / "python").write_text(f'#!/bin/sh\nexec {sys.executable} "$@"\n')
-    (bin_dir / "snakemake").write_text('#!/bin/sh\nprintf "%s\\n" "$@" > "$ARGS"\nsleep "${HOLD:-0}"\n')
+    (bin_dir / "snakemake").write_text('#!/bin/sh\nprintf "%s\\n" "$@" > "$ARGS"\nexec sleep "${HOLD:-0}"\n')
     for script in bin_dir.iterdir():
         script.chmod(0o755)
     digest = hashlib.sha256((tmp_path / "pyproject.toml").read_bytes()).hexdigest()
