@@ -19,7 +19,6 @@ import copy
 import json
 import logging
 import os
-import pickle
 import signal
 import subprocess
 import sys
@@ -33,6 +32,7 @@ import xarray as xr
 from benchmarks.macro import synthetic_table
 from benchmarks.parameters import CONFIG
 from shared.io import write_dataset
+from shared.snapshot import read_meta
 
 __all__ = ["bench_macro_kill_resume"]
 
@@ -76,9 +76,8 @@ def _user_run(config: Path, table: Path, output: Path, kill_at: int) -> tuple[in
 
 def _snapshot(output: Path) -> tuple[int, int]:
     """Step and remesh count of the run's snapshot."""
-    with open(output.with_name(f".{output.stem}.snapshot.pkl"), "rb") as handle:
-        model = pickle.load(handle)["model"]
-    return int(model.steps), int(model.remeshes)
+    model = read_meta(output.with_name(f".{output.stem}.snapshot.npz"))["model"]
+    return int(model["steps"]), int(model["remeshes"])
 
 
 def _differences(whole: xr.Dataset, resumed: xr.Dataset) -> list[str]:

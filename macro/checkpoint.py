@@ -1,70 +1,87 @@
-"""Snapshots of a macro run: the whole model and the records so far, to resume after a kill.
+"""Snapshots of a macro run: the model's state and the records so far, to resume after a kill.
 
-The model is a plain dataclass of numpy arrays, the mesh, the packing and the table's
-look-up counters; it is pickled whole (with the trial time step of the implicit scheme
-and every counter), so that a resumed run continues bit for bit as the uninterrupted
-one would (``tests/macro/test_checkpoint.py``). A snapshot carries the hash of what
-decides the run (the case's configuration, the table's sha256 and the sources of macro/
-and shared/): a snapshot written under another configuration or code is ignored (logged).
-Files are written to a temporary name and renamed; the run removes its snapshot when it
+The model's state is saved generically (:mod:`shared.plain_state`): every attribute of
+:class:`macro.model.MacroModel`, dataclass field or not, with the mesh, the exchanges,
+the readings and the packing rebuilt as their declared classes, the trial time step of
+the implicit scheme and every counter, so that a resumed run continues bit for bit as
+the uninterrupted one would (``tests/macro/test_checkpoint.py``). The settings and the
+material parameters are not stored but rebuilt from the configuration, and the table
+from its file; the table's look-up counters are stored. The file is data only
+(:mod:`shared.snapshot`): it carries the hash of what decides the run (the case's
+configuration, the table's sha256 and the sources of macro/ and shared/), and a snapshot
+of another configuration or code is ignored (logged); a damaged or inconsistent one is
+moved aside and the case starts from the beginning. The run removes its snapshot when it
 has written its output.
 """
 
 from __future__ import annotations
 
 import logging
-import pickle
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from macro.laws import MixtureParameters
 from macro.model import MacroModel
-from shared.io import OutputError, atomic_write
+from macro.settings import MacroSettings
+from shared.errors import SnapshotError
+from shared.plain_state import Decoder, Encoder
+from shared.snapshot import read_snapshot, write_snapshot
+from shared.upscaling import PermeabilityTable
 
 __all__ = ["load_snapshot", "save_snapshot"]
 
 LOG = logging.getLogger("claychain.macro")
 
+_GIVEN = ("settings", "material", "table")
+"""Attributes of the model rebuilt from the configuration and the table file, not stored."""
+
 
 def save_snapshot(path: Path, digest: str, model: MacroModel, rows: dict[str, list[Any]],
                   wall_time: float) -> None:
-    """Write the model, the records and the wall time so far [s], atomically."""
-    payload = {"digest": digest, "model": model, "rows": rows, "wall_time": float(wall_time)}
-
-    def write(tmp: str) -> None:
-        with open(tmp, "wb") as handle:
-            pickle.dump(payload, handle, protocol=pickle.HIGHEST_PROTOCOL)
-
-    atomic_write(path, write)
-
-
-def load_snapshot(path: Path, digest: str) -> tuple[MacroModel, dict[str, list[Any]], float] | None:
-    """The saved model, records and wall time, or None if absent or of another
-    configuration, table or code.
+    """Write the model, the records and the wall time so far [s], atomically.
 
     Raises
     ------
-    shared.io.OutputError
-        Naming the file when it exists but cannot be read (truncated, not a snapshot) or
-        when its records differ in shape from one to another (profiles on other bins
-        cannot make one result): delete it to start the case afresh.
+    TypeError
+        Naming an attribute of the model whose type a snapshot cannot hold.
     """
-    if not path.is_file():
-        return None
-    try:
-        with open(path, "rb") as handle:
-            payload = pickle.load(handle)
-        digest_saved = payload["digest"]
-    except (OSError, EOFError, pickle.UnpicklingError, KeyError, TypeError, AttributeError) as error:
-        raise OutputError(f"{path}: unreadable macro snapshot ({type(error).__name__}); "
-                          "delete it to start the case afresh") from error
-    if digest_saved != digest:
-        LOG.info("%s: snapshot of another configuration, table or code: the case starts afresh", path)
-        return None
-    rows = payload["rows"]
-    uneven = sorted(k for k, values in rows.items() if len({np.shape(v) for v in values}) > 1)
-    if uneven:
-        raise OutputError(f"{path}: macro snapshot whose records of {', '.join(uneven)} differ in "
-                          "shape; delete it to start the case afresh")
-    return payload["model"], rows, float(payload["wall_time"])
+    encoder = Encoder(given=_GIVEN)
+    meta = {"model": encoder.attributes(model, "model"), "rows": encoder.encode(rows, None, "rows"),
+            "wall_time": float(wall_time)}
+    write_snapshot(path, digest, meta, encoder.arrays)
+
+
+def load_snapshot(path: Path, digest: str, settings: MacroSettings, material: MixtureParameters,
+                  table: PermeabilityTable) -> tuple[MacroModel, dict[str, list[Any]], float] | None:
+    """The saved model, records and wall time [s]; None if there is no usable snapshot.
+
+    Parameters
+    ----------
+    path
+        The snapshot file.
+    digest
+        The hash of the case's configuration, table and code.
+    settings, material, table
+        The case's, from its configuration and table file (the digest guarantees they
+        are those of the saved run); the table's counters are set to the saved ones.
+
+    Returns
+    -------
+    tuple or None
+        None when the file is absent, of another configuration, table or code (logged), or
+        fails its checks (moved aside, logged), such as records that differ in shape from
+        one to another (profiles on other bins cannot make one result).
+    """
+
+    def restore(meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> tuple[MacroModel, dict[str, list[Any]], float]:
+        decoder = Decoder(arrays, {"settings": settings, "material": material, "table": table})
+        model = decoder.build(MacroModel, meta["model"], "model")
+        rows = decoder.decode(meta["rows"], None, "rows")
+        uneven = sorted(k for k, values in rows.items() if len({np.shape(v) for v in values}) > 1)
+        if uneven:
+            raise SnapshotError(f"records of {', '.join(uneven)} differ in shape")
+        return model, rows, float(meta["wall_time"])
+
+    return read_snapshot(path, digest, restore, LOG)

@@ -21,6 +21,7 @@ import xarray as xr
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from shared.errors import InputError
 from shared.figures import new_figure, save_figure
 from shared.io import read_dataset, write_dataset
 
@@ -46,12 +47,12 @@ def _common_times(members: Mapping[str, xr.Dataset], points: int) -> FloatArray:
     for name, ds in members.items():
         time = ds["time"].values
         if not (time > 0.0).any():
-            raise ValueError(f"ensemble member {name}: no record after t = 0")
+            raise InputError(f"ensemble member {name}: no record after t = 0")
         starts.append(time[time > 0.0].min())
         ends.append(time.max())
     start, end = max(starts), min(ends)
     if not start < end:
-        raise ValueError(
+        raise InputError(
             f"ensemble members end before the latest first step ({end:.6g} s <= {start:.6g} s): "
             "no common time axis"
         )
@@ -104,15 +105,15 @@ def ensemble_statistics(
         members have no common time span.
     """
     if not members:
-        raise ValueError("an ensemble needs at least one member")
+        raise InputError("an ensemble needs at least one member")
     names = list(members)
     first = members[names[0]]
     for name, ds in members.items():
         missing = [q for q in QUANTITIES if q not in OPTIONAL and q not in ds.variables]
         if missing:
-            raise ValueError(f"ensemble member {name}: missing variable(s) {missing}")
+            raise InputError(f"ensemble member {name}: missing variable(s) {missing}")
         if not ds.indexes["sensor"].equals(first.indexes["sensor"]):
-            raise ValueError(
+            raise InputError(
                 f"ensemble member {name}: sensors {list(ds['sensor'].values)} differ from "
                 f"those of {names[0]} ({list(first['sensor'].values)})"
             )

@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from shared.errors import ConfigError
+
 __all__ = ["cell_porosity", "gaussian_field"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -51,5 +53,5 @@ def cell_porosity(
         values = gaussian_field(centroids, mean, float(powder["field_std"]),
                                 float(powder["correlation_length_m"]), seed)
     else:
-        raise ValueError(f"macro.powder.heterogeneity: unknown mode {mode!r}")
+        raise ConfigError(f"macro.powder.heterogeneity: unknown mode {mode!r}")
     return np.clip(values, low, high)

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from shared.errors import ConfigError
 from shared.permeability import porosity_permeability
 from shared.retention import van_genuchten_saturation, van_genuchten_suction
 from shared.swelling import swelling_strain as shared_swelling_strain
@@ -128,7 +129,7 @@ def mixture_parameters(materials: Mapping[str, Any], powder: Mapping[str, Any]) 
     mix = materials["mixture_powder"]
     low, high = (float(v) for v in pellet["young_modulus_bounds_pa"])
     if not low <= high:
-        raise ValueError("materials.mixture_pellet.young_modulus_bounds_pa must be [min, max]")
+        raise ConfigError("materials.mixture_pellet.young_modulus_bounds_pa must be [min, max]")
     return MixtureParameters(
         zeta0=float(mix["retention_pressure_reference_pa"]),
         lambda0=float(mix["retention_exponent_reference"]),

@@ -99,6 +99,8 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
     initial_interior_water: float = 0.0
     _occupied_loss: FloatArray | None = None
     pellet_initial_solid: FloatArray | None = None
+    packing: Packing | None = None
+    """The packing the model was built on (:func:`macro.run.build_model`)."""
 
 
     @classmethod

@@ -24,14 +24,11 @@ import numpy.typing as npt
 
 from macro import _newton_kernels
 from macro.laws import MixtureParameters, suction
+from shared.errors import NewtonError
 
 __all__ = ["NewtonError", "NewtonSettings", "PVProblem", "constraints", "solve_pressure_volume"]
 
 FloatArray = npt.NDArray[np.float64]
-
-
-class NewtonError(RuntimeError):
-    """A local pressure-volume system without solution or without convergence."""
 
 
 @dataclass(frozen=True)

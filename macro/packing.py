@@ -38,6 +38,7 @@ from threadpoolctl import threadpool_limits
 
 from macro import _kernels
 from shared.dem import detect_contacts
+from shared.errors import ConfigError
 
 __all__ = ["Packing", "pack_cylinder", "pellet_count"]
 
@@ -93,14 +94,14 @@ def pellet_count(height: float, radius: float, pellet_radius: float, fraction: f
         Naming ``macro.pellet_radius_m`` when a pellet does not fit in the container.
     """
     if not 2.0 * pellet_radius * (1.0 + spread) < min(2.0 * radius, height):
-        raise ValueError(
+        raise ConfigError(
             f"macro.pellet_radius_m = {pellet_radius} m: a pellet of that radius does not fit in "
             f"the container (macro.cylinder_radius_m = {radius} m, macro.cylinder_height_m = {height} m)"
         )
     mean_volume = 4.0 / 3.0 * np.pi * pellet_radius**3 * (1.0 + spread**2)
     n = int(round(fraction * np.pi * radius**2 * height / mean_volume))
     if n < 5:
-        raise ValueError(
+        raise ConfigError(
             f"macro.pellet_radius_m = {pellet_radius} m gives {n} pellets in the container; "
             "the Delaunay mesh needs at least 5"
         )

@@ -25,16 +25,17 @@ import xarray as xr
 
 from macro.checkpoint import load_snapshot, save_snapshot
 from macro.column_permeability import column_permeability
-from macro.laws import case_materials, mixture_parameters
+from macro.laws import MixtureParameters, case_materials, mixture_parameters
 from macro.model import MacroModel
 from macro.newton import NewtonError
 from macro.packing import pack_cylinder
 from macro.settings import MacroSettings, macro_settings
 from macro.stopping import DAY, MONITORED, RunProgress, stop_distance
 from macro.vtk import SnapshotSeries
+from shared.errors import ConfigError
 from shared.io import write_dataset
 from shared.provenance import file_sha256, module_sha256
-from shared.upscaling import PermeabilityTable
+from shared.upscaling import PermeabilityTable, check_suction_coverage
 
 __all__ = ["run", "simulate"]
 
@@ -63,22 +64,29 @@ resolution (Sec. 4.8 compares the order in which the sensors rise) [Pa]."""
 """Records of the column permeability, on their own time coordinate (neither thinned nor picked)."""
 
 
-def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) -> MacroModel:
-    """The initial model of a case from the validated ``macro`` and ``materials`` sections."""
+def case_parameters(config: Mapping[str, Any], case: str) -> tuple[MacroSettings, MixtureParameters]:
+    """The settings and material parameters of a case from the validated ``macro`` and
+    ``materials`` sections."""
     settings = macro_settings(config["macro"], case)
     material = mixture_parameters(case_materials(config["materials"], config["macro"]["cases"][case]),
                                   settings.powder)
+    return settings, material
+
+
+def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) -> MacroModel:
+    """The initial model of a case from the validated ``macro`` and ``materials`` sections."""
+    settings, material = case_parameters(config, case)
     packing = pack_cylinder(settings.height, settings.radius, settings.pellet_radius,
                             settings.packing_fraction, np.random.default_rng(settings.seed),
                             settings.packing_sweeps, settings.pellet_radius_spread)
     if packing.largest_overlap > PACKING_TOLERANCE * settings.pellet_radius:
-        raise ValueError(
+        raise ConfigError(
             f"macro.mixture: a pellet packing fraction of {settings.packing_fraction:.3g}: the packing left pellets overlapping "
             f"each other or the container by {packing.largest_overlap / settings.pellet_radius:.2g} of a "
             f"radius within {settings.packing_sweeps} minimiser iterations (macro.numerics.packing_iterations); "
             "lower the packing fraction or raise the iterations")
     model = MacroModel.create(settings, material, table, packing)
-    model.packing = packing  # type: ignore[attr-defined]
+    model.packing = packing
     return model
 
 
@@ -104,7 +112,7 @@ def simulate(
     s: MacroSettings = model.settings
     # bins of about one initial pellet diameter (finer bins alternate between pellets and
     # powder): the packing's radii, not the current ones, which grow as the pellets swell
-    packing = model.packing  # type: ignore[attr-defined]
+    packing = model.packing
     bins = max(2, int(round(s.height / (2.0 * float(packing.radii.mean())))))
     edges = np.linspace(-0.5 * s.height, 0.5 * s.height, bins + 1)
     new = rows is None
@@ -224,7 +232,7 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
     keep = _keep(np.asarray(rows["step"]), s.records)
     pick = {k: np.asarray(v)[keep] for k, v in rows.items() if k not in MEASUREMENT_ROWS}
     z = 0.5 * (edges[:-1] + edges[1:]) + 0.5 * s.height
-    packing = model.packing  # type: ignore[attr-defined]
+    packing = model.packing
     coords = {
         "time": ("time", pick["time"], {"units": "s", "long_name": "simulated time"}),
         "sensor": ("sensor", list(s.sensors.names), {"units": "1", "long_name": "radial pressure sensor (macro.sensors)"}),
@@ -328,6 +336,9 @@ def run(
     ------
     shared.io.OutputError
         If the table is missing or malformed (naming the file).
+    shared.errors.InputError
+        If the table's suctions miss the case's range by more than a decade (naming the
+        file); look-ups outside the table within that are clamped, counted and logged.
     ValueError, KeyError
         Naming the configuration key at fault (pellets larger than the container,
         unknown case).
@@ -335,8 +346,10 @@ def run(
         Naming a local system without a solution.
     """
     start = time.monotonic()
-    settings = macro_settings(config["macro"], case)
+    settings, material = case_parameters(config, case)
     table = PermeabilityTable.from_file(table_path, settings.table_condition)
+    check_suction_coverage(table, settings.boundary_suction, material.initial_suction, str(table_path),
+                           "macro.boundary_suction_pa to materials.mixture_pellet.initial_suction_pa")
     section = {"macro": config["macro"], "case": case,
                "materials": case_materials(config["materials"], config["macro"]["cases"][case])}
     # the code too (this module and what it imports, as the netCDF's code_sha256): a
@@ -344,12 +357,12 @@ def run(
     digest = hashlib.sha256((json.dumps(section, sort_keys=True, default=str) + file_sha256(table_path)
                              + module_sha256(__file__)).encode()).hexdigest()
     output_path = Path(output_path)
-    snapshot_path = output_path.with_name(f".{output_path.stem}.snapshot.pkl")
-    resumed = load_snapshot(snapshot_path, digest)
+    snapshot_path = output_path.with_name(f".{output_path.stem}.snapshot.npz")
+    resumed = load_snapshot(snapshot_path, digest, settings, material, table)
     if resumed is None:
         model, rows, earlier = build_model(config, case, table), None, 0.0
         LOG.info("case %s: %d pellets (packing fraction %.3f), %d cells (%d held, %.2g %% void inert)",
-                 case, model.n_pellets, model.packing.packing_fraction,  # type: ignore[attr-defined]
+                 case, model.n_pellets, model.packing.packing_fraction,  # type: ignore[union-attr]
                  model.n_cells, int(model.held.sum()), 100 * model.neglected_void_fraction())
     else:
         model, rows, earlier = resumed
@@ -370,6 +383,12 @@ def run(
         kept = f"; the last snapshot ({snapshot_path}) is kept" if snapshot_path.is_file() else ""
         raise NewtonError(f"macro case {case} at step {model.steps} (t = {model.time:.6g} s): "
                           f"{error}{kept}") from error
+    if model.table.clamped:
+        low, high = model.table.suction_range
+        LOG.warning("case %s: %d of %d table look-ups (%.2g %%) fell outside the table's suctions "
+                    "[%.3g, %.3g] Pa and were clamped to them (attribute table_clamped_lookups)", case,
+                    model.table.clamped, model.table.looked_up,
+                    100.0 * model.table.clamped / model.table.looked_up, low, high)
     ds.attrs["stop_reason"] = reason
     ds.attrs["runtime_s"] = earlier + time.monotonic() - start
     ds.attrs["resumed"] = int(resumed is not None)

@@ -18,6 +18,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from shared.errors import ConfigError
+
 __all__ = ["WallBands", "equal_bands", "height_fractions", "named_sensors"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -124,7 +126,7 @@ def named_sensors(sensors: Mapping[str, Mapping[str, Any]], height: float, area_
     for name, sensor in sensors.items():
         middle, half = float(sensor["height_m"]), 0.5 * float(sensor["band_width_m"])
         if middle - half < 0.0 or middle + half > height:
-            raise ValueError(
+            raise ConfigError(
                 f"macro.sensors.{name}: its band from {middle - half:.4g} to {middle + half:.4g} m "
                 f"(height_m +- band_width_m / 2) reaches outside the container (0 to {height:.4g} m, "
                 "macro.cylinder_height_m)")

@@ -12,6 +12,7 @@ import numpy as np
 from macro.extrusion import ExtrusionSettings, extrusion_settings
 from macro.newton import NewtonSettings
 from macro.sensors import WallBands, equal_bands, named_sensors
+from shared.errors import ConfigError
 
 SENSOR_AREA_SHARES = {"band": 1.0, "script": 0.5}
 """``macro.sensor_area``: the share of a band's wall area 2 pi R w its forces are divided by."""
@@ -177,13 +178,13 @@ def mixture_fractions(mixture: Mapping[str, Any], pellet_porosity: float,
     else:
         fraction = dry_density * float(ratio) / ((1.0 + float(ratio)) * pellet_density)
     if not 0.0 < fraction <= RANDOM_CLOSE_PACKING:
-        raise ValueError(
+        raise ConfigError(
             f"macro.mixture: a pellet packing fraction of {fraction:.3g} (dry density "
             f"{dry_density:g} kg/m3, pellet/powder dry-mass ratio {ratio}, pellet dry density "
             f"{pellet_density:.4g} kg/m3) cannot be packed at random (at most {RANDOM_CLOSE_PACKING}, "
             "random close packing; the container's walls lower it further)")
     if fraction * pellet_density > dry_density:
-        raise ValueError(
+        raise ConfigError(
             f"macro.mixture: the pellets alone (packing fraction {fraction:.3g}, dry density "
             f"{pellet_density:.4g} kg/m3) are denser than macro.mixture.dry_density_kg_m3 = "
             f"{dry_density:g}")
@@ -204,7 +205,7 @@ def powder_porosity(dry_mass: float, grain_mass: float) -> float:
     """
     porosity = 1.0 - dry_mass / grain_mass
     if not 0.0 < porosity < 1.0:
-        raise ValueError(
+        raise ConfigError(
             f"macro.mixture: the powder's dry mass ({dry_mass:.4g} kg: the target dry density "
             f"minus the pellets') gives a powder porosity of {porosity:.3g} in the volume the "
             "powder fills (macro.powder); change macro.mixture.dry_density_kg_m3 or the pellets' share")

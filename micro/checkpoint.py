@@ -7,17 +7,16 @@ state's own arrays, a file holds the flow system's numbering of the unknowns
 (:class:`shared.fv.FlowPattern`, rebuilding it would change the round-off of every
 later solve), the solver's reuse state (:meth:`shared.solver.SPDSolver.reuse_state`),
 the wall time spent so far per phase (:class:`shared.progress.PhaseClock`) and, between
-flow steps, the balance's progress (:class:`micro.hydration.BalanceProgress`). Files are
-written to a temporary name and renamed; a file that cannot be read stops the run with
-:class:`CheckpointError`, which names it. Details: docs/micro.md, "micro.checkpoint".
+flow steps, the balance's progress (:class:`micro.hydration.BalanceProgress`). A file is
+data only (:mod:`shared.snapshot`: the configuration hash and a checksum in its header,
+checked before anything is used); one that cannot be read, is damaged or was written by
+a version that saved fewer arrays is moved aside with one log line and the case starts
+from the beginning. Details: docs/micro.md, "micro.checkpoint".
 """
 
 from __future__ import annotations
 
-import json
-import zipfile
-from collections.abc import Iterator
-from contextlib import contextmanager
+import logging
 from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any
@@ -27,33 +26,16 @@ import numpy as np
 from micro.hydration import BalanceProgress, FlowSystem, PelletState, update_cracks
 from shared.dem.state import ContactList, DEMState
 from shared.dem.walls import Walls
+from shared.errors import SnapshotError
 from shared.fv import FlowPattern
-from shared.io import atomic_write
 from shared.materials import ClayParameters
 from shared.mesh import Mesh
+from shared.snapshot import read_meta, read_snapshot, write_snapshot
 from shared.solver import SPDSolver
 
-__all__ = ["CheckpointError", "save_checkpoint", "load_checkpoint", "checkpoint_wall_time"]
+__all__ = ["save_checkpoint", "load_checkpoint", "checkpoint_wall_time"]
 
-
-class CheckpointError(ValueError):
-    """A checkpoint file that exists but cannot be read; the message names it."""
-
-
-@contextmanager
-def _opened(path: Path) -> Iterator[Any]:
-    """The checkpoint's arrays, or :class:`CheckpointError` naming the file."""
-    try:
-        # our handle, closed even when np.load refuses a damaged file (np.load's own is not)
-        with open(path, "rb") as handle, np.load(handle) as data:
-            yield data
-    except (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile) as err:
-        if isinstance(err, CheckpointError):
-            raise
-        raise CheckpointError(
-            f"{path}: unreadable checkpoint file ({type(err).__name__}: {err}); move or "
-            "delete it to run the case from the start, or restore it to resume"
-        ) from err
+LOG = logging.getLogger("micro.checkpoint")
 
 _DEM_ARRAYS = ("positions", "velocities", "spins", "radii", "reference_radii", "masses",
                "inertia", "bonds", "bond_overlaps", "bond_broken", "fixed")
@@ -92,7 +74,7 @@ def save_checkpoint(
     if state.walls is not None:
         arrays.update(walls_lower=state.walls.lower, walls_upper=state.walls.upper,
                       walls_active=state.walls.active, walls_target=state.walls.target_stress)
-    scalars = {"digest": digest, "time": state.time, "dem_time": state.dem.time,
+    scalars = {"time": state.time, "dem_time": state.dem.time,
                "n_remesh": state.n_remesh, "skin": state.dem.contacts.skin,
                "reference_volume": reference_volume,
                "walls_servo": None if state.walls is None else bool(state.walls.servo),
@@ -100,34 +82,28 @@ def save_checkpoint(
                "phase_seconds": dict(phase_seconds or {}),
                "records": [_jsonable(r) for r in records],
                "balance": None if balance is None else asdict(balance)}
-    atomic_write(path, lambda tmp: np.savez(tmp, meta=np.array(json.dumps(scalars)), **arrays))
+    write_snapshot(path, digest, scalars, arrays)
 
 
 def load_checkpoint(
     path: Path, digest: str, material: ClayParameters
 ) -> tuple[PelletState, FlowSystem, list[dict[str, Any]], float, BalanceProgress | None] | None:
     """The saved state, flow system, records, reference volume and, for a file written
-    between two flow steps, the balance in progress; None if absent or stale.
+    between two flow steps, the balance in progress; None if there is no usable file.
 
-    A file written under another configuration or code (different hash) or by a version of the
-    code that saved fewer arrays is ignored. The crack network, a function of the saved
-    state, is rebuilt.
-
-    Raises
-    ------
-    CheckpointError
-        If the file exists but cannot be read.
+    A file written under another configuration or code (different hash) is ignored; one
+    that fails its checks, or written by a version of the code that saved fewer arrays, is
+    moved aside (:func:`shared.snapshot.read_snapshot`). The crack network, a function of
+    the saved state, is rebuilt.
     """
-    if not path.is_file():
-        return None
-    with _opened(path) as data:
-        meta = json.loads(str(data["meta"]))
-        needed = ([f"dem_{k}" for k in _DEM_ARRAYS] + [f"contacts_{k}" for k in _CONTACT_ARRAYS]
-                  + [f"pattern_{k}" for k in _PATTERN_ARRAYS]
-                  + [f"mesh_{f.name}" for f in fields(Mesh)])
-        if (meta["digest"] != digest or not set(needed) <= set(data.files)
-                or "solver" not in meta):
-            return None
+    needed = ([f"dem_{k}" for k in _DEM_ARRAYS] + [f"contacts_{k}" for k in _CONTACT_ARRAYS]
+              + [f"pattern_{k}" for k in _PATTERN_ARRAYS] + [f"mesh_{f.name}" for f in fields(Mesh)])
+
+    def restore(meta: dict[str, Any], data: dict[str, np.ndarray]) -> tuple[
+            PelletState, FlowSystem, list[dict[str, Any]], float, BalanceProgress | None]:
+        missing = sorted(set(needed) - set(data))
+        if missing or "solver" not in meta:
+            raise SnapshotError(f"written by an older version (no {', '.join(missing) or 'solver state'})")
         contacts = ContactList(skin=meta["skin"], **{k: data[f"contacts_{k}"] for k in _CONTACT_ARRAYS})
         dem = DEMState(contacts=contacts, time=meta["dem_time"],
                        **{k: data[f"dem_{k}"] for k in _DEM_ARRAYS})
@@ -140,7 +116,7 @@ def load_checkpoint(
                           target_stress=data["walls_target"])
         state = PelletState(
             dem=dem, mesh=mesh, walls=walls, time=meta["time"], n_remesh=meta["n_remesh"],
-            hydraulic_forces=data["hydraulic_forces"] if "hydraulic_forces" in data else None,
+            hydraulic_forces=data.get("hydraulic_forces"),
             **{k: data[f"cell_{k}"] for k in _CELL_ARRAYS},
         )
         dirichlet = data["dirichlet"]
@@ -149,17 +125,18 @@ def load_checkpoint(
         system = FlowSystem(dirichlet, pattern, SPDSolver())
         system.solver.restore_reuse_state(
             meta["solver"], {k: data[f"solver_{k}"] for k in ("indptr", "indices", "data")
-                             if f"solver_{k}" in data.files})
-    update_cracks(state, material)
-    records = [{k: (np.asarray(v) if isinstance(v, list) else v) for k, v in r.items()}
-               for r in meta["records"]]
-    balance = None if meta.get("balance") is None else BalanceProgress(**meta["balance"])
-    return state, system, records, float(meta["reference_volume"]), balance
+                             if f"solver_{k}" in data})
+        update_cracks(state, material)
+        records = [{k: (np.asarray(v) if isinstance(v, list) else v) for k, v in r.items()}
+                   for r in meta["records"]]
+        balance = None if meta.get("balance") is None else BalanceProgress(**meta["balance"])
+        return state, system, records, float(meta["reference_volume"]), balance
+
+    return read_snapshot(path, digest, restore, LOG)
 
 
 def checkpoint_wall_time(path: Path) -> tuple[float, dict[str, float]]:
     """Wall time [s] the run had taken when it wrote the checkpoint file ``path``, in all
     and per phase (empty for a file written before phases were timed)."""
-    with _opened(path) as data:
-        meta = json.loads(str(data["meta"]))
+    meta = read_meta(path)
     return float(meta.get("wall_time", 0.0)), dict(meta.get("phase_seconds", {}))

@@ -38,6 +38,7 @@ from shared.dem.integrator import limit_speed, stable_time_step, step, unbalance
 from shared.dem.parameters import DEMParameters
 from shared.dem.state import DEMState
 from shared.dem.walls import Walls
+from shared.errors import DivergenceError
 from shared.fv import (
     FlowPattern,
     facet_conductance,
@@ -77,10 +78,6 @@ log = logging.getLogger("micro.hydration")
 # more iterations per solve; a remesh, hence a setup, comes with most flow steps
 # (benchmarks/reference/README.md).
 FLOW_AMG_STRENGTH = 0.75
-
-
-class DivergenceError(RuntimeError):
-    """The coupled solution became non-finite or left its physical range."""
 
 
 @dataclass(frozen=True)

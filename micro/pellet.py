@@ -27,6 +27,7 @@ from shared.dem.parameters import DEMParameters
 from shared.dem.points import cube_points
 from shared.dem.state import new_state
 from shared.dem.walls import walls_around
+from shared.errors import InputError
 from shared.materials import ClayParameters
 from shared.mesh import mesh_from_tetrahedra, porosity_at_points
 from shared.retention import saturation as retention_saturation
@@ -107,22 +108,31 @@ def centred_grid(
 
     Raises
     ------
-    ValueError
-        If the grid is not ``(z, y, x)``, holds no finite value, does not span the cube,
-        or holds NaN around it (the cube reaches outside the specimen, or the grid has a
-        hole inside it); the message names the grid file and the config key to change.
+    shared.errors.InputError
+        If the grid is not ``(z, y, x)``, holds no finite value, is coarser than half the
+        cube (coordinates in mm read as m), does not span the cube, or holds NaN around it
+        (the cube reaches outside the specimen, or the grid has a hole inside it); the
+        message names the grid file and the config key to change.
     """
     name = _grid_name(porosity)
     if porosity.ndim != 3 or set(porosity.dims) != {"z", "y", "x"}:
-        raise ValueError(
+        raise InputError(
             f"{name}: dims {tuple(porosity.dims)}; expected ('z', 'y', 'x') in m, as "
             "rule imaging_porosity writes them (micro.sample names the grid)"
         )
     finite = np.isfinite(porosity.values)
     if not finite.any():
-        raise ValueError(f"{name}: no finite value (no block inside the specimen; see "
+        raise InputError(f"{name}: no finite value (no block inside the specimen; see "
                          "imaging.mask and imaging.min_specimen_fraction)")
     keys = "micro.specimen_size_m (or the case's specimen_size_m and offset_m)"
+    for axis in porosity.dims:
+        spacing = float(np.median(np.abs(np.diff(porosity[axis].values)))) if porosity[axis].size > 1 else np.inf
+        if not spacing <= 0.5 * edge_length:
+            raise InputError(
+                f"{name}: its spacing along {axis} ({spacing:.4g} m) exceeds half the "
+                f"{edge_length * 1e3:g} mm cube ({keys}): fewer than two grid blocks across "
+                "it; are the grid's coordinates in metres?"
+            )
     shifted = {}
     for axis_index, axis in enumerate(porosity.dims):
         coordinate = porosity[axis].values
@@ -136,7 +146,7 @@ def centred_grid(
         # a grid that spans exactly the cube must not be refused by a rounding unit
         slack = 1e-9 * max(edge_length, float(np.ptp(coordinate)))
         if coordinate.min() > slack or coordinate.max() < edge_length - slack:
-            raise ValueError(
+            raise InputError(
                 f"{name}: does not span the {edge_length * 1e3:g} mm cube along {axis} (grid "
                 f"from {coordinate.min() * 1e3:.4g} to {coordinate.max() * 1e3:.4g} mm, cube "
                 f"from 0 to {edge_length * 1e3:g} mm, centred in the specimen): use a "
@@ -155,12 +165,12 @@ def centred_grid(
         position = ", ".join(f"{axis} = {float(cropped[axis][k[first]]) * 1e3:.4g} mm"
                              for axis, k in zip(cropped.dims, local, strict=True))
         if outside.any():
-            raise ValueError(
+            raise InputError(
                 f"{name}: the {edge_length * 1e3:g} mm cube reaches outside the scanned "
                 f"pellet (NaN at {position} of the cube, {int(missing.sum())} block(s)): "
                 f"use a smaller {keys}"
             )
-        raise ValueError(
+        raise InputError(
             f"{name}: NaN at {position} of the {edge_length * 1e3:g} mm cube, inside the "
             f"specimen ({int(missing.sum())} block(s)): a hole in the grid, e.g. blocks below "
             "imaging.min_specimen_fraction; check imaging.mask and imaging.min_specimen_fraction"

@@ -28,6 +28,7 @@ import numpy.typing as npt
 import scipy.sparse as sp
 
 from micro.pool import gathered
+from shared.errors import ConfigError
 from shared.fv import (
     FlowPattern,
     assemble_matrix,
@@ -293,7 +294,7 @@ def measure_permeability(
                                balance_tolerance)
     inner = _inner_cells(mesh, pattern.dirichlet, inner_fraction)
     if not np.any(inner):
-        raise ValueError("no free cell in the inner region: mesh too coarse")
+        raise ConfigError("no free cell in the inner region: mesh too coarse")
     velocity = _mean_velocity(mesh, flux, inner)
     return viscosity * float(np.linalg.norm(velocity)) / abs(gradient)
 

@@ -15,6 +15,7 @@ import logging
 import multiprocessing
 import os
 import resource
+import signal
 import threading
 import time
 from collections.abc import Iterator, Mapping
@@ -465,7 +466,10 @@ def _measurement_worker(records: Queue, level: int) -> None:
     hydration, the run's critical path, whenever its threads want both (niceness
     ``WORKER_NICENESS``). Its log records go to ``records`` at the run's ``level``. It
     exits when the run's process dies: a killed run leaves no orphan that keeps solving
-    and holding a copy of the mesh (gigabytes at 300k points)."""
+    and holding a copy of the mesh (gigabytes at 300k points). It ignores Ctrl-C: the
+    run's process stops when the task under way returns, and reports the interrupt in one
+    line (a worker ended by it would end the run with a broken pool's traceback)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     root = logging.getLogger()
     root.handlers[:] = [QueueHandler(records)]
     root.setLevel(level)

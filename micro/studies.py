@@ -25,6 +25,7 @@ import xarray as xr
 
 from micro.config import Realization
 from micro.run import phase_wall_times
+from shared.errors import InputError
 
 __all__ = [
     "convergence_dataset",
@@ -65,18 +66,18 @@ def _check_alike(cases: Mapping[str, xr.Dataset]) -> tuple[str, list[str]]:
         shared coordinates or their variables.
     """
     if not cases:
-        raise ValueError("a study needs at least one case")
+        raise InputError("a study needs at least one case")
     first = next(iter(cases))
     base = cases[first]
     names = _checkpoint_variables(base)
     for name, ds in cases.items():
         if sorted(_checkpoint_variables(ds)) != sorted(names):
-            raise ValueError(f"case {name!r} has other variables than case {first!r}")
+            raise InputError(f"case {name!r} has other variables than case {first!r}")
         for coord in _SHARED_COORDS:
             if coord in base.coords and not np.array_equal(ds[coord].values, base[coord].values):
-                raise ValueError(f"case {name!r} differs from case {first!r} in coordinate {coord!r}")
+                raise InputError(f"case {name!r} differs from case {first!r} in coordinate {coord!r}")
         if not np.allclose(ds["suction"].values, base["suction"].values, rtol=1e-12, atol=0.0):
-            raise ValueError(f"case {name!r} has other checkpoint suctions than case {first!r}")
+            raise InputError(f"case {name!r} has other checkpoint suctions than case {first!r}")
     return first, names
 
 
@@ -116,12 +117,12 @@ def convergence_dataset(cases: Mapping[str, xr.Dataset]) -> xr.Dataset:
     counts: dict[str, int] = {}
     for name, ds in cases.items():
         if "n_points" not in ds.attrs:
-            raise ValueError(f"case {name!r} has no attribute 'n_points'")
+            raise InputError(f"case {name!r} has no attribute 'n_points'")
         counts[name] = int(ds.attrs["n_points"])
     order = sorted(cases, key=lambda name: counts[name])
     for a, b in zip(order, order[1:], strict=False):
         if counts[a] == counts[b]:
-            raise ValueError(f"cases {a!r} and {b!r} have the same n_points ({counts[a]})")
+            raise InputError(f"cases {a!r} and {b!r} have the same n_points ({counts[a]})")
     base = cases[first]
     data: dict[str, Any] = {}
     for var in names:
@@ -216,7 +217,7 @@ def scale_dataset(
     members = [(name, 1.0, reference_edge_m, (np.nan,) * 3, ref_ds)]
     for realization, ds in realizations:
         if realization.domain_fraction > 1:
-            raise ValueError(f"{realization.name} is larger than the reference {name!r}")
+            raise InputError(f"{realization.name} is larger than the reference {name!r}")
         members.append((realization.name, realization.domain_fraction, realization.edge_length,
                         realization.offset, ds))
     cases = {m[0]: _with_derived(m[4], m[2]) for m in members}

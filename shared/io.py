@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import sys
 import tempfile
 from collections.abc import Callable, Iterable, Mapping
@@ -22,10 +23,12 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from shared.errors import OutputError
 from shared.imports import PACKAGES
 from shared.provenance import code_sha256, code_version, config_sha256, inputs_record, module_sha256
 
-__all__ = ["OutputError", "read_dataset", "write_dataset", "netcdf_safe_attrs", "atomic_write"]
+__all__ = ["OutputError", "read_dataset", "write_dataset", "netcdf_safe_attrs", "atomic_write",
+           "write_failure"]
 
 
 @cache
@@ -37,10 +40,6 @@ def _entry_sha256(entry: str) -> str:
     if not Path(entry).is_file():
         return code_sha256(*PACKAGES)
     return module_sha256(entry)
-
-
-class OutputError(ValueError):
-    """A dataset that does not meet the data contract, or a file that cannot be read."""
 
 
 def netcdf_safe_attrs(attrs: Mapping[str, Any]) -> dict[str, Any]:
@@ -191,21 +190,46 @@ def atomic_write(path: str | Path, write: Callable[[str], object]) -> Path:
     format by it, or append one, write the file named), and the file gets the
     permissions of a newly created one under the process's umask, not the owner-only
     mode of a temporary file, so that a group shares the results.
+
+    Raises
+    ------
+    OutputError
+        Naming ``path`` (:func:`write_failure`), for an ``OSError`` or ``RuntimeError``
+        of the writing: permissions, a full or read-only file system, the netCDF
+        library's errors (e.g. "NetCDF: HDF error" on a full disk, which names no file).
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, tmp_name = tempfile.mkstemp(
-        prefix=f".{path.name}.", suffix=f".tmp{path.suffix}", dir=path.parent
-    )
-    os.close(handle)
+    tmp_name = None
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle, tmp_name = tempfile.mkstemp(
+            prefix=f".{path.name}.", suffix=f".tmp{path.suffix}", dir=path.parent
+        )
+        os.close(handle)
         write(tmp_name)
         os.chmod(tmp_name, 0o666 & ~_umask())
         os.replace(tmp_name, path)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
+    except BaseException as error:
+        if tmp_name is not None:
+            Path(tmp_name).unlink(missing_ok=True)
+        if isinstance(error, OSError | RuntimeError):
+            raise OutputError(write_failure(path, error)) from error
         raise
     return path
+
+
+def write_failure(path: str | Path, error: BaseException) -> str:
+    """The one line for a file that cannot be written: its name, the cause and the free
+    space where it goes."""
+    text = getattr(error, "strerror", None) or " ".join(str(error).split()) or type(error).__name__
+    folder = os.path.dirname(os.path.abspath(path))
+    while folder and not os.path.isdir(folder):
+        folder = os.path.dirname(folder)
+    try:
+        free = f"{shutil.disk_usage(folder).free / 1e6:.3g} MB free there"
+    except OSError:
+        free = "free space unknown"
+    return f"cannot write {path}: {text} ({free}; is the results folder read-only or full?)"
 
 
 def read_dataset(path: str | Path, required: Iterable[str] = ()) -> xr.Dataset:

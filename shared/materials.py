@@ -12,6 +12,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from shared.errors import ConfigError
+
 __all__ = ["ClayParameters", "clay_parameters", "CLAY_CONFIG_KEYS"]
 
 
@@ -79,14 +81,14 @@ class ClayParameters:
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.residual_saturation < self.saturated_saturation <= 1.0:
-            raise ValueError(
+            raise ConfigError(
                 "need 0 <= residual_saturation < saturated_saturation <= 1, got "
                 f"{self.residual_saturation}, {self.saturated_saturation}"
             )
         if not 0.0 < self.retention_exponent_reference < 1.0:
-            raise ValueError("retention_exponent_reference (lambda_0) must lie in (0, 1)")
+            raise ConfigError("retention_exponent_reference (lambda_0) must lie in (0, 1)")
         if not 0.0 < self.reference_porosity < 1.0:
-            raise ValueError("reference_porosity (phi_0) must lie in (0, 1)")
+            raise ConfigError("reference_porosity (phi_0) must lie in (0, 1)")
         positive = (
             "retention_pressure_reference",
             "intrinsic_permeability_reference",
@@ -97,7 +99,7 @@ class ClayParameters:
         )
         for name in positive:
             if not getattr(self, name) > 0.0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+                raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
 
 
 CLAY_CONFIG_KEYS: dict[str, str] = {

@@ -24,6 +24,7 @@ from numba import njit, prange
 from scipy.interpolate import RegularGridInterpolator
 
 from shared.delaunay import delaunay_tetrahedra
+from shared.errors import InputError
 from shared.tetrahedra import cell_geometry, cell_volumes
 
 __all__ = [
@@ -548,17 +549,17 @@ def porosity_at_points(points: npt.ArrayLike, porosity: xr.DataArray) -> FloatAr
     source = porosity.encoding.get("source")
     name = f"porosity grid {source}" if source else "porosity grid"
     if tuple(porosity.dims) != ("z", "y", "x"):
-        raise ValueError(
+        raise InputError(
             f"{name}: dims {tuple(porosity.dims)}; expected ('z', 'y', 'x') in m"
         )
     values = np.asarray(porosity.values, dtype=np.float64)
     if not np.all(np.isfinite(values)):
         where = ", ".join(f"{axis} = {float(porosity[axis][int(k[0])]):.4g} m" for axis, k in
                           zip(("z", "y", "x"), np.nonzero(~np.isfinite(values)), strict=True))
-        raise ValueError(f"{name}: NaN or inf at {where} "
+        raise InputError(f"{name}: NaN or inf at {where} "
                          f"({int((~np.isfinite(values)).sum())} value(s)) where the mesh needs it")
     if not np.all((values > 0.0) & (values < 1.0)):
-        raise ValueError(
+        raise InputError(
             f"{name}: values must lie in (0, 1), range [{values.min():.4g}, {values.max():.4g}] "
             "(see imaging.calibration.porosity_bounds)"
         )
@@ -568,7 +569,7 @@ def porosity_at_points(points: npt.ArrayLike, porosity: xr.DataArray) -> FloatAr
         low, high = min(axes[k][0], axes[k][-1]), max(axes[k][0], axes[k][-1])
         outside = (query[:, k] < low) | (query[:, k] > high)
         if np.any(outside):
-            raise ValueError(
+            raise InputError(
                 f"{name} does not cover the mesh along {axis}: grid [{low:.6g}, {high:.6g}] m, "
                 f"cells [{query[:, k].min():.6g}, {query[:, k].max():.6g}] m "
                 f"({int(outside.sum())} cells outside; see micro.specimen_size_m)"

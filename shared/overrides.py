@@ -9,7 +9,10 @@ order: docs/development.md, "shared.overrides".
 
 Command line::
 
-    python -m shared.overrides --output OVERLAY.yaml [--configfile FILE ...] --set KEY=VALUE ...
+    python -m shared.overrides [--output OVERLAY.yaml] [--configfile FILE ...] [--set KEY=VALUE ...]
+
+Without ``--output`` it only checks the configuration files, merged in order
+(:func:`shared.config.read_config_file`, then the schema).
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from shared.config import (
     ConfigError,
     _merged,
     load_schema,
+    read_config_file,
     validate_config,
 )
 
@@ -204,20 +208,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--configfile", action="append", default=[], type=Path,
                         help="configuration the overlay applies to, in order "
                              "(default: config/config.yaml)")
-    parser.add_argument("--output", required=True, type=Path, help="the overlay to write")
+    parser.add_argument("--output", type=Path,
+                        help="the overlay to write (none: only check the configuration files)")
     args = parser.parse_args(argv)
+    if args.assignments and args.output is None:
+        parser.error("--set needs --output, the overlay to write")
     schema = load_schema()
     try:
         values = overlay(args.assignments, schema)
         merged: dict[str, Any] = {}
         for path in args.configfile or [DEFAULT_CONFIG_PATH]:
-            if not path.is_file():
-                raise ConfigError(f"{path}: no such configuration file")
-            merged = _merged(merged, yaml.safe_load(path.read_text()) or {})
+            merged = _merged(merged, read_config_file(path))
         validate_config(_merged(merged, values), schema)
     except ConfigError as err:
         print(f"claychain: invalid configuration: {err}", file=sys.stderr)
         return 2
+    if args.output is None:
+        return 0
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text("# written by: python -m shared.overrides "
                            + " ".join(f"--set {a}" for a in args.assignments) + "\n"

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from shared.errors import ConfigError
 from shared.materials import ClayParameters
 
 __all__ = ["swelling_strain", "volumetric_strain", "swollen_radius"]
@@ -77,10 +78,13 @@ def swollen_radius(
 
     Raises
     ------
-    ValueError
-        If 1 + eps_v <= 0 (a point cannot lose all its volume).
+    shared.errors.ConfigError
+        If 1 + eps_v <= 0 (a point cannot lose all its volume), naming the swelling keys.
     """
     strain = np.asarray(volumetric_strain, dtype=np.float64)
     if np.any(~(strain > -1.0)):
-        raise ValueError("volumetric strain must exceed -1 (NaN not allowed)")
+        raise ConfigError(
+            f"volumetric strain must exceed -1 (NaN not allowed), got {strain[~(strain > -1.0)].flat[0]:g}: "
+            "check the swelling law's materials.pellet.swelling_alpha_per_pa and materials.pellet.swelling_beta_per_pa "
+            "(or a case's own materials)")
     return np.asarray(reference_radius, dtype=np.float64) * np.cbrt(1.0 + strain)

@@ -20,11 +20,13 @@ import numpy.typing as npt
 import xarray as xr
 from scipy.interpolate import PchipInterpolator
 
+from shared.errors import InputError
 from shared.io import OutputError, read_dataset
 
 __all__ = [
     "TABLE_VARIABLES",
     "PermeabilityTable",
+    "check_suction_coverage",
     "check_table",
     "read_table",
 ]
@@ -68,6 +70,26 @@ def check_table(table: xr.Dataset, source: str = "the upscaling table") -> None:
     eigenvalues = np.linalg.eigvalsh(0.5 * (tensor + np.swapaxes(tensor, -1, -2)))
     if not np.all(eigenvalues > 0):
         raise OutputError(f"{source}: a 'k_tensor' node is not positive definite")
+
+
+def check_suction_coverage(table: PermeabilityTable, low: float, high: float, source: str, key: str) -> None:
+    """Refuse a table whose suctions miss a case's range [low, high] [Pa] by more than a decade.
+
+    Within a decade, the look-ups outside the table are clamped and counted
+    (:class:`PermeabilityTable`).
+
+    Raises
+    ------
+    shared.errors.InputError
+        Naming ``source``, both ranges and ``key`` (what sets the case's range).
+    """
+    table_low, table_high = table.suction_range
+    if table_low > 10.0 * low or table_high < 0.1 * high:
+        raise InputError(
+            f"{source}: its suctions [{table_low:.3g}, {table_high:.3g}] Pa miss the case's range "
+            f"[{low:.3g}, {high:.3g}] Pa ({key}) by more than a decade: a table in other units "
+            "(MPa?) or of other cases"
+        )
 
 
 def read_table(path: str | Path) -> xr.Dataset:

@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from imaging.ct.mask import grey_sample
+from shared.errors import ConfigError, InputError
 
 __all__ = [
     "Calibration",
@@ -61,15 +62,15 @@ class Calibration:
 
     def __post_init__(self) -> None:
         if not self.grey_muscovite > self.grey_air:
-            raise ValueError(
+            raise ConfigError(
                 f"grey_muscovite ({self.grey_muscovite}) must exceed grey_air ({self.grey_air})"
             )
         if not self.muscovite_density > self.dry_density > self.air_density > 0:
-            raise ValueError(
+            raise ConfigError(
                 "densities must satisfy muscovite_density > dry_density > air_density > 0"
             )
         if not 0.0 < self.mean_porosity < 1.0:
-            raise ValueError(f"mean_porosity must lie in (0, 1), got {self.mean_porosity}")
+            raise ConfigError(f"mean_porosity must lie in (0, 1), got {self.mean_porosity}")
 
 
 def grey_anchors(
@@ -88,7 +89,7 @@ def grey_anchors(
     """
     outside = volume[~specimen]
     if outside.size == 0:
-        raise ValueError("no air around the specimen: set the grey anchors in the config")
+        raise InputError("no air around the specimen: set the grey anchors in the config")
     size = 1 << (8 * volume.dtype.itemsize)
     return (histogram_quantile(np.bincount(outside, minlength=size), 50.0),
             histogram_quantile(np.bincount(volume[specimen], minlength=size),
@@ -102,7 +103,7 @@ def histogram_quantile(counts: npt.NDArray[np.integer], percentile: float) -> fl
     cumulative = np.cumsum(counts, dtype=np.int64)
     total = int(cumulative[-1])
     if total == 0:
-        raise ValueError("no value to take a percentile of")
+        raise InputError("no value to take a percentile of")
     rank = percentile / 100.0 * (total - 1)
     below, above = int(np.floor(rank)), int(np.ceil(rank))
     low = float(np.searchsorted(cumulative, below, side="right"))
@@ -138,7 +139,7 @@ def histogram_peaks(
     sample = grey_sample(volume)
     low, high = float(sample.min()), float(sample.max())
     if high <= low:
-        raise ValueError("the scan is uniform: its grey histogram has no two peaks")
+        raise InputError("the scan is uniform: its grey histogram has no two peaks")
     bins = int(np.clip(np.sqrt(sample.size) / 2.0, 16, _HISTOGRAM_BINS))
     counts, edges = np.histogram(sample, bins=bins, range=(low, high))
     smooth = gaussian_filter1d(counts.astype(np.float64), 1.0, mode="constant")
@@ -149,7 +150,7 @@ def histogram_peaks(
     greys = 0.5 * (edges[found] + edges[found + 1])
     if found.size < n_peaks:
         listed = ", ".join(f"{g:.6g}" for g in greys) or "none"
-        raise ValueError(
+        raise InputError(
             f"the grey histogram has {found.size} peak(s) ({listed}), not {n_peaks}"
         )
     best = np.sort(np.argsort(prominence)[::-1][:n_peaks])
@@ -175,7 +176,7 @@ def anchors_through(
     points [-]: the anchors of :class:`Calibration` equivalent to those two phases."""
     (g1, g2), (rho1, rho2) = greys, densities
     if not (g2 - g1) * (rho2 - rho1) > 0:
-        raise ValueError(
+        raise InputError(
             f"the phases at greys {g1:.6g} and {g2:.6g} need increasing densities, got "
             f"{rho1:g} and {rho2:g} kg/m3"
         )

@@ -14,6 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from imaging.ct.calibration import Calibration, density_to_porosity, grey_to_density
+from shared.errors import ConfigError
 
 __all__ = ["BlockGrid", "block_average", "block_sums", "block_grid", "block_size_voxels"]
 
@@ -49,7 +50,7 @@ class BlockGrid:
 def block_size_voxels(spacing: float, voxel_size: float) -> int:
     """Block edge in voxels closest to ``spacing`` [m] for cubic voxels of ``voxel_size`` [m]."""
     if voxel_size <= 0 or spacing <= 0:
-        raise ValueError(f"spacing ({spacing}) and voxel size ({voxel_size}) must be > 0")
+        raise ConfigError(f"spacing ({spacing}) and voxel size ({voxel_size}) must be > 0")
     return max(1, int(round(spacing / voxel_size)))
 
 

@@ -8,6 +8,7 @@ netCDF file of the same scan give identical arrays.
 from __future__ import annotations
 
 import mmap
+import os
 import re
 import struct
 from functools import partial
@@ -21,6 +22,7 @@ import numpy.typing as npt
 import xarray as xr
 from dask.base import tokenize
 
+from shared.errors import ImageError
 from shared.io import atomic_write
 
 __all__ = [
@@ -44,10 +46,6 @@ _SLICE_SUFFIXES = (".tif", ".tiff", ".png")
 DEFAULT_CHUNK_BYTES = 64 << 20
 """Greyscale bytes per chunk when the caller gives none (``imaging.chunk_mb``)."""
 _SUPPORTED_DTYPES = (np.uint8, np.uint16)
-
-
-class ImageError(ValueError):
-    """An image that is missing, unreadable, or of the wrong shape or type."""
 
 
 def _check_volume(volume: np.ndarray, source: str | Path) -> np.ndarray:
@@ -116,24 +114,49 @@ _INTEGER_TYPES = {3: "H", 4: "I", 13: "I", 16: "Q"}
 _DATA_TAGS = ((273, 279), (324, 325))  # strips, tiles
 
 
-def _tiff_truncation(path: Path) -> str | None:
-    """Walk a TIFF's chain of page directories (IFDs) and check it against the file size.
+_SAMPLE_FORMATS = {1: "uint", 2: "int", 3: "float"}
+"""TIFF SampleFormat (tag 339) codes: unsigned and signed integers, IEEE floats."""
+_MAX_PIXELS = 1 << 30
+_MAX_SIDE = 1 << 20
+"""OpenCV's default limits on a page (CV_IO_MAX_IMAGE_PIXELS, CV_IO_MAX_IMAGE_WIDTH and
+_HEIGHT; the environment variable OPENCV_IO_MAX_IMAGE_PIXELS raises the first)."""
 
-    Returns what lies beyond the end of the file (the first such page directory, field
-    or pixel data), or None if every page is complete. OpenCV (libtiff) silently stops
-    at the first page it cannot read, so a cut-off stack would read as a shorter one.
+
+def _tiff_problem(path: Path) -> str | None:
+    """What keeps a TIFF from being read as a greyscale stack, from its header alone.
+
+    Walks the chain of page directories (IFDs) against the file size: what lies beyond
+    the end of the file (the first such page directory, field or pixel data; OpenCV,
+    through libtiff, silently stops at the first page it cannot read, so a cut-off stack
+    would read as a shorter one). Then the first page's declared size against OpenCV's
+    limits and its pixel type against the 8- and 16-bit unsigned greyscale we read (OpenCV
+    reports either only as an unreadable file, or raises). None if nothing is wrong.
     """
     size = path.stat().st_size
     if size < 8:
         return None  # not a TIFF header: OpenCV's own error applies
     with open(path, "rb") as handle, mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as data:
-        return _ifd_chain_problem(data, size)
+        truncation, first = _ifd_chain_problem(data, size)
+    if truncation is not None:
+        return f"truncated TIFF: {truncation}"
+    width, height = first.get(256, (0,))[0], first.get(257, (0,))[0]
+    limit = int(os.environ.get("OPENCV_IO_MAX_IMAGE_PIXELS", _MAX_PIXELS))
+    if width * height > limit or max(width, height) > _MAX_SIDE:
+        return (f"its pages are {width} x {height} pixels, beyond what OpenCV reads ({limit} "
+                f"pixels and {_MAX_SIDE} per side; OPENCV_IO_MAX_IMAGE_PIXELS raises the first)")
+    bits = "/".join(map(str, sorted(set(first.get(258, (1,))))))
+    kind = _SAMPLE_FORMATS.get(first.get(339, (1,))[0], "unknown")
+    if f"{kind}{bits}" not in ("uint8", "uint16"):
+        return (f"its pixels are {kind}{bits} (TIFF BitsPerSample and SampleFormat); claychain "
+                "reads 8- or 16-bit unsigned greyscale: convert the scan to uint16")
+    return None
 
 
-def _ifd_chain_problem(data: mmap.mmap, size: int) -> str | None:
-    """The first part of a (Big)TIFF's page chain beyond ``size`` bytes, or None."""
+def _ifd_chain_problem(data: mmap.mmap, size: int) -> tuple[str | None, dict[int, tuple[int, ...]]]:
+    """The first part of a (Big)TIFF's page chain beyond ``size`` bytes (or None), and the
+    integer fields of its first page (empty for no TIFF)."""
     if data[:2] not in (b"II", b"MM"):
-        return None
+        return None, {}
     order = "<" if data[:2] == b"II" else ">"
     magic = struct.unpack_from(order + "H", data, 2)[0]
     if magic == 42:
@@ -143,22 +166,23 @@ def _ifd_chain_problem(data: mmap.mmap, size: int) -> str | None:
         word, count_word, entry_size = "Q", "Q", 20
         offset = struct.unpack_from(order + "Q", data, 8)[0]
     else:
-        return None
+        return None, {}
     word_size, count_size = struct.calcsize(word), struct.calcsize(count_word)
     seen: set[int] = set()
     page = 0
+    first: dict[int, tuple[int, ...]] = {}
     while offset != 0:
         page += 1
         if offset in seen:
-            return f"page {page} repeats an earlier page directory (corrupt file)"
+            return f"page {page} repeats an earlier page directory (corrupt file)", first
         seen.add(offset)
         if offset + count_size > size:
-            return f"page {page} starts at byte {offset}, beyond the file's {size} bytes"
+            return f"page {page} starts at byte {offset}, beyond the file's {size} bytes", first
         n_entries = struct.unpack_from(order + count_word, data, offset)[0]
         end = offset + count_size + n_entries * entry_size + word_size
         if end > size:
-            return f"the directory of page {page} runs past the file's {size} bytes"
-        fields = {}
+            return f"the directory of page {page} runs past the file's {size} bytes", first
+        fields: dict[int, tuple[int, ...]] = {}
         for k in range(n_entries):
             at = offset + count_size + k * entry_size
             tag, kind = struct.unpack_from(order + "HH", data, at)
@@ -167,7 +191,7 @@ def _ifd_chain_problem(data: mmap.mmap, size: int) -> str | None:
             if count * _TYPE_SIZES.get(kind, 1) > word_size:
                 value_at = struct.unpack_from(order + word, data, value_at)[0]
                 if value_at + count * _TYPE_SIZES.get(kind, 1) > size:
-                    return f"field {tag} of page {page} lies beyond the file's {size} bytes"
+                    return f"field {tag} of page {page} lies beyond the file's {size} bytes", first
             if kind in _INTEGER_TYPES:
                 fields[tag] = struct.unpack_from(f"{order}{count}{_INTEGER_TYPES[kind]}",
                                                  data, value_at)
@@ -176,9 +200,10 @@ def _ifd_chain_problem(data: mmap.mmap, size: int) -> str | None:
                 stop = max(o + c for o, c in zip(fields[offsets_tag], fields[counts_tag], strict=True))
                 if stop > size:
                     return (f"the pixels of page {page} end at byte {stop}, beyond the file's "
-                            f"{size} bytes")
+                            f"{size} bytes"), first
+        first = first or fields
         offset = struct.unpack_from(order + word, data, end - word_size)[0]
-    return None
+    return None, first
 
 
 def _as_grey_page(page: np.ndarray, source: str | Path) -> np.ndarray:
@@ -209,11 +234,14 @@ def open_tiff_stack(path: str | Path, chunk_bytes: int = DEFAULT_CHUNK_BYTES) ->
     """
     path = Path(path)
     _require_file(path)
-    truncation = _tiff_truncation(path)
-    if truncation is not None:
-        raise ImageError(f"{path}: truncated TIFF: {truncation}")
-    count = cv2.imcount(str(path))
-    ok, first = cv2.imreadmulti(str(path), 0, 1, flags=cv2.IMREAD_UNCHANGED)
+    problem = _tiff_problem(path)
+    if problem is not None:
+        raise ImageError(f"{path}: {problem}")
+    try:
+        count = cv2.imcount(str(path))
+        ok, first = cv2.imreadmulti(str(path), 0, 1, flags=cv2.IMREAD_UNCHANGED)
+    except cv2.error as error:
+        raise ImageError(f"{path}: OpenCV cannot read it ({str(error).strip().splitlines()[-1]})") from error
     if count < 1 or not ok or not first:
         raise ImageError(f"{path}: not a readable TIFF stack (truncated or corrupt?)")
     page = _as_grey_page(first[0], path)
@@ -273,6 +301,9 @@ def open_slice_folder(folder: str | Path, chunk_bytes: int = DEFAULT_CHUNK_BYTES
     """A folder of 2-D greyscale slices (TIFF or PNG, natural name order) as a dask array
     ``(z, y, x)``, read a few files at a time."""
     files = slice_files(folder)
+    problem = _tiff_problem(files[0]) if files[0].suffix.lower() in (".tif", ".tiff") else None
+    if problem is not None:
+        raise ImageError(f"{files[0]}: {problem}")
     first = cv2.imread(str(files[0]), cv2.IMREAD_UNCHANGED)
     if first is None:
         raise ImageError(f"{files[0]}: not a readable image")

@@ -18,6 +18,8 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from shared.errors import InputError
+
 __all__ = [
     "SAMPLE_SIZE",
     "sample_stride",
@@ -56,7 +58,7 @@ def otsu_threshold(volume: npt.NDArray[np.unsignedinteger]) -> float:
     sample = grey_sample(volume).astype(np.float64)
     low, high = float(sample.min()), float(sample.max())
     if high <= low:
-        raise ValueError("the volume is uniform: no threshold separates specimen and air")
+        raise InputError("the volume is uniform: no threshold separates specimen and air")
     scaled = np.rint((sample - low) * (255.0 / (high - low))).astype(np.uint8)
     level, _ = cv2.threshold(scaled.reshape(1, -1), 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
     return low + (level + 0.5) * (high - low) / 255.0
@@ -100,7 +102,7 @@ def specimen_mask(
     mask = slice_masks(volume, level)
     areas = mask.sum(axis=(1, 2), dtype=np.int64)
     if areas.max() == 0:
-        raise ValueError(f"no voxel above the threshold {level:g}: no specimen found")
+        raise InputError(f"no voxel above the threshold {level:g}: no specimen found")
     mask[areas < min_slice_fraction * areas.max()] = 0
     return mask.view(bool)
 
@@ -158,7 +160,7 @@ def cylinder_section(
     disc = y[:, None] ** 2 + x[None, :] ** 2 <= radius**2
     slices = (z >= low) & (z <= high)
     if not (disc.any() and slices.any()):
-        raise ValueError(f"the cylinder of radius {radius:g} m at {tuple(centre)} m, z in "
+        raise InputError(f"the cylinder of radius {radius:g} m at {tuple(centre)} m, z in "
                          f"{[low, high]} m, holds no voxel")
     return slices, disc
 
@@ -188,7 +190,7 @@ def inscribed_box(mask: Any) -> tuple[slice, slice, slice]:
 
     total = float(value(mask.sum()))
     if total == 0:
-        raise ValueError("the specimen mask is empty: no inscribed cube")
+        raise InputError("the specimen mask is empty: no inscribed cube")
     def profile(axis: int) -> np.ndarray:
         return np.asarray(value(mask.sum(axis=tuple(a for a in range(3) if a != axis))))
 
@@ -201,7 +203,7 @@ def inscribed_box(mask: Any) -> tuple[slice, slice, slice]:
         return tuple(slice(c - half, c + half + 1) for c in centre)  # type: ignore[return-value]
 
     if not bool(value(mask[tuple(centre)])):
-        raise ValueError("the specimen's centroid lies outside it: no inscribed cube")
+        raise InputError("the specimen's centroid lies outside it: no inscribed cube")
     while low < high:
         half = (low + high + 1) // 2
         if bool(value(mask[cube(half)].all())):

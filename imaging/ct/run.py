@@ -43,6 +43,7 @@ from imaging.ct.scan import (
     threshold_areas,
 )
 from imaging.morphology import chord_lengths, rev_analyses
+from shared.errors import InputError
 from shared.io import read_dataset, write_dataset
 
 __all__ = ["phantom", "porosity", "rev", "grid_spacing", "phantom_spec"]
@@ -162,18 +163,18 @@ def _mask_rule(sample: str, scan: str | Path, grey: Any, summary: ScanSummary,
                                             None if centre is None else tuple(centre),
                                             None if z_range is None else tuple(z_range))
         except ValueError as err:
-            raise ValueError(f"{scan}: {err}; check {_keys(sample, 'mask')}") from err
+            raise InputError(f"{scan}: {err}; check {_keys(sample, 'mask')}") from err
         return MaskRule("cylinder", slices, disc=disc)
     level = section["threshold"]
     level = otsu_threshold(summary.sample) if level is None else float(level)
     areas, border, border_size = threshold_areas(grey, level, workers)
     if areas.max() == 0:
-        raise ValueError(f"{scan}: no voxel above the threshold {level:g}: no specimen found; "
+        raise InputError(f"{scan}: no voxel above the threshold {level:g}: no specimen found; "
                          f"check {_keys(sample, 'mask')}")
     kept = areas >= section["min_slice_fraction"] * areas.max()
     touching = float(border[kept].sum() / (border_size * kept.sum()))
     if touching > BORDER_FRACTION_LIMIT:
-        raise ValueError(
+        raise InputError(
             f"{scan}: the specimen mask covers {touching:.0%} of the field's border, as if the "
             f"specimen filled the field of view (no air around it): set "
             f"{_keys(sample, 'mask.mode')} to full (or to cylinder with cylinder_radius_m), "
@@ -205,7 +206,7 @@ def _calibration(sample: str, scan: str | Path, section: Mapping[str, Any],
             outside, inside = histograms()
             if grey_air is None:
                 if outside.sum() == 0:
-                    raise ValueError(
+                    raise InputError(
                         "no air around the specimen to estimate grey_air from: set "
                         f"{_keys(sample, 'calibration.grey_air')}, or calibration.anchors: "
                         "histogram_peaks with peak_densities_kg_m3")
@@ -221,7 +222,7 @@ def _calibration(sample: str, scan: str | Path, section: Mapping[str, Any],
             mean_porosity=section["reference_porosity"] or material["reference_porosity"],
         )
     except ValueError as err:
-        raise ValueError(
+        raise InputError(
             f"{scan}: {err}; check {_keys(sample, 'calibration')} (anchors, grey_air, "
             "grey_muscovite, densities, dry_density_kg_m3, reference_porosity) and "
             "materials.pellet"
@@ -253,7 +254,7 @@ def _check_memory(sample: str, scan: str | Path, grey: Any, imaging: Mapping[str
              sample, "x".join(map(str, grey.shape)), grey.dtype, grey.chunks[0][0],
              peak / 2**30, limit / 2**30)
     if peak > limit:
-        raise ValueError(
+        raise InputError(
             f"{scan}: the imaging of this {'x'.join(map(str, grey.shape))} scan would need about "
             f"{peak / 2**30:.1f} GiB, more than the {limit / 2**30:.1f} GiB allowed: lower "
             f"{_keys(sample, 'chunk_mb')} ({imaging['chunk_mb']:g}), {_keys(sample, 'workers')} "
@@ -307,7 +308,7 @@ def _grid_warnings(
     low, high = bounds
     clamped = float(np.count_nonzero((finite < low) | (finite > high)) / finite.size)
     if clamped == 1.0:
-        raise ValueError(
+        raise InputError(
             f"{scan}: every block of the porosity grid lies outside "
             f"imaging.calibration.porosity_bounds [{low:g}, {high:g}] (porosity "
             f"{finite.min():.3g} to {finite.max():.3g}): check {key} "
@@ -424,7 +425,7 @@ def _porosity_of(sample: str, entry: Mapping[str, Any], imaging: Mapping[str, An
     grid = block_grid(density_sum, counts, grey.shape, calibration, block, voxel_size,
                       imaging["min_specimen_fraction"])
     if not np.isfinite(grid.porosity).any():
-        raise ValueError(
+        raise InputError(
             f"{scan}: no grid block lies inside the specimen; check imaging.mask and "
             "imaging.min_specimen_fraction"
         )
@@ -495,7 +496,7 @@ def rev(
                   (rev_settings["n_sizes"] + 1) * rev_settings["n_positions"])
     with xr.open_dataset(image_input, engine="netcdf4", chunks={}) as image:
         if "specimen" not in image or tuple(image["specimen"].shape) != tuple(grey.shape):
-            raise ValueError(f"{image_input}: no specimen mask of the scan's shape "
+            raise InputError(f"{image_input}: no specimen mask of the scan's shape "
                              f"{tuple(grey.shape)}: rerun the imaging_porosity rule")
         voxel_size = float(image.attrs["voxel_size"])
         box = inscribed_box(image["specimen"].data.rechunk(grey.chunks).astype(bool))

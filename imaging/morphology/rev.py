@@ -21,6 +21,7 @@ import numpy.typing as npt
 
 from imaging.morphology import _kernels
 from imaging.morphology.slabs import slab, slab_size, slabs_in_order
+from shared.errors import InputError
 
 __all__ = [
     "FACE_COUNT_CORRECTION",
@@ -81,7 +82,7 @@ class RevResult:
 def window_sizes(max_edge: int, n_sizes: int, min_edge: int = 2) -> npt.NDArray[np.int64]:
     """Geometrically spaced distinct window edges from ``min_edge`` to ``max_edge`` [voxel]."""
     if max_edge < min_edge:
-        raise ValueError(f"image edge {max_edge} is smaller than the smallest window {min_edge}")
+        raise InputError(f"image edge {max_edge} is smaller than the smallest window {min_edge}")
     sizes = np.unique(np.rint(np.geomspace(min_edge, max_edge, n_sizes)).astype(np.int64))
     return sizes
 
@@ -345,7 +346,7 @@ def rev_analyses(
                            + [whole[None].astype(np.int32)])
     sums = window_sums(porosity, binary, starts, edges, chunk_slices, workers)
     if not np.isfinite(sums.field).all():
-        raise ValueError("REV analysis needs a finite porosity field (crop away NaN first)")
+        raise InputError("REV analysis needs a finite porosity field (crop away NaN first)")
     volume = np.prod(edges.astype(np.float64), axis=1)
     if binary is None:
         interface = np.full(starts.shape[0], np.nan)

@@ -10,6 +10,7 @@ import numpy.typing as npt
 from imaging.packing import analysis
 from imaging.packing.deposition import Packing
 from imaging.packing.voxels import VoxelImage, overlap_fraction, voxelize
+from shared.errors import ConfigError
 
 __all__ = ["PackingMeasures", "measure_packing"]
 
@@ -97,7 +98,7 @@ def measure_packing(
     high = auto_max if z_max is None else z_max
     zone = (z > low) & (z <= high)
     if not zone.any():
-        raise ValueError(f"z_min_m, z_max_m: no particle barycentre in ({low:.3g}, {high:.3g}] m")
+        raise ConfigError(f"z_min_m, z_max_m: no particle barycentre in ({low:.3g}, {high:.3g}] m")
     order = analysis.order_parameters(analysis.order_tensor(normals[zone]))
     theta, f_v, i_c = analysis.rocking_curve(packing.euler[zone, 1], vol[zone], rocking_curve_bins)
     a_b, a_l, a_t = analysis.surface_areas(packing.semi_axes[zone], density)

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from shared.errors import ConfigError
+
 __all__ = ["Population", "sample_semi_axes", "equivalent_diameter", "volumes"]
 
 
@@ -103,13 +105,13 @@ def sample_semi_axes(
         surface is below the median.
     """
     if population.axis_ratio_median < 1.0:
-        raise ValueError("axis_ratio_median: l_a / l_b must be at least 1")
+        raise ConfigError("axis_ratio_median: l_a / l_b must be at least 1")
     high = np.inf if population.basal_surface_max is None else population.basal_surface_max
     if high <= population.basal_surface_median:
-        raise ValueError("basal_surface_max_m2: must exceed the median basal surface")
+        raise ConfigError("basal_surface_max_m2: must exceed the median basal surface")
     for name in ("basal_surface_sigma", "aspect_ratio_sigma", "axis_ratio_sigma"):
         if getattr(population, name) < 0.0:
-            raise ValueError(f"{name}: must be >= 0")
+            raise ConfigError(f"{name}: must be >= 0")
     surface = _truncated_lognormal(rng, population.basal_surface_median,
                                    population.basal_surface_sigma, n, 0.0, high)
     aspect = _lognormal(rng, population.aspect_ratio_median, population.aspect_ratio_sigma, n)

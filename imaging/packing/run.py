@@ -23,6 +23,7 @@ from imaging.packing.figures import packing_figure
 from imaging.packing.measures import PackingMeasures, measure_packing
 from imaging.packing.population import sample_semi_axes
 from imaging.packing.voxels import VoxelImage
+from shared.errors import ConfigError
 from shared.io import write_dataset
 
 __all__ = ["run", "packing_dataset"]
@@ -223,7 +224,7 @@ def run(section: Mapping[str, Any], output_path: str | Path) -> xr.Dataset:
     semi_axes = sample_semi_axes(population, int(section["n_particles"]), rng)
     widest = 2.0 * float(semi_axes[:, 0].max())
     if widest >= section["box_width_m"]:
-        raise ValueError(f"box_width_m: the largest sampled particle (2 l_a = {widest:.3g} m) "
+        raise ConfigError(f"box_width_m: the largest sampled particle (2 l_a = {widest:.3g} m) "
                          "does not fit in the box; widen it or set basal_surface_max_m2")
     packing = deposit(semi_axes, parameters_of(section), rng)
     diameter = population.median_diameter

@@ -1,7 +1,9 @@
 """Entry point of the upscaling stage: micro results -> ``results/upscaling/pellet_permeability``.
 
 Writes the netCDF table (the only thing macro reads from micro, docs/design.md §2), its CSV
-export (condition, suction, phase, axis, k) for users of other tools, and a figure. The
+export (condition, suction, phase, axis, k) for users of other tools, whose sha256 the
+table records (a hand edit of the export is refused, :func:`shared.table_export.check_csv_export`),
+and a figure. The
 table is checked before anything is written, and every file is replaced atomically, so
 a refused source leaves no partial table.
 """
@@ -9,6 +11,8 @@ a refused source leaves no partial table.
 from __future__ import annotations
 
 import csv
+import hashlib
+import io
 import logging
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -20,21 +24,21 @@ from micro.upscaling.figures import table_figure
 from micro.upscaling.table import SOURCE_VARIABLES, table_rows, upscaling_table
 from shared.config import ConfigError
 from shared.io import OutputError, atomic_write, read_dataset, write_dataset
+from shared.table_export import CSV_EXPORT_ATTRIBUTE
 
 __all__ = ["run"]
 
 log = logging.getLogger("micro.upscaling")
 
 
-def _write_csv(table: xr.Dataset, path: Path) -> None:
-    def write(tmp: str) -> None:
-        with open(tmp, "w", newline="") as stream:
-            writer = csv.writer(stream)
-            writer.writerow(["condition", "suction_pa", "phase", "axis", "k_m2"])
-            for condition, suction, phase, axis, k in table_rows(table):
-                writer.writerow([condition, f"{suction:.10g}", phase, axis, f"{k:.10g}"])
-
-    atomic_write(path, write)
+def _csv_export(table: xr.Dataset) -> str:
+    """The table's CSV export: one row (condition, suction, phase, axis, k) per value."""
+    stream = io.StringIO(newline="")
+    writer = csv.writer(stream)
+    writer.writerow(["condition", "suction_pa", "phase", "axis", "k_m2"])
+    for condition, suction, phase, axis, k in table_rows(table):
+        writer.writerow([condition, f"{suction:.10g}", phase, axis, f"{k:.10g}"])
+    return stream.getvalue()
 
 
 def run(
@@ -75,10 +79,13 @@ def run(
     low, high = upscaling["suction_range_pa"]
     table = upscaling_table(sources, (float(low), float(high)))
     files = [str(p) for paths in inputs.values() for p in paths]
+    export = _csv_export(table).encode()
+    # the export's hash in the table: a hand edit of the export is refused, not ignored
+    table.attrs[CSV_EXPORT_ATTRIBUTE] = hashlib.sha256(export).hexdigest()
     write_dataset(table, output, stage="upscaling", title="pellet permeability table",
                   config=dict(upscaling), inputs=files, rule=rule,
                   references="Caulk (2022), PhD thesis, Sec. 3.5.3 and 4.6")
-    _write_csv(table, Path(csv_output))
+    atomic_write(csv_output, lambda tmp: Path(tmp).write_bytes(export))
     table_figure(table, figure_output)
     for condition in table["condition"].values:
         k = table["k"].sel(condition=condition, phase="water")

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from shared.errors import SolverError
 
-class SolverError(RuntimeError):
-    """The linear solve failed: singular/indefinite matrix or non-finite values."""
+__all__ = ["Since", "SolverError", "SolverStats"]
 
 
 @dataclass

@@ -1,23 +1,27 @@
 """A macro run SIGKILLed in its own process resumes from its last snapshot and ends bit
 for bit as an uninterrupted one, across remeshes; a snapshot of another configuration is
-ignored, a broken or inconsistent one named."""
+ignored; a broken, damaged, pickled or inconsistent one is moved aside, named in one log
+line, and the case starts afresh; the model's whole state, attributes added later
+included, goes through a snapshot."""
 
 from __future__ import annotations
 
 import json
 import os
-import pickle
 import signal
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import xarray as xr
 
+from macro.checkpoint import load_snapshot, save_snapshot
 from macro.model import MacroModel
-from macro.run import run
-from shared.io import OutputError
+from macro.run import case_parameters, run
+from shared.snapshot import read_meta
+from shared.upscaling import PermeabilityTable
 from tests._macro_cases import small_config
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -99,8 +103,8 @@ def _remesh_steps(monkeypatch, table_path, config, output):
 
 
 def _snapshot_model(path):
-    with open(path, "rb") as handle:
-        return pickle.load(handle)["model"]
+    """The saved model's plain attributes (the file read as data, no checks)."""
+    return read_meta(path)["model"]
 
 
 def test_a_run_killed_three_times_resumes_to_the_uninterrupted_result(table_path, tmp_path,
@@ -124,7 +128,7 @@ def test_a_run_killed_three_times_resumes_to_the_uninterrupted_result(table_path
     script = tmp_path / "user.py"
     script.write_text(CHILD)
     out = tmp_path / "resumed.nc"
-    snapshot = tmp_path / ".resumed.snapshot.pkl"
+    snapshot = tmp_path / ".resumed.snapshot.npz"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     remeshes = []
     for kill_at in (*kills, -1):
@@ -137,8 +141,8 @@ def test_a_run_killed_three_times_resumes_to_the_uninterrupted_result(table_path
         assert done.returncode == -signal.SIGKILL, done.stderr
         assert not out.exists()
         model = _snapshot_model(snapshot)
-        assert model.steps == kill_at
-        remeshes.append(model.remeshes)
+        assert model["steps"] == kill_at
+        remeshes.append(model["remeshes"])
     assert remeshes[0] == 0 < remeshes[1] <= remeshes[2] <= whole.attrs["remeshes"], remeshes
     assert not snapshot.exists()
     resumed = xr.load_dataset(out)
@@ -153,37 +157,135 @@ def test_a_run_killed_three_times_resumes_to_the_uninterrupted_result(table_path
     assert len(series["whole"]) > 2 and series["resumed"] == series["whole"]
 
 
-def test_snapshot_of_another_configuration_is_ignored_and_a_broken_one_named(table_path, tmp_path,
-                                                                             monkeypatch):
+def _killed_run(monkeypatch, config, table_path, out, step=2):
+    """Run until the kill at ``step``; the snapshot left behind."""
+    original = _kill_at(monkeypatch, step)
+    with pytest.raises(KeyboardInterrupt):
+        run(config, "small", table_path, out)
+    monkeypatch.setattr(MacroModel, "step", original)
+    snapshot = out.with_name(f".{out.stem}.snapshot.npz")
+    assert snapshot.is_file()
+    return snapshot
+
+
+def _runs_afresh_setting_aside(snapshot, config, table_path, out, caplog, why):
+    """The rerun starts afresh, the file is moved aside and one log line says ``why``."""
+    content = snapshot.read_bytes()
+    with caplog.at_level("INFO", logger="claychain.macro"):
+        assert run(config, "small", table_path, out).attrs["resumed"] == 0
+    aside = snapshot.with_name(snapshot.name + ".rejected")
+    assert aside.read_bytes() == content and not snapshot.exists()
+    lines = [r.getMessage() for r in caplog.records if "moved to" in r.getMessage()]
+    assert len(lines) == 1 and str(snapshot) in lines[0] and why in lines[0], lines
+
+
+@pytest.mark.parametrize("damage", ["garbage", "pickle", "checksum"])
+def test_a_broken_snapshot_is_set_aside_and_the_case_starts_afresh(damage, table_path, tmp_path,
+                                                                   monkeypatch, caplog):
+    """Not a snapshot, a pickle (whose loading would run code: here it would create a
+    file), and a snapshot whose array bytes were changed under an intact zip: none is
+    resumed, each is moved aside with its reason."""
     out = tmp_path / "case.nc"
-    snapshot = tmp_path / ".case.snapshot.pkl"
-    snapshot.write_bytes(b"not a snapshot")
-    with pytest.raises(OutputError, match=r"\.case\.snapshot\.pkl: unreadable macro snapshot"):
-        run(_config(3), "small", table_path, out)
-    snapshot.unlink()
+    snapshot = out.with_name(".case.snapshot.npz")
+    marker = tmp_path / "code-ran"
+    if damage == "garbage":
+        snapshot.write_bytes(b"not a snapshot")
+        why = "unreadable"
+    elif damage == "pickle":
+        import pickle
+
+        class Payload:
+            def __reduce__(self):
+                return (Path.touch, (marker,))
+
+        snapshot.write_bytes(pickle.dumps({"model": Payload()}))
+        why = "unreadable"
+    else:
+        snapshot = _killed_run(monkeypatch, _config(3), table_path, out)
+        with np.load(snapshot) as data:
+            members = {k: data[k] for k in data.files}
+        name = next(k for k, v in members.items() if v.dtype == float and v.size > 100)
+        members[name] = members[name].copy()
+        members[name].flat[7] += 1e-9
+        np.savez(snapshot, **members)
+        why = "does not match its checksum"
+    _runs_afresh_setting_aside(snapshot, _config(3), table_path, out, caplog, why)
+    assert not marker.exists()
+
+
+def test_a_snapshot_of_another_configuration_is_ignored(table_path, tmp_path, monkeypatch):
     other = _config(3)
     other["macro"]["seed"] = 5
-    original = _kill_at(monkeypatch, 2)
-    with pytest.raises(KeyboardInterrupt):
-        run(other, "small", table_path, out)
-    monkeypatch.setattr(MacroModel, "step", original)
-    assert snapshot.is_file()
+    out = tmp_path / "case.nc"
+    _killed_run(monkeypatch, other, table_path, out)
     assert run(_config(3), "small", table_path, out).attrs["resumed"] == 0
 
 
-def test_a_snapshot_whose_records_differ_in_shape_is_named(table_path, tmp_path, monkeypatch):
+def test_a_snapshot_whose_records_differ_in_shape_is_set_aside(table_path, tmp_path, monkeypatch, caplog):
     out = tmp_path / "case.nc"
-    snapshot = tmp_path / ".case.snapshot.pkl"
-    original = _kill_at(monkeypatch, 2)
-    with pytest.raises(KeyboardInterrupt):
-        run(_config(3), "small", table_path, out)
-    monkeypatch.setattr(MacroModel, "step", original)
-    payload = pickle.loads(snapshot.read_bytes())
-    payload["rows"]["swelling"][-1] = payload["rows"]["swelling"][-1][:-1]
-    snapshot.write_bytes(pickle.dumps(payload))
-    with pytest.raises(OutputError, match=r"\.case\.snapshot\.pkl: .*swelling differ in shape.*afresh"):
-        run(_config(3), "small", table_path, out)
-    assert snapshot.is_file() and not out.exists()
+    config = _config(3)
+    snapshot = _killed_run(monkeypatch, config, table_path, out)
+    with np.load(snapshot) as data:
+        digest = json.loads(str(data["header"]))["digest"]
+    settings, material = case_parameters(config, "small")
+    table = PermeabilityTable.from_file(table_path, settings.table_condition)
+    model, rows, wall_time = load_snapshot(snapshot, digest, settings, material, table)
+    rows["swelling"][-1] = rows["swelling"][-1][:-1]
+    save_snapshot(snapshot, digest, model, rows, wall_time)
+    _runs_afresh_setting_aside(snapshot, config, table_path, out, caplog, "swelling differ in shape")
+
+
+def _assert_same_state(a, b, where):
+    """Bit for bit the same values, types and dtypes (the table: its counters)."""
+    if isinstance(a, PermeabilityTable):
+        assert (a.clamped, a.looked_up, a.condition) == (b.clamped, b.looked_up, b.condition), where
+    elif isinstance(a, np.ndarray):
+        assert isinstance(b, np.ndarray) and (a.dtype, a.shape) == (b.dtype, b.shape), where
+        assert a.tobytes() == b.tobytes(), where
+    elif hasattr(a, "__dict__"):
+        assert type(a) is type(b) and list(vars(a)) == list(vars(b)), where
+        for key in vars(a):
+            _assert_same_state(vars(a)[key], vars(b)[key], f"{where}.{key}")
+    elif isinstance(a, dict):
+        assert a.keys() == b.keys(), where
+        for key in a:
+            _assert_same_state(a[key], b[key], f"{where}[{key!r}]")
+    elif isinstance(a, list | tuple):
+        assert type(a) is type(b) and len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _assert_same_state(x, y, f"{where}[{i}]")
+    else:
+        assert type(a) is type(b) and (a == b or (a != a and b != b)), (where, a, b)
+
+
+def test_the_whole_model_and_attributes_added_later_go_through_a_snapshot(model, table_path, tmp_path):
+    """Every attribute after three steps, and an array, a float and a NaN that no
+    snapshot code names, come back bit for bit; the next step too."""
+    for _ in range(3):
+        model.step()
+    model.added_array = np.arange(5.0) / 3.0
+    model.added_float = 0.1 + 0.2
+    model.added_nan = float("nan")
+    rows = {"time": [1.0, 2.5], "swelling": [np.zeros(3), np.ones(3) / 7.0]}
+    path = tmp_path / "s.npz"
+    save_snapshot(path, "d", model, rows, 12.5)
+    settings, material = case_parameters(small_config(), "small")
+    table = PermeabilityTable.from_file(table_path, "free")
+    loaded, loaded_rows, wall_time = load_snapshot(path, "d", settings, material, table)
+    assert wall_time == 12.5 and table.looked_up == 0 < loaded.table.looked_up == model.table.looked_up
+    _assert_same_state(model, loaded, "model")
+    _assert_same_state(rows, loaded_rows, "rows")
+    model.step()
+    loaded.step()
+    model.phase_seconds = loaded.phase_seconds  # wall time, not state
+    _assert_same_state(model, loaded, "model")
+
+
+def test_an_attribute_a_snapshot_cannot_hold_is_an_error_naming_it(model, tmp_path):
+    model.added_set = {1, 2}
+    with pytest.raises(TypeError, match=r"model\.added_set: a builtins\.set cannot be saved"):
+        save_snapshot(tmp_path / "s.npz", "d", model, {}, 0.0)
+    assert not (tmp_path / "s.npz").exists()
 
 
 def test_snapshot_of_other_code_is_ignored(table_path, tmp_path, monkeypatch, caplog):
@@ -195,8 +297,8 @@ def test_snapshot_of_other_code_is_ignored(table_path, tmp_path, monkeypatch, ca
     with pytest.raises(KeyboardInterrupt):
         run(_config(3), "small", table_path, out)
     monkeypatch.setattr(MacroModel, "step", original)
-    assert (tmp_path / ".case.snapshot.pkl").is_file()
+    assert (tmp_path / ".case.snapshot.npz").is_file()
     monkeypatch.setattr(macro.run, "module_sha256", lambda path: "edited")
     with caplog.at_level("INFO", logger="claychain.macro"):
         assert run(_config(3), "small", table_path, out).attrs["resumed"] == 0
-    assert "of another configuration, table or code" in caplog.text
+    assert "snapshot of another configuration or code" in caplog.text

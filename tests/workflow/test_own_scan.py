@@ -38,6 +38,7 @@ def chain(tmp_path_factory):
     folder = write_slice_folder(pellet_phantom(spec)[0], tmp / "my_scan")
     macro = {
         "cylinder_height_m": 0.05, "cylinder_radius_m": 0.015, "pellet_radius_m": 4.0e-3,
+        "boundary_suction_pa": 60.0e6,  # the table's lowest suction (it covers 60-132 MPa)
         "sensors": {"S10": {"height_m": 0.01, "band_width_m": 0.008}},
         "cases": {"mine": {}},
         "numerics": {"packing_iterations": 1500, "max_steps": 5},

@@ -14,7 +14,9 @@ from micro.config import (
     source_names,
 )
 from shared.config import ConfigError, load_schema, sample_imaging, validate_config
+from shared.errors import InputError
 from shared.provenance import script_sha256
+from shared.table_export import check_csv_export
 
 SCHEMA = load_schema(workflow.source_path("../schemas/config.schema.yaml"))
 try:
@@ -23,6 +25,16 @@ try:
     )
 except ConfigError as err:
     sys.exit(f"claychain: invalid configuration: {err}")
+
+UPSCALING_TABLE = "results/upscaling/pellet_permeability.nc"
+# a hand edit of the table's CSV export would be ignored without a word; checked by the
+# main process only (a job's own parse could fall between the table's and the export's
+# writes of a running upscaling_table job)
+if workflow.is_main_process:
+    try:
+        check_csv_export(UPSCALING_TABLE)
+    except InputError as err:
+        sys.exit(f"claychain: {err}")
 
 SAMPLES = sorted(config["samples"])
 CASES = sorted(config["micro"]["cases"])

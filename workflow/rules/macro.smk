@@ -4,7 +4,7 @@
 rule macro_case:
     """Run one macro mock-up case (or ensemble member) on the permeability table."""
     input:
-        table="results/upscaling/pellet_permeability.nc",
+        table=config["macro"]["table_path"] or UPSCALING_TABLE,
     output:
         result="results/macro/{macro_case}.nc",
         figure=report(

@@ -1,5 +1,5 @@
 """The upscaling stage (micro.upscaling.run): the table, its CSV and figure written, nothing
-written on a refusal."""
+written on a refusal; a hand edit of the CSV export refused."""
 
 import csv
 
@@ -8,7 +8,9 @@ import xarray as xr
 
 from micro.upscaling import run as upscaling_run
 from shared.config import ConfigError
+from shared.errors import InputError
 from shared.io import write_dataset
+from shared.table_export import check_csv_export
 from shared.upscaling import PermeabilityTable, read_table
 from tests.micro.upscaling.test_table import CHECKPOINTS, RANGE, _micro
 
@@ -48,3 +50,24 @@ def test_run_writes_table_csv_and_figure_and_nothing_on_refusal(tmp_path):
         upscaling_run.run(section, {**inputs, "confined": [bad]}, refused / "t.nc",
                           refused / "t.csv", refused / "t.png")
     assert not any(refused.iterdir())
+
+
+def test_a_hand_edit_of_the_csv_export_is_refused_naming_the_route(tmp_path):
+    """The table records its export's sha256: the export as written passes, a hand edit
+    (k x 1000 in one row) is refused, naming the CSV and macro.table_path; without the
+    export nothing is checked."""
+    section = {"conditions": {"free": "a", "confined": "a"}, "suction_range_pa": list(RANGE)}
+    inputs = {"free": [_write(_micro(1), tmp_path / "a.nc")], "confined": [tmp_path / "a.nc"]}
+    out = tmp_path / "up" / "pellet_permeability"
+    out.parent.mkdir()
+    upscaling_run.run(section, inputs, out.with_suffix(".nc"), out.with_suffix(".csv"), out.with_suffix(".png"))
+    check_csv_export(out.with_suffix(".nc"))
+    export = out.with_suffix(".csv")
+    lines = export.read_text().splitlines()
+    fields = lines[3].split(",")
+    fields[-1] = f"{float(fields[-1]) * 1000:.10g}"
+    export.write_text("\n".join([*lines[:3], ",".join(fields), *lines[4:]]) + "\n")
+    with pytest.raises(InputError, match=r"pellet_permeability\.csv: edited since .*macro\.table_path"):
+        check_csv_export(out.with_suffix(".nc"))
+    export.unlink()
+    check_csv_export(out.with_suffix(".nc"))
