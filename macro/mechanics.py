@@ -50,8 +50,11 @@ class Mechanics:
         The powder swells freely until it fills its cell's void V_c; held there, it
         presses with the swelling pressure of its state (:func:`macro.laws.swelling_pressure`
         at m_s / V_c). Eq. 4.35's V / V_t is read as the powder's share of the void, 1
-        whenever it presses. A cell squeezed below the powder's densest state (its solid at
-        the smallest porosity, or solid and water) presses as at that state. With the
+        whenever it presses. A cell squeezed below its solid and water presses at the dry
+        density of its void, as drained (its water leaves at the next overflow: the
+        consolidation of a cell takes seconds, :meth:`macro.extrusion.Extrusion.overflow`),
+        so that the pellets meet a stiffening powder rather than a pressure that stops
+        growing; below its solid at the smallest porosity it presses as at that state. With the
         pellets' yield (Eq. 4.4) on, at most the yield pressure of the cell's weakest
         pellet. Zero everywhere when ``macro.powder_swelling_pressure`` is off.
         """
@@ -59,7 +62,7 @@ class Mechanics:
         if not self.settings.powder_pressure:
             return np.zeros(self.n_cells), np.zeros(self.n_cells)
         assert self._void is not None
-        held = np.maximum(self._void, self.densest_volume(cells))
+        held = np.maximum(self._void, self.densest_volume(cells, with_water=False))
         suction = -self.pressure[cells]
         solid_mass = self.solid_mass()[cells]
         free = free_volume(suction, self.reference_volume[cells], self.material)
@@ -249,7 +252,7 @@ class Mechanics:
             candidate = np.zeros(self.n_cells, dtype=np.bool_)
         constants = (
             mesh.tetrahedra, mesh.facet_vertices, mesh.facet_cells, self.clay_radii(), self.vertex_radii(), n_p,
-            self.solid_mass()[cells], self.densest_volume(cells),
+            self.solid_mass()[cells], self.densest_volume(cells, with_water=False),
             free_volume(suction, self.reference_volume[cells], m), candidate, self._pressure_bound(),
             m.beta_v * saturation(suction, self.retention_porosity()[cells], m), m.alpha_v, VOID_FLOOR)
         container = self.container
