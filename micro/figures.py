@@ -49,9 +49,9 @@ def case_figure(ds: xr.Dataset, case: str, path: str | Path) -> Path:
                    title="crack fabric (diagonal) and count")
     outside_legend(axes[1, 0], ncol=2, bbox_to_anchor=(1.3, 1.0))
     bins = ds["bin"].values
-    colours = np.linspace(0.1, 0.9, ds.sizes["checkpoint"])
+    colours = np.linspace(0.1, 0.9, ds.sizes["suction"])
     for index, shade in enumerate(colours):
-        axes[1, 1].plot(bins, ds["porosity_hist"].isel(checkpoint=index).values,
+        axes[1, 1].plot(bins, ds["porosity_hist"].isel(suction=index).values,
                         color=(shade, 0.3, 1 - shade),
                         label=f"S = {saturation[index]:.2f}")
     axes[1, 1].set(xlabel="porosity [-]", ylabel="volume fraction [-]",
@@ -96,7 +96,7 @@ def convergence_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 4) -> P
     """
     fig, axes = new_figure(2, 4, width=3.6)
     n = ds["n_points"].values
-    levels = np.unique(np.linspace(0, ds.sizes["checkpoint"] - 1, n_levels).round().astype(int))
+    levels = np.unique(np.linspace(0, ds.sizes["suction"] - 1, n_levels).round().astype(int))
     colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.9, levels.size))
     k = ds["permeability"].where(ds["permeability"] > 0)
     geomean = np.exp(np.log(k).mean("axis"))
@@ -108,10 +108,10 @@ def convergence_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 4) -> P
     for column, (label, values, relative, log) in enumerate(top):
         for colour, level in zip(colours, levels, strict=False):
             legend = f"s = {float(ds['suction'][level]):.3g} Pa"
-            axes[0, column].plot(n, values.isel(checkpoint=level).values, "o-", ms=3, color=colour,
+            axes[0, column].plot(n, values.isel(suction=level).values, "o-", ms=3, color=colour,
                                  label=legend)
             if column < 2:
-                axes[1, column].plot(n, relative.isel(checkpoint=level).values, "o-", ms=3,
+                axes[1, column].plot(n, relative.isel(suction=level).values, "o-", ms=3,
                                      color=colour, label=legend)
         axes[0, column].set(xscale="log", yscale="log" if log else "linear",
                             xlabel="number of points", ylabel=label)
@@ -120,12 +120,12 @@ def convergence_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 4) -> P
         axes[1, column].set(xscale="log", yscale="log", xlabel="number of points",
                             ylabel=f"relative change of {top[column][0]}")
     for phase, style in (("water", "o-"), ("gas", "s--")):
-        axes[1, 2].plot(n, change.sel(phase=phase).max("checkpoint").values, style, ms=3,
+        axes[1, 2].plot(n, change.sel(phase=phase).max("suction").values, style, ms=3,
                         color=_PHASE_COLOUR[phase], label=f"{phase}, largest over checkpoints")
     axes[1, 2].set(xscale="log", yscale="log", xlabel="number of points",
                    ylabel="relative change of k (largest axis)")
     outside_legend(axes[1, 2])
-    last = ds.isel(checkpoint=-1)
+    last = ds.isel(suction=-1)
     axes[1, 3].plot(n, last["crack_count"].values, "ko-", ms=3, label="cracks (last checkpoint)")
     axes[1, 3].set(xscale="log", xlabel="number of points", ylabel="cracks [-]")
     if "wall_time_s" in ds:
@@ -157,7 +157,7 @@ def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
               ("saturation", {}, "saturation (-)", False))
     fig, axes = new_figure(2, len(panels), width=3.6)
     fraction = ds["domain_fraction"].values
-    levels = np.unique(np.linspace(0, ds.sizes["checkpoint"] - 1, n_levels).round().astype(int))
+    levels = np.unique(np.linspace(0, ds.sizes["suction"] - 1, n_levels).round().astype(int))
     colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.9, levels.size))
     reference = ds.isel(realization=0)
     for column, (name, sel, label, log) in enumerate(panels):
@@ -165,7 +165,7 @@ def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
             legend = (f"s = {float(ds['suction'][level]):.3g} Pa, "
                       f"S = {float(reference['saturation'][level]):.2f}")
             for row, stat in enumerate(("mean", "std")):
-                values = ds[f"{name}_{stat}"].isel(checkpoint=level).sel(sel).values
+                values = ds[f"{name}_{stat}"].isel(suction=level).sel(sel).values
                 if log:
                     values = np.where(values > 0, values, np.nan)
                 axes[row, column].plot(fraction, values, "o-", ms=3, color=colour, label=legend)

@@ -7,8 +7,8 @@ both before any job starts (workflow/rules/common.smk), from the scan's shape (i
 headers only) and ``samples.<sample>.voxel_size_m``:
 
 - the porosity grid's spacing of a sample is ``imaging.grid_spacing_m`` when it is set,
-  else the finest mean point spacing, ``specimen_size_m / n_points^(1/3)``, of the cases
-  that read the sample (:func:`sample_point_spacing`);
+  else ``specimen_size_m / micro.n_points^(1/3)`` with the smallest ``specimen_size_m`` of
+  the cases that read the sample (:func:`sample_point_spacing`);
 - the grid's block centres span the scan's extent less one spacing; along every axis
   that span must hold the case's cube and twice its ``offset_m`` along that axis
   (:func:`check_scan_sizes`).
@@ -42,8 +42,12 @@ def _edge_and_points(config: Mapping[str, Any], case: str) -> tuple[float, int]:
 
 
 def sample_point_spacing(config: Mapping[str, Any], sample: str) -> list[float]:
-    """``[specimen_size_m, n_points]`` of the case with the finest mean point spacing among
-    those that read the sample (none: ``micro.specimen_size_m``, ``micro.n_points``).
+    """``[edge, micro.n_points]``, whose mean point spacing ``edge / n_points^(1/3)`` is the
+    sample's default grid spacing: ``edge`` is the smallest ``specimen_size_m`` of the
+    cases that read the sample (none: ``micro.specimen_size_m``).
+
+    The point count is the section's, not the cases' own: cases that differ only in their
+    number of points (the convergence study, thesis Sec. 3.5.8) read one porosity grid.
 
     Parameters
     ----------
@@ -55,15 +59,11 @@ def sample_point_spacing(config: Mapping[str, Any], sample: str) -> list[float]:
     Returns
     -------
     list of float
-        The cube's edge [m] and its number of points; their spacing
-        ``edge / n_points^(1/3)`` is the sample's default grid spacing.
+        The cube's edge [m] and the number of points.
     """
     micro = config["micro"]
-    pairs = [_edge_and_points(config, case) for case in _cases_of(config, sample)]
-    if not pairs:
-        return [float(micro["specimen_size_m"]), int(micro["n_points"])]
-    edge, n_points = min(pairs, key=lambda pair: pair[0] / pair[1] ** (1.0 / 3.0))
-    return [edge, n_points]
+    edges = [_edge_and_points(config, case)[0] for case in _cases_of(config, sample)]
+    return [min(edges, default=float(micro["specimen_size_m"])), int(micro["n_points"])]
 
 
 def sample_grid_spacing(config: Mapping[str, Any], sample: str,

@@ -54,7 +54,7 @@ def test_the_run_folder_follows_the_name():
 
 
 def test_an_entry_set_to_null_is_removed_and_the_rest_validates():
-    config = yaml.safe_load(ROOT / "config" / "config.yaml".read_text())
+    config = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
     config["packings"]["monodisperse_small"] = None
     config["micro"]["cases"]["homogeneous"] = None
     removed = drop_removed_entries(config)
@@ -62,7 +62,7 @@ def test_an_entry_set_to_null_is_removed_and_the_rest_validates():
     assert config["packings"] == {}
     assert sorted(config["micro"]["cases"]) == ["confined", "heterogeneous", "no_cracks"]
     # a null case left in is refused by the schema, and validation removes it first
-    other = yaml.safe_load(ROOT / "config" / "config.yaml".read_text())
+    other = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
     other["micro"]["cases"]["no_cracks"] = None
     assert "no_cracks" not in validate_config(other)["micro"]["cases"]
 
@@ -78,37 +78,40 @@ def _scan_config(**case) -> dict:
     return config
 
 
-def test_the_grid_spacing_follows_the_finest_case_on_the_sample():
+def test_the_grid_spacing_follows_the_smallest_case_on_the_sample():
     config = _scan_config(specimen_size_m=2.0e-3, n_points=125)
-    # 2 mm / 125^(1/3) = 0.4 mm, finer than the default cases' 7 mm / 10 (on the phantom)
-    assert sample_point_spacing(config, "scan") == [2.0e-3, 125]
-    assert sample_grid_spacing(config, "scan") == pytest.approx(4.0e-4)
+    config["micro"]["cases"]["larger"] = {"porosity": "ct", "sample": "scan", "specimen_size_m": 3.0e-3}
+    # 2 mm / 1000^(1/3) = 0.2 mm at micro.n_points, whatever the case's own point count;
+    # the default's cases on the phantom keep 7 mm / 10
+    assert sample_point_spacing(config, "scan") == [2.0e-3, 1000]
+    assert sample_grid_spacing(config, "scan") == pytest.approx(2.0e-4)
     assert sample_point_spacing(config, "pellet") == [7.0e-3, 1000]
     config["samples"]["scan"]["imaging"] = {"grid_spacing_m": 2.5e-4}
     assert sample_grid_spacing(config, "scan") == 2.5e-4
 
 
 def test_a_cube_that_fits_the_scan_passes_and_a_larger_one_is_refused_naming_the_keys():
-    # y: 30 voxels of 0.1 mm = 3 mm; less one 0.4 mm spacing, 2.6 mm hold a 2.5 mm cube
-    check_scan_sizes(_scan_config(specimen_size_m=2.5e-3, n_points=244), {"scan": (40, 30, 50)})
+    # y: 30 voxels of 0.1 mm = 3 mm; less one 0.25 mm spacing, 2.75 mm hold a 2.5 mm cube
+    check_scan_sizes(_scan_config(specimen_size_m=2.5e-3), {"scan": (40, 30, 50)})
     with pytest.raises(ConfigError) as caught:
-        check_scan_sizes(_scan_config(specimen_size_m=2.8e-3, n_points=343), {"scan": (40, 30, 50)})
+        # 3 mm less 0.28 mm
+        check_scan_sizes(_scan_config(specimen_size_m=2.8e-3), {"scan": (40, 30, 50)})
     message = str(caught.value)
     for part in ("micro.cases.mine.specimen_size_m", "samples.scan.voxel_size_m",
-                 "samples.scan.imaging.grid_spacing_m", "along y", "3 mm", "at most 2.6 mm"):
+                 "samples.scan.imaging.grid_spacing_m", "along y", "3 mm", "at most 2.72 mm"):
         assert part in message, message
 
 
 def test_an_offset_counts_twice_against_the_extent():
     config = _scan_config(specimen_size_m=2.0e-3, n_points=125)
     config["micro"]["cases"]["mine"]["offset_m"] = [0.0, 0.0, 1.0e-3]
-    # z: 4 mm - 0.4 mm - 2 x 1 mm = 1.6 mm < 2 mm
+    # z: 4 mm - 0.2 mm - 2 x 1 mm = 1.8 mm < 2 mm
     with pytest.raises(ConfigError, match="along z.*twice offset_m"):
         check_scan_sizes(config, {"scan": (40, 30, 50)})
 
 
 def test_a_scan_too_small_for_a_case_stops_the_workflow_before_any_job(tmp_path):
-    config = yaml.safe_load(ROOT / "config" / "config.yaml".read_text())
+    config = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
     config["phantom"]["shape"] = [32, 32, 32]  # 6.4 mm of 0.2 mm voxels, the cubes are 7 mm
     result = snakemake(workdir(tmp_path, config), "-n", ok=False)
     assert "micro.cases." in result.stderr and "does not fit in sample 'pellet'" in result.stderr

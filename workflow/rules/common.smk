@@ -101,8 +101,8 @@ def script_code(script):
 
 
 def get_point_spacing(wildcards):
-    """``[specimen_size_m, n_points]`` of the finest case on the sample, whose mean point
-    spacing is its default grid spacing (shared.scan_sizes)."""
+    """``[edge, n_points]`` whose mean point spacing is the sample's default grid spacing:
+    the smallest cube of the cases on the sample (shared.scan_sizes)."""
     return sample_point_spacing(config, wildcards.sample)
 
 
