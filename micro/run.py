@@ -116,7 +116,7 @@ def case_settings(config: Mapping[str, Any], case: str) -> tuple[SpecimenSpec, H
         jitter=micro["jitter"], confinement=entry["confinement_pa"], seed=micro["seed"],
         offset=tuple(entry["offset_m"]),
     )
-    settings = hydration_settings(micro["numerics"], entry["cracks"])
+    settings = hydration_settings(micro["numerics"], entry["crack_coupling"])
     return spec, settings, entry["porosity"] == "ct"
 
 

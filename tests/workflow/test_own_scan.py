@@ -31,7 +31,7 @@ FAST = {
     "micro": {
         "n_points": 64,
         "checkpoints_suction_pa": [132.0e6, 60.0e6],
-        "cases": {"homogeneous": None, "no_cracks": None},
+        "cases": {"homogeneous": None, "uncoupled_cracks": None},
         "studies": {"scale": {"reference": None, "fractions": []}},
     },
     "upscaling": {"suction_range_pa": [60.0e6, 132.0e6]},

@@ -60,11 +60,11 @@ def test_an_entry_set_to_null_is_removed_and_the_rest_validates():
     removed = drop_removed_entries(config)
     assert removed == ["packings.monodisperse_small", "micro.cases.homogeneous"]
     assert config["packings"] == {}
-    assert sorted(config["micro"]["cases"]) == ["confined", "heterogeneous", "no_cracks"]
+    assert sorted(config["micro"]["cases"]) == ["confined", "heterogeneous", "uncoupled_cracks"]
     # a null case left in is refused by the schema, and validation removes it first
     other = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
-    other["micro"]["cases"]["no_cracks"] = None
-    assert "no_cracks" not in validate_config(other)["micro"]["cases"]
+    other["micro"]["cases"]["uncoupled_cracks"] = None
+    assert "uncoupled_cracks" not in validate_config(other)["micro"]["cases"]
 
 
 def _scan_config(**case) -> dict:
