@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from micro.pellet import POROSITY_BINS
-from micro.run import _SCALARS, _dataset
+from micro.run import _COUNTS, _SCALARS, _dataset
 from shared.io import read_dataset, write_dataset
 
 SUCTIONS = np.array([132.0e6, 38.0e6, 4.0e6])
@@ -18,7 +18,8 @@ def _records(n: int) -> list[dict[str, object]]:
     rng = np.random.default_rng(5)
     records = []
     for _ in range(n):
-        record: dict[str, object] = {name: float(rng.uniform()) for name in _SCALARS}
+        record: dict[str, object] = {name: float(rng.integers(1, 50)) if name in _COUNTS else float(rng.uniform())
+                                     for name in _SCALARS}
         record["permeability"] = 10.0 ** rng.uniform(-22, -19, (2, 3))
         record["permeability_tensor"] = np.stack([np.diag(10.0 ** rng.uniform(-22, -19, 3))] * 2)
         for suffix in ("", "_imbibed", "_gas"):
