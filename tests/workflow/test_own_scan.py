@@ -135,3 +135,21 @@ def test_a_cube_larger_than_the_scan_is_refused_before_any_job(chain):
     result = snakemake(work, "-n", *_files(work, larger, "larger"), ok=False)
     assert "micro.cases.heterogeneous.specimen_size_m" in result.stderr
     assert "samples.myscan.voxel_size_m" in result.stderr and "along z" in result.stderr
+
+
+def test_the_report_and_inspect_read_the_named_run(chain, tmp_path):
+    import subprocess
+    import sys
+
+    work, _, files = chain
+    report = tmp_path / "myscan.html"
+    snakemake(work, *files, "--report", str(report))
+    text = report.read_text()
+    for figure in ("results/myscan/porosity/myscan.png", "results/myscan/macro/weibull.png",
+                   "results/myscan/micro/heterogeneous.png"):
+        assert f'"{figure}"' in text, figure
+    assert '"results/porosity/' not in text  # the default's figures are not this run's
+    summary = subprocess.run([sys.executable, "-m", "shared.inspect", "results/myscan/micro/confined.nc"],
+                             cwd=work, capture_output=True, text=True, timeout=120)
+    assert summary.returncode == 0, summary.stderr
+    assert "suction" in summary.stdout and "input: results/myscan/porosity/myscan.nc" in summary.stdout
