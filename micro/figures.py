@@ -165,7 +165,7 @@ def convergence_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 4) -> P
 
 
 def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
-    """Scale study (Fig. 3.18): mean (top) and standard deviation (bottom) over the
+    """Scale study (Fig. 3.18): mean (left) and standard deviation (right) over the
     realizations against the domain fraction, one line per hydration level.
 
     Columns: water and gas permeability (geometric mean of the axes), crack volume per
@@ -184,7 +184,7 @@ def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
               ("crack_volume_fraction", {}, "crack volume fraction [-]", False),
               ("eps_v", {}, "volumetric strain [-]", False),
               ("saturation", {}, "saturation [-]", False))
-    # one row per quantity, its mean and its spread side by side; one legend on top
+    # one row per quantity, its mean and its spread side by side; one legend below
     fig, axes = new_figure(len(panels), 2, width=4.2, height=2.6)
     fraction = ds["domain_fraction"].values
     levels = np.unique(np.linspace(0, ds.sizes["suction"] - 1, n_levels).round().astype(int))
@@ -206,6 +206,6 @@ def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
     fig.suptitle(f"scale study of case {ds.attrs.get('reference', '?')}: mean and standard deviation "
                  "over the realizations\n(permeability: geometric mean of k_x, k_y, k_z; realizations "
                  f"per domain fraction {counts})", fontsize="medium")
-    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside upper center", ncol=3,
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside lower center", ncol=3,
                fontsize="x-small", title="hydration level (suction, reference saturation)")
     return save_figure(fig, path)

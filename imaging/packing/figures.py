@@ -54,7 +54,7 @@ def packing_figure(ds: xr.Dataset, image: VoxelImage, path: str | Path) -> Path:
     ax.plot(np.degrees(ds["theta"].values), ds["rocking_curve"].values, "o", ms=3)
     ax.set(xlabel="theta, disk normal from z [degree]", ylabel="I_c, orientation density [1/sr]",
            yscale="log", title=f"rocking curve; f_o = {float(ds['overlap_fraction']):.1e}\n"
-                               "(f_o: share of solid voxels in two or more disks)")
+                               "(f_o: solid voxels in 2 or more disks)")
     solid = image.solid
     extent_xy = (0.0, solid.shape[2] * image.voxel_size * micron)
     z_top = image.z_origin + solid.shape[0] * image.voxel_size
