@@ -308,7 +308,7 @@ def _caption_phrases(caption: Path) -> list[str]:
 
 def test_every_figure_is_a_report_item_with_a_caption():
     rules = "".join(p.read_text() for p in (ROOT / "workflow/rules").glob("*.smk"))
-    figures = re.findall(r"figure=(\S*)\s*\n\s*(\"[^\"]+\.png\")", rules)
+    figures = re.findall(r"figure=(\S*)\s*\n\s*run_path\((\"[^\"]+\.png\")\)", rules)
     assert len(figures) == 12
     assert all(call == "report(" for call, _ in figures), figures
     for caption in re.findall(r'caption="\.\./report/(\w+\.rst)"', rules):

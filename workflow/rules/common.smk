@@ -326,7 +326,9 @@ def get_final_outputs():
         ],
         sample=SAMPLES,
     )
-    micro = expand([run_path("micro/{case}.nc"), run_path("micro/{case}.png")], case=CASES)
+    micro = expand(
+        [run_path("micro/{case}.nc"), run_path("micro/{case}.png")], case=CASES
+    )
     packing = expand(
         [run_path("packing/{packing}.nc"), run_path("packing/{packing}.png")],
         packing=PACKINGS,
