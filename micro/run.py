@@ -94,6 +94,9 @@ _SCALARS = {
     "suction_misfit": ("1", "largest relative departure of a cell's suction from the boundary's"),
     "balanced": ("1", "1 if hydraulic and mechanical balance were reached, else 0"),
 }
+_COUNTS = ("crack_count", "crack_count_imbibed", "crack_count_gas", "n_remesh", "flow_steps",
+           "dem_steps", "balanced")
+"""The scalars that count something, stored as integers."""
 
 
 def case_settings(config: Mapping[str, Any], case: str) -> tuple[SpecimenSpec, HydrationSettings, bool]:
@@ -114,7 +117,7 @@ def case_settings(config: Mapping[str, Any], case: str) -> tuple[SpecimenSpec, H
         jitter=micro["jitter"], confinement=entry["confinement_pa"], seed=micro["seed"],
         offset=tuple(entry["offset_m"]),
     )
-    settings = hydration_settings(micro["numerics"], entry["cracks"])
+    settings = hydration_settings(micro["numerics"], entry["crack_coupling"])
     return spec, settings, entry["porosity"] == "ct"
 
 
@@ -154,29 +157,30 @@ def _dataset(records: list[dict[str, Any]], checkpoints: np.ndarray) -> xr.Datas
     suction = checkpoints[: len(records)]
     data: dict[str, Any] = {}
     for name, (units, long_name) in _SCALARS.items():
-        data[name] = ("checkpoint", np.array([r[name] for r in records], dtype=float),
+        dtype = np.int64 if name in _COUNTS else float
+        data[name] = ("suction", np.array([r[name] for r in records], dtype=dtype),
                       {"units": units, "long_name": long_name})
     data["permeability"] = (
-        ("checkpoint", "phase", "axis"), np.stack([r["permeability"] for r in records]),
+        ("suction", "phase", "axis"), np.stack([r["permeability"] for r in records]),
         {"units": "m2", "long_name": "intrinsic x relative permeability, measured by a steady "
                                      "solve with a linear boundary pressure"},
     )
     data.update(_tensor_variables(records))
     for suffix, label in (("", "all"), ("_imbibed", "water-filled"), ("_gas", "gas-filled")):
         data[f"crack_fabric{suffix}"] = (
-            ("checkpoint", "i", "j"), np.stack([r[f"crack_fabric{suffix}"] for r in records]),
+            ("suction", "i", "j"), np.stack([r[f"crack_fabric{suffix}"] for r in records]),
             {"units": "m2", "long_name": f"crack fabric tensor (1/N) sum a_c n n of {label} cracks"},
         )
     data["porosity_hist"] = (
-        ("checkpoint", "bin"), np.stack([r["porosity_hist"] for r in records]),
+        ("suction", "bin"), np.stack([r["porosity_hist"] for r in records]),
         {"units": "1", "long_name": "volume fraction of cells per porosity bin"},
     )
     centres = 0.5 * (POROSITY_BINS[1:] + POROSITY_BINS[:-1])
     coords = {
-        "checkpoint": ("checkpoint", np.arange(len(records)), {"units": "1", "long_name": "checkpoint index"}),
-        # a non-index coordinate along checkpoint: ds.swap_dims(checkpoint="suction") and
-        # .plot(x="suction") work, and checkpoint stays the dimension
-        "suction": ("checkpoint", suction, {"units": "Pa", "long_name": "boundary suction"}),
+        # suction indexes the checkpoints (ds.sel(suction=1e6)); the checkpoint's number
+        # is a coordinate along it (the ParaView series' time step, micro/vtk.py)
+        "suction": ("suction", suction, {"units": "Pa", "long_name": "boundary suction"}),
+        "checkpoint": ("suction", np.arange(len(records)), {"units": "1", "long_name": "checkpoint index"}),
         "phase": ("phase", np.array(["water", "gas"]), {"long_name": "fluid phase"}),
         "axis": ("axis", np.array(["x", "y", "z"]), {"long_name": "direction (z: compaction axis)"}),
         "i": ("i", np.arange(3), {"units": "1", "long_name": "tensor row (x, y, z)"}),
@@ -204,27 +208,27 @@ def _tensor_variables(records: list[dict[str, Any]]) -> dict[str, Any]:
            "phase), Darcy velocity averaged over the inner 80 % of the box")
     return {
         "permeability_tensor": (
-            ("checkpoint", "phase", "i", "j"), tensor,
+            ("suction", "phase", "i", "j"), tensor,
             {"units": "m2", "long_name": "permeability tensor K_ij = -mu <v_i> / (grad p)_j, "
                                          f"{how}"},
         ),
         "permeability_tensor_symmetric": (
-            ("checkpoint", "phase", "i", "j"), derived.symmetric,
+            ("suction", "phase", "i", "j"), derived.symmetric,
             {"units": "m2", "long_name": "symmetric part (K + K^T)/2 of the permeability tensor"},
         ),
         "permeability_principal": (
-            ("checkpoint", "phase", "principal"), derived.values,
+            ("suction", "phase", "principal"), derived.values,
             {"units": "m2", "long_name": "principal permeabilities: eigenvalues of the symmetric "
                                          "part, ascending"},
         ),
         "permeability_principal_direction": (
-            ("checkpoint", "phase", "i", "principal"), derived.directions,
+            ("suction", "phase", "i", "principal"), derived.directions,
             {"units": "1", "long_name": "principal directions: unit eigenvectors (components "
                                         "i = x, y, z) of the symmetric part, largest component "
                                         "positive"},
         ),
         "permeability_asymmetry": (
-            ("checkpoint", "phase"), derived.asymmetry,
+            ("suction", "phase"), derived.asymmetry,
             {"units": "1", "long_name": "relative asymmetry ||K - K^T||_F / ||K||_F of the "
                                         "permeability tensor"},
         ),

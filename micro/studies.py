@@ -51,9 +51,9 @@ _TRACKED = ("saturation", "eps_v", "permeability", "porosity_mean", "crack_count
 
 
 def _checkpoint_variables(ds: xr.Dataset) -> list[str]:
-    """Data variables over checkpoints, except the boundary suction (shared by all)."""
+    """Data variables over the checkpoints (dimension ``suction``)."""
     return [name for name, var in ds.data_vars.items()
-            if "checkpoint" in var.dims and name != "suction"]
+            if "suction" in var.dims]
 
 
 def _check_alike(cases: Mapping[str, xr.Dataset]) -> tuple[str, list[str]]:
@@ -97,10 +97,10 @@ def convergence_dataset(cases: Mapping[str, xr.Dataset]) -> xr.Dataset:
     Returns
     -------
     xr.Dataset
-        Every variable over ``checkpoint`` of the inputs (except ``suction``), with a new
+        Every variable over ``suction`` (the checkpoints) of the inputs, with a new
         leading dimension ``n_points`` in ascending order: ``saturation(n_points,
-        checkpoint)``, ``permeability(n_points, checkpoint, phase, axis)`` [m2], ...;
-        ``suction(checkpoint)`` [Pa]; ``n_cells``, ``wall_time_s`` and ``peak_memory_mb``
+        suction)``, ``permeability(n_points, suction, phase, axis)`` [m2], ...;
+        ``suction`` [Pa] and ``checkpoint(suction)``; ``n_cells``, ``wall_time_s`` and ``peak_memory_mb``
         over ``n_points`` when the inputs record them, ``wall_time_phase(n_points,
         run_phase)`` [s] when some do (NaN where one does not); ``<var>_relative_change`` of the
         tracked quantities (saturation, eps_v, permeability, porosity_mean, crack_count,
@@ -167,11 +167,11 @@ def _with_derived(ds: xr.Dataset, edge_length: float) -> xr.Dataset:
     out = ds.copy()
     log_k = np.log(np.where(ds["permeability"].values > 0, ds["permeability"].values, np.nan))
     out["permeability_geomean"] = (
-        ("checkpoint", "phase"), np.exp(log_k.mean(axis=-1)),
+        ("suction", "phase"), np.exp(log_k.mean(axis=-1)),
         {"units": "m2", "long_name": "geometric mean of the x, y, z permeabilities"},
     )
     out["crack_volume_fraction"] = (
-        "checkpoint", ds["crack_volume"].values / edge_length**3,
+        "suction", ds["crack_volume"].values / edge_length**3,
         {"units": "1", "long_name": "crack volume per sub-region volume"},
     )
     return out
@@ -197,15 +197,15 @@ def scale_dataset(
     Returns
     -------
     xr.Dataset
-        Every variable over ``checkpoint`` of the inputs (except ``suction``), plus
-        ``permeability_geomean(checkpoint, phase)`` [m2] and ``crack_volume_fraction``:
-        per realization (``<var>(realization, checkpoint, ...)``, the reference first,
+        Every variable over ``suction`` (the checkpoints) of the inputs, plus
+        ``permeability_geomean(suction, phase)`` [m2] and ``crack_volume_fraction``:
+        per realization (``<var>(realization, suction, ...)``, the reference first,
         with ``realization_fraction``, ``realization_size_m`` and
         ``realization_offset_m(realization, xyz)``), and as ``<var>_mean`` and
         ``<var>_std`` over ``domain_fraction`` (ascending). The standard deviation is the
         sample one (``ddof=1``); NaN for a group of one realization, such as the
         reference. Also ``n_realizations(domain_fraction)``,
-        ``specimen_size_m(domain_fraction)`` [m] and ``suction(checkpoint)`` [Pa].
+        ``specimen_size_m(domain_fraction)`` [m] and ``suction`` [Pa].
 
     Raises
     ------

@@ -19,6 +19,7 @@ import yaml
 from jsonschema.exceptions import ValidationError
 
 from shared.errors import ConfigError
+from shared.runs import RESULTS, STAGE_FOLDERS, drop_removed_entries
 
 _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 """libyaml's loader where PyYAML has it: the schema loads in 0.02 s instead of 0.18 s."""
@@ -109,18 +110,23 @@ def validate_config(
         Further cross-field checks of the stages (e.g. the packings' geometry), each
         raising :class:`ConfigError`; they run after the checks of this module.
 
+    Notes
+    -----
+    The entries an overlay set to null are removed first (:mod:`shared.runs`).
+
     Raises
     ------
     ConfigError
         With the dotted path of the first offending key and the reason.
     """
     schema = schema if schema is not None else load_schema()
+    drop_removed_entries(config)
     validator = _Validator(schema)
     errors = sorted(validator.iter_errors(config), key=lambda e: list(e.absolute_path))
     if errors:
         first = errors[0]
         raise ConfigError(f"{_key_path(first)}: {first.message}")
-    for check in (_check_samples, _check_lengths, _check_micro, _check_upscaling, *checks):
+    for check in (_check_run_name, _check_samples, _check_lengths, _check_micro, _check_upscaling, *checks):
         check(config)
     _check_case_materials(config, schema)
     for sample in config["samples"]:
@@ -180,6 +186,16 @@ def _check_imaging(imaging: Mapping[str, Any], prefix: str) -> None:
                     f"config key '{prefix}.calibration.{key}': anchors histogram_peaks "
                     "takes both anchors from the histogram; remove it or use air_muscovite"
                 )
+
+
+def _check_run_name(config: Mapping[str, Any]) -> None:
+    """A run is not named like a folder of the unnamed run's outputs."""
+    name = config.get("run_name")
+    if name in STAGE_FOLDERS:
+        raise ConfigError(
+            f"config key 'run_name': {name!r} is a folder of the unnamed run's outputs "
+            f"({RESULTS}/{name}/); choose another name"
+        )
 
 
 def _check_samples(config: Mapping[str, Any]) -> None:

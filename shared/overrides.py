@@ -35,7 +35,7 @@ from shared.config import (
     validate_config,
 )
 
-__all__ = ["key_schema", "main", "overlay", "parse_value"]
+__all__ = ["changes", "key_schema", "main", "overlay", "parse_value"]
 
 _NULL = {"null", "none", "~"}
 _TRUE = {"true", "yes", "on"}
@@ -198,6 +198,37 @@ def overlay(assignments: Sequence[str], schema: Mapping[str, Any]) -> dict[str, 
     return out
 
 
+def changes(assignments: Sequence[str], before: Mapping[str, Any],
+            schema: Mapping[str, Any]) -> list[str]:
+    """One line per assignment: the key, its value before (defaults filled in) and after.
+
+    Parameters
+    ----------
+    assignments
+        ``key=value`` texts, valid.
+    before
+        The validated configuration without them.
+    schema
+        The configuration schema, which types the values.
+
+    Returns
+    -------
+    list of str
+        ``key: old -> new``, or ``key: new (unchanged)``.
+    """
+    lines = []
+    for assignment in assignments:
+        key, _, text = assignment.partition("=")
+        key = key.strip()
+        value = parse_value(text, key_schema(schema, key), key, schema)
+        old: Any = before
+        for part in key.split("."):
+            old = old.get(part) if isinstance(old, Mapping) else None
+        lines.append(f"--set {key}: {old!r} -> {value!r}" if old != value
+                     else f"--set {key}: {value!r} (unchanged)")
+    return lines
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: write the overlay of ``--set`` assignments, validated; 0 or 2."""
     parser = argparse.ArgumentParser(
@@ -219,10 +250,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         merged: dict[str, Any] = {}
         for path in args.configfile or [DEFAULT_CONFIG_PATH]:
             merged = _merged(merged, read_config_file(path))
+        before = validate_config(_merged(merged, {}), schema)
         validate_config(_merged(merged, values), schema)
     except ConfigError as err:
         print(f"claychain: invalid configuration: {err}", file=sys.stderr)
         return 2
+    for line in changes(args.assignments, before, schema):
+        print(f"claychain: {line}", file=sys.stderr)
     if args.output is None:
         return 0
     args.output.parent.mkdir(parents=True, exist_ok=True)

@@ -11,11 +11,25 @@ from contextlib import contextmanager
 
 import numpy as np
 
-__all__ = ["ConvergenceProgress", "PhaseClock", "Progress"]
+__all__ = ["ConvergenceProgress", "PhaseClock", "Progress", "SMOOTHING", "MIN_RATE_SAMPLES"]
+
+
+SMOOTHING = 0.3
+"""Weight of the latest rate in the smoothed rate (tqdm's default ``smoothing``)."""
+
+MIN_RATE_SAMPLES = 2
+"""Rates measured between reports before an ETA is given: the first unit of a loop
+carries its set-up (numba compiling its kernels), so one sample says little."""
 
 
 class Progress:
     """Log ``label: k/n (p %), elapsed, ETA`` at most every ``interval`` seconds.
+
+    The ETA divides the work left by a smoothed rate: an exponential moving average
+    (weight :data:`SMOOTHING` on the latest) of the rates between successive reports,
+    as tqdm smooths its rate. Until :data:`MIN_RATE_SAMPLES` rates are known it reads
+    "not yet known". tqdm itself redraws one terminal line; our jobs log to files, one
+    line per report, so the lines are ours.
 
     Parameters
     ----------
@@ -28,13 +42,13 @@ class Progress:
     interval
         Minimum time between lines [s].
     done_before
-        Units finished before this process started (a resumed run): the ETA extrapolates
-        the rate of the units done since.
+        Units finished before this process started (a resumed run): the rates are
+        those of the units done since.
     trend
         For units that take longer and longer (the micro checkpoints: 1 to 7 minutes
         each at 150k points), extrapolate the linear trend of the units' durations
-        instead of their mean rate, once three have been reported (each unit lasting at
-        least the shortest so far).
+        instead of their smoothed rate, once three have been reported (each unit lasting
+        at least the shortest so far).
     """
 
     def __init__(self, total: float, label: str, log: logging.Logger, interval: float = 10.0,
@@ -49,11 +63,25 @@ class Progress:
         self._last = -float("inf")
         self._logged: float | None = None
         self._reports: list[tuple[float, float]] = [(self.done_before, self.start)]
+        self._rate: float | None = None
+        self._samples = 0
+
+    def _observe(self, done: float, now: float) -> None:
+        """Fold the rate since the previous report into the smoothed rate."""
+        last_done, last_time = self._reports[-1]
+        if done <= last_done or now <= last_time:
+            return
+        rate = (done - last_done) / (now - last_time)
+        self._rate = rate if self._rate is None else SMOOTHING * rate + (1.0 - SMOOTHING) * self._rate
+        self._samples += 1
+        self._reports.append((done, now))
 
     def eta(self, done: float) -> float:
-        """Seconds left once ``done`` units are finished [s]: at the rate so far, or
-        along the durations' trend (see ``trend``)."""
-        now = time.monotonic()
+        """Seconds left once ``done`` units are finished [s]: the work left at the
+        smoothed rate, or along the durations' trend (see ``trend``); NaN while the
+        rate is not known yet, 0 when nothing is left."""
+        if done >= self.total:
+            return 0.0
         if self.trend and len(self._reports) >= 4:
             units, times = np.array(self._reports).T
             middles = 0.5 * (units[1:] + units[:-1])
@@ -61,9 +89,9 @@ class Progress:
             slope, intercept = np.polyfit(middles, durations, 1)
             remaining = np.arange(done, math.ceil(self.total)) + 0.5
             return float(np.maximum(intercept + slope * remaining, durations.min()).sum())
-        elapsed = now - self.start
-        rate = (done - self.done_before) / elapsed if elapsed > 0 else 0.0
-        return max(self.total - done, 0.0) / rate if rate > 0 else float("nan")
+        if self._rate is None or self._samples < MIN_RATE_SAMPLES or self._rate <= 0.0:
+            return float("nan")
+        return (self.total - done) / self._rate
 
     def update(self, done: float, force: bool = False) -> None:
         """Report ``done`` units finished; logs only when the interval has elapsed.
@@ -73,8 +101,7 @@ class Progress:
         one-chunk pass would print the same line twice).
         """
         now = time.monotonic()
-        if self.trend and done > self._reports[-1][0]:
-            self._reports.append((done, now))
+        self._observe(done, now)
         if force and self._logged == done:
             return
         if not force and now - self._last < self.interval:
@@ -82,9 +109,11 @@ class Progress:
         self._last = now
         self._logged = done
         fraction = min(max(done / self.total, 0.0), 1.0) if self.total > 0 else 1.0
+        eta = self.eta(done)
         self.log.info(
-            "%s: %g/%g (%.0f %%), elapsed %.1f s, ETA %.1f s",
-            self.label, done, self.total, 100.0 * fraction, now - self.start, self.eta(done),
+            "%s: %g/%g (%.0f %%), elapsed %.1f s, ETA %s",
+            self.label, done, self.total, 100.0 * fraction, now - self.start,
+            f"{eta:.1f} s" if math.isfinite(eta) else "not yet known",
         )
 
 

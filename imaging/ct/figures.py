@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
+from matplotlib.ticker import MaxNLocator
 
 from shared.figures import new_figure, outside_legend, save_figure
 
@@ -20,28 +21,33 @@ def porosity_figure(image: xr.Dataset, porosity: xr.Dataset, path: str | Path) -
     """Grey (the stored preview) and porosity slices (xy and xz through the centre) and the
     porosity and density histograms."""
     fig, axes = new_figure(2, 3)
+    spacing_mm = float(porosity.attrs.get("grid_spacing", np.nan)) * 1e3
+    fig.suptitle(f"CT sample {Path(path).stem}: porosity grid of {spacing_mm:.3g} mm blocks",
+                 fontsize="medium")
     grey = image["grey_preview"].rename(z_preview="z", y_preview="y", x_preview="x")
     phi = porosity["porosity"]
     mm = 1e3
     panels = [
-        (axes[0, 0], grey.isel(z=_mid(grey.sizes["z"])), "x", "y", "grey, xy (mid z)", "gray"),
-        (axes[0, 1], grey.isel(y=_mid(grey.sizes["y"])), "x", "z", "grey, xz (mid y)", "gray"),
-        (axes[1, 0], phi.isel(z=_mid(phi.sizes["z"])), "x", "y", "porosity, xy (mid z)", "viridis"),
-        (axes[1, 1], phi.isel(y=_mid(phi.sizes["y"])), "x", "z", "porosity, xz (mid y)", "viridis"),
+        (axes[0, 0], grey.isel(z=_mid(grey.sizes["z"])), "x", "y", "grey, xy (mid z)", "gray", "grey value [-]"),
+        (axes[0, 1], grey.isel(y=_mid(grey.sizes["y"])), "x", "z", "grey, xz (mid y)", "gray", "grey value [-]"),
+        (axes[1, 0], phi.isel(z=_mid(phi.sizes["z"])), "x", "y", "porosity, xy (mid z)", "viridis", "porosity [-]"),
+        (axes[1, 1], phi.isel(y=_mid(phi.sizes["y"])), "x", "z", "porosity, xz (mid y)", "viridis", "porosity [-]"),
     ]
-    for ax, field, h, v, title, cmap in panels:
+    for ax, field, h, v, title, cmap, unit in panels:
         extent = [field[h].min() * mm, field[h].max() * mm, field[v].min() * mm, field[v].max() * mm]
         shown = ax.imshow(np.asarray(field.transpose(v, h)), origin="lower", extent=extent, cmap=cmap)
-        fig.colorbar(shown, ax=ax, shrink=0.8)
+        fig.colorbar(shown, ax=ax, shrink=0.8, label=unit)
         ax.set(title=title, xlabel=f"{h} [mm]", ylabel=f"{v} [mm]")
     values = phi.values[np.isfinite(phi.values)]
     axes[1, 2].hist(values, bins=40, color="tab:blue")
     axes[1, 2].axvline(values.mean(), color="k", ls="--", label=f"mean {values.mean():.3f}")
-    axes[1, 2].set(title="porosity of grid blocks", xlabel="porosity [-]", ylabel="blocks")
+    axes[1, 2].set(title="porosity of grid blocks", xlabel="porosity [-]", ylabel="number of blocks")
     outside_legend(axes[1, 2])
     density = porosity["density"].values
     axes[0, 2].hist(density[np.isfinite(density)], bins=40, color="tab:brown")
-    axes[0, 2].set(title="block dry density", xlabel="density [kg/m3]", ylabel="blocks")
+    axes[0, 2].set(title="block dry density", xlabel="density [kg/m3]", ylabel="number of blocks")
+    for ax in (axes[0, 2], axes[1, 2]):
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     return save_figure(fig, path)
 
 
@@ -49,6 +55,7 @@ def rev_figure(rev: xr.Dataset, path: str | Path) -> Path:
     """REV curves (random windows mean +- std, band clipped at 0, and the centred window;
     the calibrated porosity beside the binary one) and chord-length distributions r f(r)."""
     fig, axes = new_figure(2, 2, width=6.0)
+    fig.suptitle(f"CT sample {Path(path).stem}: REV and chord lengths", fontsize="medium")
     window_mm = rev["window"].values * 1e3
     centred_mm = rev["window_centred"].values * 1e3
     for ax, name, unit in ((axes[0, 0], "porosity", "-"), (axes[0, 1], "interface", "1/m")):

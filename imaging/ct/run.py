@@ -95,14 +95,15 @@ def phantom_spec(
 
 def grid_spacing(spacing: float | None, micro_spacing: Sequence[float]) -> float:
     """Porosity grid spacing [m]: ``imaging.grid_spacing_m``, else the mean micro point
-    spacing ``micro.specimen_size_m / micro.n_points^(1/3)``.
+    spacing ``specimen_size_m / micro.n_points^(1/3)`` of the smallest case on the sample.
 
     Parameters
     ----------
     spacing
         ``imaging.grid_spacing_m`` [m], or None.
     micro_spacing
-        ``(micro.specimen_size_m, micro.n_points)``.
+        ``(specimen_size_m, micro.n_points)`` with the smallest cube among the micro cases
+        that read the sample (shared/scan_sizes.py, ``sample_point_spacing``).
     """
     if spacing is not None:
         return float(spacing)
@@ -375,7 +376,8 @@ def porosity(
         calibration maps the measured mean dry density to the reference porosity, the
         same phi_0 as the retention and permeability laws'.
     micro_spacing
-        ``(micro.specimen_size_m, micro.n_points)``, for the default grid spacing.
+        ``(specimen_size_m, micro.n_points)`` of the smallest micro case on the sample,
+        for the default grid spacing (:func:`grid_spacing`).
     scan
         The scan's file or folder (the phantom's TIFF for a phantom sample).
     image_output, porosity_output, figure_output

@@ -27,6 +27,7 @@ from imaging.packing import _contact_kernels, _grid_kernels, _settle_kernels
 from imaging.packing._bed import BedIndex
 from imaging.packing.orientation import euler_angles, fold_upward, normals, rotation_matrices
 from imaging.packing.population import volumes
+from shared.progress import Progress
 
 __all__ = ["DepositionParameters", "Packing", "deposit"]
 
@@ -185,7 +186,7 @@ def deposit(
     steepest = np.array([params.steepest_slide, params.steepest_swivel, params.contact_line_swivel])
     accepted = np.zeros(n, dtype=np.int64)
     wall = np.zeros(n)
-    start = last_log = time.perf_counter()
+    progress = Progress(n, "placed particles", log, interval=params.log_interval)
     for i in range(n):
         t0 = time.perf_counter()
         axes = semi_axes[i]
@@ -200,11 +201,7 @@ def deposit(
         bed.add(i, center, rot)
         now = time.perf_counter()
         wall[i] = now - t0
-        if now - last_log >= params.log_interval or i == n - 1:
-            rate = (i + 1) / (now - start)
-            log.info("placed %d/%d particles (%.2f particles/s, ETA %.0f s)",
-                     i + 1, n, rate, (n - i - 1) / rate)
-            last_log = now
+        progress.update(i + 1, force=i == n - 1)
     return Packing(
         centers=bed.centers.copy(),
         rotations=fold_upward(bed.rotations),

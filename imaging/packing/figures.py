@@ -39,27 +39,30 @@ def packing_figure(ds: xr.Dataset, image: VoxelImage, path: str | Path) -> Path:
     micron = 1e6
     z = ds["zbin"].values * micron
     fig, axes = plt.subplots(2, 2, figsize=(10, 8), constrained_layout=True)
+    fig.suptitle(f"packing {path.stem}: {ds.sizes.get('particle', 0)} elliptic disks", fontsize="medium")
     ax = axes[0, 0]
     ax.plot(ds["porosity_profile"].values, z, "o-", ms=3, label="porosity")
-    ax.plot(ds["order_profile"].values, z, "s-", ms=3, label="S_part")
+    ax.plot(ds["order_profile"].values, z, "s-", ms=3,
+            label="S_part = <P2(cos theta)>, order\n(1: disks flat, 0: random)")
     for name in ("z_min", "z_max"):
         ax.axhline(float(ds[name]) * micron, color="grey", ls="--")
-        ax.annotate(name, (0.02, float(ds[name]) * micron), va="bottom", fontsize=8)
-    ax.set(xlabel="porosity, S_part", ylabel="z (um)",
+    ax.plot([], [], color="grey", ls="--", label="z_min, z_max: the analysed zone\n(away from floor and top)")
+    ax.set(xlabel="porosity, S_part [-]", ylabel="z [um]",
            title=f"porosity {float(ds['porosity']):.3f}, S_part {float(ds['S_part']):.3f}")
     outside_legend(ax)
     ax = axes[0, 1]
     ax.plot(np.degrees(ds["theta"].values), ds["rocking_curve"].values, "o", ms=3)
-    ax.set(xlabel="theta (degree)", ylabel="I_c (sr-1)", yscale="log",
-           title=f"rocking curve, f_o = {float(ds['overlap_fraction']):.1e}")
+    ax.set(xlabel="theta, disk normal from z [degree]", ylabel="I_c, orientation density [1/sr]",
+           yscale="log", title=f"rocking curve; f_o = {float(ds['overlap_fraction']):.1e}\n"
+                               "(f_o: solid voxels in 2 or more disks)")
     solid = image.solid
     extent_xy = (0.0, solid.shape[2] * image.voxel_size * micron)
     z_top = image.z_origin + solid.shape[0] * image.voxel_size
     axes[1, 0].imshow(solid[:, solid.shape[1] // 2, :], origin="lower", cmap="gray_r",
                       extent=extent_xy + (image.z_origin * micron, z_top * micron), aspect="auto")
-    axes[1, 0].set(xlabel="x (um)", ylabel="z (um)", title="voxel slice y = w/2 (solid dark)")
+    axes[1, 0].set(xlabel="x [um]", ylabel="z [um]", title="voxel slice y = w/2 (solid dark)")
     axes[1, 1].imshow(solid[solid.shape[0] // 2], origin="lower", cmap="gray_r",
                       extent=extent_xy + extent_xy)
-    axes[1, 1].set(xlabel="x (um)", ylabel="y (um)", title="voxel slice at mid-height")
+    axes[1, 1].set(xlabel="x [um]", ylabel="y [um]", title="voxel slice at mid-height (solid dark)")
     path.parent.mkdir(parents=True, exist_ok=True)
     return save_figure(fig, path)  # labelled log ticks (shared.figures.log_ticks)

@@ -22,6 +22,8 @@ def table_figure(table: xr.Dataset, path: str | Path) -> Path:
     below, saturation and strain against suction."""
     conditions = [str(c) for c in table["condition"].values]
     fig, axes = new_figure(2, len(conditions), width=6.0)
+    fig.suptitle(f"pellet permeability table ({', '.join(conditions)}): what the macro model reads",
+                 fontsize="medium")
     suction = table["suction"].values
     fine = np.geomspace(suction[0], suction[-1], 200)
     for column, condition in enumerate(conditions):

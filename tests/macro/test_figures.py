@@ -24,14 +24,22 @@ def _case() -> xr.Dataset:
         "swelling_profile": (("time", "z"), np.outer(rise, 0.2 * np.ones(13))),
         "column_permeability": ("permeability_time", np.geomspace(1e-19, 1e-20, 5)),
     }, coords={"time": seconds, "sensor": ["SP20", "SP40", "SP80"], "z": z,
-               "permeability_time": np.geomspace(3600.0, 210 * 86400.0, 5)})
+               "permeability_time": np.concatenate([[0.0], np.geomspace(3600.0, 210 * 86400.0, 4)])})
 
 
 def test_case_figure(tmp_path: Path, kept_figures) -> None:  # noqa: F811
     case_figure(_case(), tmp_path / "m.png")
     fig = kept_figures[-1]
     labels = check_figure(fig)
-    assert {"time [d]", "pressure [MPa]", "height [cm]"} <= labels
+    assert {"time [d]", "pressure [MPa]", "height above the lower plate [cm]"} <= labels
+    # a 2 x 2 grid titled by the case (the file's stem), not a strip
+    assert fig._suptitle.get_text().startswith("macro case m:")
+    assert len(fig.get_axes()) == 4 and fig.get_size_inches()[0] < 2 * fig.get_size_inches()[1]
+    # the measurement at t = 0 is drawn, at the time axis's left edge
+    permeability = fig.get_axes()[1]
+    (start,) = [line for line in permeability.get_lines() if line.get_label().startswith("t = 0")]
+    assert start.get_xdata()[0] == permeability.get_xlim()[0]
+    assert start.get_ydata()[0] == 1e-19
     texts = [t.get_text() for ax in fig.get_axes() if ax.get_legend()
              for t in ax.get_legend().get_texts()]
     for name in ("SP20", "SP40", "SP80", "upper plate", "lower plate"):

@@ -43,7 +43,7 @@ def test_run_writes_the_contract(tmp_path, table_path, kept_figures):  # noqa: F
     assert ds.attrs["table_lookups"] > 0 and "table_clamped_lookups" in ds.attrs
     assert 0.4 < ds.attrs["packing_fraction"] < 0.6
     assert (tmp_path / "small.png").stat().st_size > 0
-    assert {"time [d]", "pressure [MPa]", "height [cm]"} <= check_figure(kept_figures[-1])
+    assert {"time [d]", "pressure [MPa]", "height above the lower plate [cm]"} <= check_figure(kept_figures[-1])
 
 
 def _mirrored_model(table_path):

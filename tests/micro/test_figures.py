@@ -21,8 +21,9 @@ def test_comparison_figure_defines_its_mean(tmp_path: Path, kept_figures) -> Non
     comparison_figure(cases, tmp_path / "cmp.png")
     fig = kept_figures[-1]
     labels = check_figure(fig)
-    assert {"mean water permeability (m²)", "mean gas permeability (m²)"} <= labels
+    assert {"mean water permeability [m2]", "mean gas permeability [m2]"} <= labels
     assert all("arithmetic mean" in ax.get_title() for ax in fig.get_axes())
+    assert fig._suptitle.get_text() == "micro cases a, b"
     assert len(fig.legends) == 1
 
 
@@ -48,5 +49,24 @@ def test_scale_figure_spells_out_its_labels(tmp_path: Path, kept_figures, rng) -
     members += [(_realization(f"h{k}", 0.01), _case(rng, 27)) for k in range(2)]
     scale_figure(scale_dataset(("ref", _case(rng, 125)), 7e-3, members), tmp_path / "s.png")
     labels = check_figure(kept_figures[-1])
-    assert {"mean water permeability (m²)", "standard deviation of saturation (-)"} <= labels
+    assert {"mean\nwater permeability [m2]", "std. dev. of\nsaturation [-]"} <= labels
     assert not any(label.startswith(("mu ", "sigma ")) for label in labels)
+
+
+def test_case_figure_names_the_case_counts_cracks_on_integers_and_hides_an_empty_panel(
+        tmp_path: Path, kept_figures) -> None:  # noqa: F811
+    ds = _dataset(_records(3), SUCTIONS)
+    case_figure(ds, "het", tmp_path / "het.png")
+    fig = kept_figures[-1]
+    check_figure(fig)  # integer ticks on "number of cracks", one legend entry per line
+    assert fig._suptitle.get_text().startswith("micro case het")
+    texts = [t.get_text() for ax in fig.get_axes() if ax.get_legend() for t in ax.get_legend().get_texts()]
+    assert "number of cracks (right axis)" in texts
+    colorbars = [ax for ax in fig.get_axes() if getattr(ax, "_colorbar", None) is not None]
+    assert [ax.get_ylabel() for ax in colorbars] == ["saturation [-]"]
+    # no crack at any checkpoint: the crack panel says so instead of empty axes
+    case_figure(ds.assign(crack_count=ds["crack_count"] * 0), "hom", tmp_path / "hom.png")
+    fig = kept_figures[-1]
+    check_figure(fig)
+    off = [ax for ax in fig.get_axes() if not ax.axison]
+    assert len(off) == 1 and off[0].texts[0].get_text() == "no crack opened in this case"

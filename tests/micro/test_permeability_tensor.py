@@ -252,11 +252,11 @@ def test_tensor_variables_of_the_micro_dataset() -> None:
     variables = _tensor_variables([{"permeability_tensor": good},
                                    {"permeability_tensor": failed}, {}])
     expected = {
-        "permeability_tensor": (("checkpoint", "phase", "i", "j"), "m2"),
-        "permeability_tensor_symmetric": (("checkpoint", "phase", "i", "j"), "m2"),
-        "permeability_principal": (("checkpoint", "phase", "principal"), "m2"),
-        "permeability_principal_direction": (("checkpoint", "phase", "i", "principal"), "1"),
-        "permeability_asymmetry": (("checkpoint", "phase"), "1"),
+        "permeability_tensor": (("suction", "phase", "i", "j"), "m2"),
+        "permeability_tensor_symmetric": (("suction", "phase", "i", "j"), "m2"),
+        "permeability_principal": (("suction", "phase", "principal"), "m2"),
+        "permeability_principal_direction": (("suction", "phase", "i", "principal"), "1"),
+        "permeability_asymmetry": (("suction", "phase"), "1"),
     }
     assert set(variables) == set(expected)
     for name, (dims, units) in expected.items():

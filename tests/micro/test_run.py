@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from micro.pellet import POROSITY_BINS
-from micro.run import _SCALARS, _dataset
+from micro.run import _COUNTS, _SCALARS, _dataset
 from shared.io import read_dataset, write_dataset
 
 SUCTIONS = np.array([132.0e6, 38.0e6, 4.0e6])
@@ -18,7 +18,8 @@ def _records(n: int) -> list[dict[str, object]]:
     rng = np.random.default_rng(5)
     records = []
     for _ in range(n):
-        record: dict[str, object] = {name: float(rng.uniform()) for name in _SCALARS}
+        record: dict[str, object] = {name: float(rng.integers(1, 50)) if name in _COUNTS else float(rng.uniform())
+                                     for name in _SCALARS}
         record["permeability"] = 10.0 ** rng.uniform(-22, -19, (2, 3))
         record["permeability_tensor"] = np.stack([np.diag(10.0 ** rng.uniform(-22, -19, 3))] * 2)
         for suffix in ("", "_imbibed", "_gas"):
@@ -28,21 +29,25 @@ def _records(n: int) -> list[dict[str, object]]:
     return records
 
 
-def test_suction_is_a_coordinate_of_the_checkpoints(tmp_path: Path) -> None:
-    """Written and read back, ``suction`` is a coordinate along ``checkpoint`` (still the
-    dimension): swapping the dimensions selects a checkpoint by its suction."""
+def test_suction_indexes_the_checkpoints_and_counts_are_integers(tmp_path: Path) -> None:
+    """Written and read back, ``suction`` is the checkpoints' dimension coordinate
+    (``ds.sel(suction=...)`` works as a user types it), the checkpoint's number a coordinate
+    along it, and the counts are integers."""
     path = tmp_path / "c.nc"
     write_dataset(_dataset(_records(3), SUCTIONS), path, stage="micro", title="test")
     ds = read_dataset(path, ["suction", "permeability"])
-    assert ds["suction"].dims == ("checkpoint",)
-    assert "suction" in ds.coords and "suction" not in ds.data_vars
-    assert ds["permeability"].dims == ("checkpoint", "phase", "axis")
-    by_suction = ds.swap_dims(checkpoint="suction")
-    picked = by_suction.sel(suction=40.0e6, method="nearest")
+    assert ds["suction"].dims == ("suction",) and "suction" in ds.indexes
+    assert ds["permeability"].dims == ("suction", "phase", "axis")
+    picked = ds.sel(suction=SUCTIONS[1])
     assert int(picked["checkpoint"]) == 1
     np.testing.assert_array_equal(picked["permeability"].values,
-                                  ds["permeability"].isel(checkpoint=1).values)
+                                  ds["permeability"].isel(suction=1).values)
     assert ds["suction"].attrs["units"] == "Pa"
+    assert ds["checkpoint"].dims == ("suction",)
+    for name in ("crack_count", "crack_count_imbibed", "crack_count_gas", "n_remesh",
+                 "flow_steps", "dem_steps", "balanced"):
+        assert ds[name].dtype.kind == "i", name
+    assert ds["crack_area"].dtype.kind == "f"
 
 
 @pytest.mark.parametrize("n", [2])

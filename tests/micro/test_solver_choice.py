@@ -73,7 +73,7 @@ def runs(tmp_path_factory):
 def test_the_checkpoints_do_not_depend_on_the_preconditioner(runs) -> None:
     direct, amg = runs["direct"], runs["amg"]
     for ds in runs.values():
-        assert ds.sizes["checkpoint"] == len(CHECKPOINTS) and np.all(ds["balanced"] == 1)
+        assert ds.sizes["suction"] == len(CHECKPOINTS) and np.all(ds["balanced"] == 1)
     envelope = {name: max(float(np.abs(runs[p][name] - direct[name]).max())
                           for p in ("perturbed 1", "perturbed 2")) for name in NAMES}
     # the envelope is real (the coupled loop does feel solve errors of 1e-8) and small

@@ -28,20 +28,20 @@ def _case(rng: np.random.Generator, n_points: int, suctions: np.ndarray = SUCTIO
     n = suctions.size
     scalar = {"units": "1", "long_name": "a per-checkpoint scalar"}
     data = {
-        "saturation": ("checkpoint", rng.uniform(0.3, 1.0, n), scalar),
-        "eps_v": ("checkpoint", rng.normal(0.0, 0.1, n), scalar),
-        "crack_count": ("checkpoint", rng.integers(0, 50, n).astype(float), scalar),
-        "crack_volume": ("checkpoint", rng.uniform(0, 1e-12, n), {"units": "m3", "long_name": "V_c"}),
-        "permeability": (("checkpoint", "phase", "axis"), 10.0 ** rng.uniform(-24, -19, (n, 2, 3)),
+        "saturation": ("suction", rng.uniform(0.3, 1.0, n), scalar),
+        "eps_v": ("suction", rng.normal(0.0, 0.1, n), scalar),
+        "crack_count": ("suction", rng.integers(0, 50, n), scalar),
+        "crack_volume": ("suction", rng.uniform(0, 1e-12, n), {"units": "m3", "long_name": "V_c"}),
+        "permeability": (("suction", "phase", "axis"), 10.0 ** rng.uniform(-24, -19, (n, 2, 3)),
                          {"units": "m2", "long_name": "permeability"}),
-        "crack_fabric": (("checkpoint", "i", "j"), rng.uniform(0, 1e-8, (n, 3, 3)),
+        "crack_fabric": (("suction", "i", "j"), rng.uniform(0, 1e-8, (n, 3, 3)),
                          {"units": "m2", "long_name": "crack fabric"}),
-        "porosity_hist": (("checkpoint", "bin"), rng.dirichlet(np.ones(4), n),
+        "porosity_hist": (("suction", "bin"), rng.dirichlet(np.ones(4), n),
                           {"units": "1", "long_name": "porosity histogram"}),
     }
     coords = {
-        "checkpoint": ("checkpoint", np.arange(n), {"units": "1", "long_name": "checkpoint index"}),
-        "suction": ("checkpoint", suctions.copy(), {"units": "Pa", "long_name": "boundary suction"}),
+        "checkpoint": ("suction", np.arange(n), {"units": "1", "long_name": "checkpoint index"}),
+        "suction": ("suction", suctions.copy(), {"units": "Pa", "long_name": "boundary suction"}),
         "phase": ("phase", np.array(["water", "gas"]), {"long_name": "fluid phase"}),
         "axis": ("axis", np.array(["x", "y", "z"]), {"long_name": "direction"}),
         "i": ("i", np.arange(3), {"units": "1", "long_name": "tensor row"}),
@@ -81,7 +81,7 @@ def test_convergence_stacks_the_phase_times_that_cases_record(rng):
     assert list(ds["run_phase"].values) == ["flow", "relaxation", "remesh"]
     np.testing.assert_array_equal(ds["wall_time_phase"].values,
                                   [[np.nan] * 3, [2.0, 3.0, np.nan], [5.0, np.nan, 1.0]])
-    assert ds["suction"].dims == ("checkpoint",) and "suction" in ds.coords
+    assert ds["suction"].dims == ("suction",) and "suction" in ds.indexes
 
 
 def test_convergence_refuses_equal_point_counts_and_other_checkpoints(rng):

@@ -75,3 +75,15 @@ def test_the_module_runs_as_a_command(tmp_path):
                             capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert result.returncode == 2
     assert "unknown config key 'micro.nn'" in result.stderr
+
+
+def test_main_names_each_changed_key_with_its_value_before_and_after(tmp_path, capsys):
+    from shared.config import default_config
+
+    before = default_config()["materials"]["pellet"]["swelling_beta_per_pa"]
+    n_points = default_config()["micro"]["n_points"]
+    assert main(["--output", str(tmp_path / "o.yaml"), "--set", "materials.pellet.swelling_beta_per_pa=2e-8",
+                 "--set", f"micro.n_points={n_points}"]) == 0
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == [f"claychain: --set materials.pellet.swelling_beta_per_pa: {before!r} -> 2e-08",
+                     f"claychain: --set micro.n_points: {n_points!r} (unchanged)"]

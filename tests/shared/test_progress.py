@@ -24,14 +24,36 @@ def clock(monkeypatch):
 
 
 def test_eta_of_a_resumed_loop_uses_the_rate_since_the_restart(clock):
-    """9 of 14 units were done before the restart, 1 more in 100 s: 4 left take 400 s."""
-    bar = Progress(14, "run", LOG, done_before=9)
+    """9 of 14 units were done before the restart; 1 more in 100 s, then 1 in 100 s:
+    the rate 0.01 units/s is known from the second report on, and 3 left take 300 s."""
+    bar = Progress(14, "run", LOG, done_before=9, interval=0.0)
     clock["t"] += 100.0
-    assert bar.eta(10) == pytest.approx(400.0)
+    bar.update(10)
+    assert math.isnan(bar.eta(10))  # one rate: not yet known
+    clock["t"] += 100.0
+    bar.update(11)
+    assert bar.eta(11) == pytest.approx(300.0)
     assert bar.eta(14) == 0.0
-    fresh = Progress(14, "run", LOG)
-    clock["t"] += 100.0
-    assert fresh.eta(7) == pytest.approx(100.0 * 7 / 7)
+
+
+def test_eta_waits_for_the_rate_and_smooths_it(clock, caplog):
+    """A first unit of 1000 s (the set-up), then units of 10 s: no ETA after the first
+    report, then the exponential average 0.3 r_new + 0.7 r_old, not the mean rate."""
+    bar = Progress(100, "loop", LOG, interval=0.0)
+    with caplog.at_level(logging.INFO, logger=LOG.name):
+        clock["t"] += 1000.0
+        bar.update(1)
+        assert "ETA not yet known" in caplog.records[-1].message
+        clock["t"] += 10.0
+        bar.update(2)
+    smoothed = 0.3 * 0.1 + 0.7 * 0.001
+    assert bar.eta(2) == pytest.approx(98 / smoothed)
+    assert f"ETA {98 / smoothed:.1f} s" in caplog.records[-1].message
+    clock["t"] += 10.0
+    bar.update(3)
+    assert bar.eta(3) == pytest.approx(97 / (0.3 * 0.1 + 0.7 * smoothed))
+    # the mean rate (3 units in 1020 s) would have said 32 300 s
+    assert bar.eta(3) < 0.1 * 97 * 1020 / 3
 
 
 def test_trend_eta_extrapolates_growing_durations(clock):

@@ -28,10 +28,15 @@ def test_the_launcher_help_lists_commands_presets_and_examples(flag):
     assert result.returncode == 0, result.stderr
     for word in ("run", "test", "setup", "--set", "Examples:"):
         assert word in result.stdout
+    blocks = result.stdout.split("Presets")[1].split("Examples:")[0].split("\n  config/paper/")
+    described = {block.split("\n", 1)[0].strip(): " ".join(block.split("\n", 1)[1].split())
+                 for block in blocks[1:]}
     for preset in sorted((ROOT / "config/paper").glob("*.yaml")):
         first = next(line for line in preset.read_text().splitlines() if line.startswith("#"))
-        assert f"config/paper/{preset.name}" in result.stdout
-        assert first.lstrip("# ").strip() in result.stdout
+        text = described[preset.name]
+        # the description starts as the file's comment does and ends with its sentence
+        assert text.startswith(" ".join(first.lstrip("# ").split()[:6])), (preset.name, text)
+        assert text.endswith((".", ")")) and "Use:" not in text, (preset.name, text)
 
 
 def test_an_unknown_command_prints_the_usage_on_stderr_and_exits_2():

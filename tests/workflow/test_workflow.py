@@ -218,13 +218,13 @@ def test_micro_products(finished):
                        ["suction", "saturation", "eps_v", "porosity_mean", "permeability",
                         "crack_area", "crack_volume", "crack_count", "crack_fabric",
                         "porosity_hist"])
-    assert het["permeability"].dims == ("checkpoint", "phase", "axis")
+    assert het["permeability"].dims == ("suction", "phase", "axis")
     np.testing.assert_array_equal(het["suction"].values, [132.0e6, 60.0e6])
     assert het.attrs["porosity_source"] == "ct"
     hom = read_dataset(finished / "results/micro/hom.nc", ["permeability"])
     assert hom.attrs["porosity_source"] == "homogeneous"
     # k0 = 1e-20 m2 times k_r = Se^2 with Se about 0.5 and exp(2 (phi - 0.25)) near 1
-    assert 1e-22 < float(het["permeability"].sel(phase="water").isel(checkpoint=0).mean()) < 1e-20
+    assert 1e-22 < float(het["permeability"].sel(phase="water").isel(suction=0).mean()) < 1e-20
     assert (finished / "results/micro/comparison.png").stat().st_size > 10_000
 
 
@@ -310,7 +310,7 @@ def _caption_phrases(caption: Path) -> list[str]:
 
 def test_every_figure_is_a_report_item_with_a_caption():
     rules = "".join(p.read_text() for p in (ROOT / "workflow/rules").glob("*.smk"))
-    figures = re.findall(r"figure=(\S*)\s*\n\s*(\"[^\"]+\.png\")", rules)
+    figures = re.findall(r"figure=(\S*)\s*\n\s*run_path\((\"[^\"]+\.png\")\)", rules)
     assert len(figures) == 12
     assert all(call == "report(" for call, _ in figures), figures
     for caption in re.findall(r'caption="\.\./report/(\w+\.rst)"', rules):

@@ -16,6 +16,8 @@ from micro.config import (
 from shared.config import ConfigError, load_schema, sample_imaging, validate_config
 from shared.errors import InputError
 from shared.provenance import script_sha256
+from shared.runs import run_folder
+from shared.scan_sizes import check_scan_sizes, sample_point_spacing
 from shared.table_export import check_csv_export
 
 SCHEMA = load_schema(workflow.source_path("../schemas/config.schema.yaml"))
@@ -26,7 +28,49 @@ try:
 except ConfigError as err:
     sys.exit(f"claychain: invalid configuration: {err}")
 
-UPSCALING_TABLE = "results/upscaling/pellet_permeability.nc"
+
+def scan_shape(name):
+    """Voxel counts (z, y, x) of a sample's scan from the config or the file's headers;
+    None when the file cannot be opened (its imaging job names the problem)."""
+    entry = config["samples"][name]
+    if entry["source"] == "phantom":
+        return config["phantom"]["shape"]
+    if entry["source"] == "raw" and "shape" in entry["raw"]:
+        return entry["raw"]["shape"]
+    # imported here: the readers' libraries (OpenCV, dask) only for a scan of a file
+    from imaging.ct.io import ImageError, open_volume
+
+    try:
+        return open_volume(entry["source"], entry["path"]).shape
+    except ImageError:
+        return None
+
+
+# the scan's extent against every micro case on it, before any job runs
+try:
+    check_scan_sizes(
+        config,
+        {
+            name: shape
+            for name in config["samples"]
+            if (shape := scan_shape(name)) is not None
+        },
+        SCHEMA,
+    )
+except ConfigError as err:
+    sys.exit(f"claychain: invalid configuration: {err}")
+
+# every output, log and benchmark of the run under its folder (run_name, shared.runs)
+RUN = run_folder(config)
+
+
+def run_path(path):
+    """``path`` inside the run's folder: ``results/<path>``, or
+    ``results/<run_name>/<path>`` for a named run."""
+    return f"{RUN}/{path}"
+
+
+UPSCALING_TABLE = run_path("upscaling/pellet_permeability.nc")
 # a hand edit of the table's CSV export would be ignored without a word; checked by the
 # main process only (a job's own parse could fall between the table's and the export's
 # writes of a running upscaling_table job)
@@ -68,6 +112,12 @@ def script_code(script):
     )
 
 
+def get_point_spacing(wildcards):
+    """``[edge, n_points]`` whose mean point spacing is the sample's default grid spacing:
+    the smallest cube of the cases on the sample (shared.scan_sizes)."""
+    return sample_point_spacing(config, wildcards.sample)
+
+
 def get_sample_config(wildcards):
     """The configuration entry of a sample without its imaging settings (a param, so that
     its edits rerun the rule)."""
@@ -93,7 +143,7 @@ def get_scan(wildcards):
     """The greyscale scan of a sample: its configured path, or the phantom's TIFF."""
     entry = config["samples"][wildcards.sample]
     if entry["source"] == "phantom":
-        return f"results/phantom/{wildcards.sample}.tif"
+        return run_path(f"phantom/{wildcards.sample}.tif")
     return entry["path"]
 
 
@@ -126,7 +176,7 @@ def get_micro_porosity(wildcards):
         entry = micro["cases"][micro["studies"]["scale"]["reference"]]
     else:
         entry = micro["cases"][wildcards.case]
-    return f"results/porosity/{entry.get('sample', micro['sample'])}.nc"
+    return run_path(f"porosity/{entry.get('sample', micro['sample'])}.nc")
 
 
 def _micro_with_case(name, entry):
@@ -168,7 +218,7 @@ def get_micro_materials(wildcards):
 
 def get_upscaling_sources(wildcards):
     """Per condition, the micro results the pellet permeability table comes from."""
-    folders = {"case": "results/micro", "realization": "results/studies/scale"}
+    folders = {"case": run_path("micro"), "realization": run_path("studies/scale")}
     return {
         condition: [f"{folders[kind]}/{name}.nc" for kind, name in sources]
         for condition, sources in source_names(config).items()
@@ -182,7 +232,7 @@ def get_convergence_cases(wildcards):
         raise ValueError(
             "claychain: no convergence study: micro.studies.convergence is empty"
         )
-    return expand("results/micro/{case}.nc", case=cases)
+    return expand(run_path("micro/{case}.nc"), case=cases)
 
 
 def get_scale_inputs(wildcards):
@@ -191,9 +241,9 @@ def get_scale_inputs(wildcards):
         raise ValueError("claychain: no scale study: micro.studies.scale is empty")
     reference = config["micro"]["studies"]["scale"]["reference"]
     return {
-        "reference": f"results/micro/{reference}.nc",
+        "reference": run_path(f"micro/{reference}.nc"),
         "realizations": expand(
-            "results/studies/scale/{realization}.nc", realization=REALIZATIONS
+            run_path("studies/scale/{realization}.nc"), realization=REALIZATIONS
         ),
     }
 
@@ -236,7 +286,7 @@ def get_macro_materials(wildcards):
 def get_ensemble_members(wildcards):
     """The results of a seed ensemble's members (macro.ensembles.<ensemble>)."""
     return expand(
-        "results/macro/{member}.nc",
+        run_path("macro/{member}.nc"),
         member=ensemble_members(config["macro"], wildcards.ensemble),
     )
 
@@ -250,17 +300,17 @@ def get_macro_outputs():
     """One result and figure per macro case; the cases on one figure when there are several;
     the statistics of each seed ensemble (none by default)."""
     outputs = expand(
-        ["results/macro/{macro_case}.nc", "results/macro/{macro_case}.png"],
+        [run_path("macro/{macro_case}.nc"), run_path("macro/{macro_case}.png")],
         macro_case=MACRO_CASES,
     )
     ensembles = expand(
         [
-            "results/macro/ensemble_{ensemble}.nc",
-            "results/macro/ensemble_{ensemble}.png",
+            run_path("macro/ensemble_{ensemble}.nc"),
+            run_path("macro/ensemble_{ensemble}.png"),
         ],
         ensemble=ENSEMBLES,
     )
-    comparison = ["results/macro/comparison.png"] if len(MACRO_CASES) > 1 else []
+    comparison = [run_path("macro/comparison.png")] if len(MACRO_CASES) > 1 else []
     return outputs + comparison + ensembles
 
 
@@ -269,11 +319,11 @@ def get_study_outputs():
     outputs = []
     if convergence_cases(config):
         outputs += [
-            "results/studies/convergence.nc",
-            "results/studies/convergence.png",
+            run_path("studies/convergence.nc"),
+            run_path("studies/convergence.png"),
         ]
     if REALIZATIONS:
-        outputs += ["results/studies/scale.nc", "results/studies/scale.png"]
+        outputs += [run_path("studies/scale.nc"), run_path("studies/scale.png")]
     return outputs
 
 
@@ -281,28 +331,30 @@ def get_final_outputs():
     """Every product of the default run."""
     imaging = expand(
         [
-            "results/porosity/{sample}.nc",
-            "results/porosity/{sample}.png",
-            "results/rev/{sample}.nc",
-            "results/rev/{sample}.png",
+            run_path("porosity/{sample}.nc"),
+            run_path("porosity/{sample}.png"),
+            run_path("rev/{sample}.nc"),
+            run_path("rev/{sample}.png"),
         ],
         sample=SAMPLES,
     )
-    micro = expand(["results/micro/{case}.nc", "results/micro/{case}.png"], case=CASES)
+    micro = expand(
+        [run_path("micro/{case}.nc"), run_path("micro/{case}.png")], case=CASES
+    )
     packing = expand(
-        ["results/packing/{packing}.nc", "results/packing/{packing}.png"],
+        [run_path("packing/{packing}.nc"), run_path("packing/{packing}.png")],
         packing=PACKINGS,
     )
     studies = get_study_outputs()
     upscaling = [
-        "results/upscaling/pellet_permeability.nc",
-        "results/upscaling/pellet_permeability.csv",
-        "results/upscaling/pellet_permeability.png",
+        run_path("upscaling/pellet_permeability.nc"),
+        run_path("upscaling/pellet_permeability.csv"),
+        run_path("upscaling/pellet_permeability.png"),
     ]
     return (
         imaging
         + micro
-        + ["results/micro/comparison.png"]
+        + [run_path("micro/comparison.png")]
         + studies
         + upscaling
         + packing

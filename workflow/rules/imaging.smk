@@ -5,7 +5,7 @@
 rule imaging_phantom:
     """Synthetic pellet scan (greyscale TIFF) for a sample of source phantom."""
     output:
-        "results/phantom/{sample}.tif",
+        run_path("phantom/{sample}.tif"),
     params:
         code=script_code("imaging_phantom.py"),
         phantom=config["phantom"],
@@ -18,9 +18,9 @@ rule imaging_phantom:
     conda:
         "../envs/claychain.yaml"
     log:
-        "results/logs/imaging_phantom/{sample}.log",
+        run_path("logs/imaging_phantom/{sample}.log"),
     benchmark:
-        "results/benchmarks/imaging_phantom/{sample}.tsv"
+        run_path("benchmarks/imaging_phantom/{sample}.tsv")
     script:
         "../scripts/imaging_phantom.py"
 
@@ -31,10 +31,10 @@ rule imaging_porosity:
         scan=get_scan,
         slices=get_slice_files,
     output:
-        image="results/images/{sample}.nc",
-        porosity="results/porosity/{sample}.nc",
+        image=run_path("images/{sample}.nc"),
+        porosity=run_path("porosity/{sample}.nc"),
         figure=report(
-            "results/porosity/{sample}.png",
+            run_path("porosity/{sample}.png"),
             caption="../report/porosity.rst",
             category="1. CT imaging",
             subcategory="{sample}",
@@ -59,14 +59,14 @@ rule imaging_porosity:
             key: config["materials"]["pellet"][key]
             for key in ("dry_density_kg_m3", "reference_porosity")
         },
-        micro_spacing=[config["micro"]["specimen_size_m"], config["micro"]["n_points"]],
+        micro_spacing=get_point_spacing,
     threads: lambda wildcards: sample_settings("workers")(wildcards)["workers"]
     conda:
         "../envs/claychain.yaml"
     log:
-        "results/logs/imaging_porosity/{sample}.log",
+        run_path("logs/imaging_porosity/{sample}.log"),
     benchmark:
-        "results/benchmarks/imaging_porosity/{sample}.tsv"
+        run_path("benchmarks/imaging_porosity/{sample}.tsv")
     script:
         "../scripts/imaging_porosity.py"
 
@@ -76,12 +76,12 @@ rule imaging_rev:
     input:
         scan=get_scan,
         slices=get_slice_files,
-        image="results/images/{sample}.nc",
-        porosity="results/porosity/{sample}.nc",
+        image=run_path("images/{sample}.nc"),
+        porosity=run_path("porosity/{sample}.nc"),
     output:
-        rev="results/rev/{sample}.nc",
+        rev=run_path("rev/{sample}.nc"),
         figure=report(
-            "results/rev/{sample}.png",
+            run_path("rev/{sample}.png"),
             caption="../report/rev.rst",
             category="1. CT imaging",
             subcategory="{sample}",
@@ -96,8 +96,8 @@ rule imaging_rev:
     conda:
         "../envs/claychain.yaml"
     log:
-        "results/logs/imaging_rev/{sample}.log",
+        run_path("logs/imaging_rev/{sample}.log"),
     benchmark:
-        "results/benchmarks/imaging_rev/{sample}.tsv"
+        run_path("benchmarks/imaging_rev/{sample}.tsv")
     script:
         "../scripts/imaging_rev.py"

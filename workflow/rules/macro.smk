@@ -6,9 +6,9 @@ rule macro_case:
     input:
         table=config["macro"]["table_path"] or UPSCALING_TABLE,
     output:
-        result="results/macro/{macro_case}.nc",
+        result=run_path("macro/{macro_case}.nc"),
         figure=report(
-            "results/macro/{macro_case}.png",
+            run_path("macro/{macro_case}.png"),
             caption="../report/macro_case.rst",
             category="4. Macro",
             subcategory="cases",
@@ -20,9 +20,9 @@ rule macro_case:
     conda:
         "../envs/claychain.yaml"
     log:
-        "results/logs/macro_case/{macro_case}.log",
+        run_path("logs/macro_case/{macro_case}.log"),
     benchmark:
-        "results/benchmarks/macro_case/{macro_case}.tsv"
+        run_path("benchmarks/macro_case/{macro_case}.tsv")
     script:
         "../scripts/macro_case.py"
 
@@ -30,10 +30,10 @@ rule macro_case:
 rule macro_comparison:
     """The macro cases' pressures and suction on one figure."""
     input:
-        cases=expand("results/macro/{macro_case}.nc", macro_case=MACRO_CASES),
+        cases=expand(run_path("macro/{macro_case}.nc"), macro_case=MACRO_CASES),
     output:
         figure=report(
-            "results/macro/comparison.png",
+            run_path("macro/comparison.png"),
             caption="../report/macro_comparison.rst",
             category="4. Macro",
             subcategory="cases",
@@ -43,9 +43,9 @@ rule macro_comparison:
     conda:
         "../envs/claychain.yaml"
     log:
-        "results/logs/macro_comparison.log",
+        run_path("logs/macro_comparison.log"),
     benchmark:
-        "results/benchmarks/macro_comparison.tsv"
+        run_path("benchmarks/macro_comparison.tsv")
     script:
         "../scripts/macro_comparison.py"
 
@@ -55,9 +55,9 @@ rule macro_ensemble:
     input:
         members=get_ensemble_members,
     output:
-        result="results/macro/ensemble_{ensemble}.nc",
+        result=run_path("macro/ensemble_{ensemble}.nc"),
         figure=report(
-            "results/macro/ensemble_{ensemble}.png",
+            run_path("macro/ensemble_{ensemble}.png"),
             caption="../report/macro_ensemble.rst",
             category="4. Macro",
             subcategory="ensembles",
@@ -68,8 +68,8 @@ rule macro_ensemble:
     conda:
         "../envs/claychain.yaml"
     log:
-        "results/logs/macro_ensemble/{ensemble}.log",
+        run_path("logs/macro_ensemble/{ensemble}.log"),
     benchmark:
-        "results/benchmarks/macro_ensemble/{ensemble}.tsv"
+        run_path("benchmarks/macro_ensemble/{ensemble}.tsv")
     script:
         "../scripts/macro_ensemble.py"

@@ -6,9 +6,9 @@ rule micro_case:
     input:
         porosity=get_micro_porosity,
     output:
-        result="results/micro/{case}.nc",
+        result=run_path("micro/{case}.nc"),
         figure=report(
-            "results/micro/{case}.png",
+            run_path("micro/{case}.png"),
             caption="../report/micro_case.rst",
             category="2. Micro",
             subcategory="cases",
@@ -21,9 +21,9 @@ rule micro_case:
     conda:
         "../envs/claychain.yaml"
     log:
-        "results/logs/micro_case/{case}.log",
+        run_path("logs/micro_case/{case}.log"),
     benchmark:
-        "results/benchmarks/micro_case/{case}.tsv"
+        run_path("benchmarks/micro_case/{case}.tsv")
     script:
         "../scripts/micro_case.py"
 
@@ -31,10 +31,10 @@ rule micro_case:
 rule micro_compare:
     """Permeability against saturation of all micro cases on one figure."""
     input:
-        expand("results/micro/{case}.nc", case=CASES),
+        expand(run_path("micro/{case}.nc"), case=CASES),
     output:
         figure=report(
-            "results/micro/comparison.png",
+            run_path("micro/comparison.png"),
             caption="../report/micro_comparison.rst",
             category="2. Micro",
             subcategory="cases",
@@ -44,9 +44,9 @@ rule micro_compare:
     conda:
         "../envs/claychain.yaml"
     log:
-        "results/logs/micro_compare/all.log",
+        run_path("logs/micro_compare/all.log"),
     benchmark:
-        "results/benchmarks/micro_compare/all.tsv"
+        run_path("benchmarks/micro_compare/all.tsv")
     script:
         "../scripts/micro_compare.py"
 
@@ -56,9 +56,9 @@ rule micro_convergence:
     input:
         get_convergence_cases,
     output:
-        result="results/studies/convergence.nc",
+        result=run_path("studies/convergence.nc"),
         figure=report(
-            "results/studies/convergence.png",
+            run_path("studies/convergence.png"),
             caption="../report/micro_convergence.rst",
             category="2. Micro",
             subcategory="convergence study",
@@ -69,9 +69,9 @@ rule micro_convergence:
     conda:
         "../envs/claychain.yaml"
     log:
-        "results/logs/micro_convergence/all.log",
+        run_path("logs/micro_convergence/all.log"),
     benchmark:
-        "results/benchmarks/micro_convergence/all.tsv"
+        run_path("benchmarks/micro_convergence/all.tsv")
     script:
         "../scripts/micro_convergence.py"
 
@@ -81,9 +81,9 @@ rule micro_scale_realization:
     input:
         porosity=get_micro_porosity,
     output:
-        result="results/studies/scale/{realization}.nc",
+        result=run_path("studies/scale/{realization}.nc"),
         figure=report(
-            "results/studies/scale/{realization}.png",
+            run_path("studies/scale/{realization}.png"),
             caption="../report/micro_scale_realization.rst",
             category="2. Micro",
             subcategory="scale study",
@@ -97,9 +97,9 @@ rule micro_scale_realization:
     conda:
         "../envs/claychain.yaml"
     log:
-        "results/logs/micro_scale_realization/{realization}.log",
+        run_path("logs/micro_scale_realization/{realization}.log"),
     benchmark:
-        "results/benchmarks/micro_scale_realization/{realization}.tsv"
+        run_path("benchmarks/micro_scale_realization/{realization}.tsv")
     script:
         "../scripts/micro_case.py"
 
@@ -109,9 +109,9 @@ rule micro_scale:
     input:
         unpack(get_scale_inputs),
     output:
-        result="results/studies/scale.nc",
+        result=run_path("studies/scale.nc"),
         figure=report(
-            "results/studies/scale.png",
+            run_path("studies/scale.png"),
             caption="../report/micro_scale.rst",
             category="2. Micro",
             subcategory="scale study",
@@ -123,8 +123,8 @@ rule micro_scale:
     conda:
         "../envs/claychain.yaml"
     log:
-        "results/logs/micro_scale/all.log",
+        run_path("logs/micro_scale/all.log"),
     benchmark:
-        "results/benchmarks/micro_scale/all.tsv"
+        run_path("benchmarks/micro_scale/all.tsv")
     script:
         "../scripts/micro_scale.py"

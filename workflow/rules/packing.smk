@@ -5,9 +5,9 @@
 rule packing_deposit:
     """Build, analyse and write one virtual clay packing (sequential deposition)."""
     output:
-        result="results/packing/{packing}.nc",
+        result=run_path("packing/{packing}.nc"),
         figure=report(
-            "results/packing/{packing}.png",
+            run_path("packing/{packing}.png"),
             caption="../report/packing.rst",
             category="5. Packing",
         ),
@@ -17,8 +17,8 @@ rule packing_deposit:
     conda:
         "../envs/claychain.yaml"
     log:
-        "results/logs/packing_deposit/{packing}.log",
+        run_path("logs/packing_deposit/{packing}.log"),
     benchmark:
-        "results/benchmarks/packing_deposit/{packing}.tsv"
+        run_path("benchmarks/packing_deposit/{packing}.tsv")
     script:
         "../scripts/packing_deposit.py"

@@ -7,10 +7,10 @@ rule upscaling_table:
     input:
         unpack(get_upscaling_sources),
     output:
-        table="results/upscaling/pellet_permeability.nc",
-        csv="results/upscaling/pellet_permeability.csv",
+        table=run_path("upscaling/pellet_permeability.nc"),
+        csv=run_path("upscaling/pellet_permeability.csv"),
         figure=report(
-            "results/upscaling/pellet_permeability.png",
+            run_path("upscaling/pellet_permeability.png"),
             caption="../report/upscaling.rst",
             category="3. Upscaling",
         ),
@@ -20,8 +20,8 @@ rule upscaling_table:
     conda:
         "../envs/claychain.yaml"
     log:
-        "results/logs/upscaling_table/all.log",
+        run_path("logs/upscaling_table/all.log"),
     benchmark:
-        "results/benchmarks/upscaling_table/all.tsv"
+        run_path("benchmarks/upscaling_table/all.tsv")
     script:
         "../scripts/upscaling_table.py"

@@ -21,7 +21,7 @@ def test_packing_figure(tmp_path: Path, kept_figures) -> None:  # noqa: F811
                           tmp_path / "packing.png")
     assert path.stat().st_size > 0
     fig = kept_figures[-1]
-    assert {"z (um)", "I_c (sr-1)", "x (um)", "y (um)"} <= check_figure(fig)
+    assert {"z [um]", "I_c, orientation density [1/sr]", "x [um]", "y [um]"} <= check_figure(fig)
     profiles, _, vertical, horizontal = fig.get_axes()[:4]
     marked = sorted(float(line.get_ydata()[0]) for line in profiles.get_lines()
                     if len(line.get_ydata()) == 2 and line.get_ydata()[0] == line.get_ydata()[1])

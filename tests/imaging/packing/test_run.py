@@ -34,7 +34,7 @@ def test_run_writes_the_contract(tmp_path: Path, caplog: pytest.LogCaptureFixtur
     assert any("ETA" in record.message for record in caplog.records)
     back = read_dataset(tmp_path / "tiny.nc", required=CONTRACT)
     assert (tmp_path / "tiny.png").stat().st_size > 10_000
-    assert {"z (um)", "I_c (sr-1)"} <= check_figure(kept_figures[-1])
+    assert {"z [um]", "I_c, orientation density [1/sr]"} <= check_figure(kept_figures[-1])
     for name, var in back.variables.items():
         if var.dtype.kind in "iuf":
             assert {"units", "long_name"} <= set(var.attrs), name
