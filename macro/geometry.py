@@ -93,11 +93,16 @@ class Geometry:
         after keeps its whole state (powder, water, volume, V_0, suction, stress and role).
         Only the cells that changed exchange powder, conservatively: 20 points
         (``_REMESH_WEIGHTS``) spread over each old cell that went (at the pellets' current
-        positions) carry equal shares of its solid, water, volume, V_0 and initial void
-        into the new cells that contain them (Qhull point location); shares that land
-        elsewhere than in a new active cell go to the nearest one. The totals are
-        conserved to round-off; what crosses between held and free cells is booked as
-        boundary inflow. A new cell's suction is the water-weighted mean of its donors'
+        positions), each standing for its share of the cell's void, find the new cells
+        that contain them (Qhull point location; a point landing elsewhere than in a new
+        active cell goes to the nearest one). Each new cell takes, per unit of its void,
+        the mean solid, water, volume and V_0 per unit void of the old cells it covers,
+        weighted by the points, all scaled so that the cells that went give exactly what
+        they held: the new cells' dry densities are means of the old ones' (counting
+        20 points into each new cell made them as noisy as the points, and the push,
+        exponential in dry density, jolted the pellets). The initial void is carried by
+        the points alone. The totals are conserved to round-off; what crosses between
+        held and free cells is booked as boundary inflow. A new cell's suction is the water-weighted mean of its donors'
         (the next local solve corrects it); held cells are re-selected among new cells.
         """
         from scipy.spatial import cKDTree
@@ -145,9 +150,21 @@ class Geometry:
             active = np.flatnonzero(receiving)
             dest[stray] = active[cKDTree(mesh.centroids[active]).query(samples[carries][stray])[1]]
         donor = owner[carries]
+        # each sample stands for its share of its old cell's void at the current positions
+        old_mesh = moved_mesh(self.mesh, vertices)[0]
+        old_void = cell_voids(old_mesh, self.clay_radii(), solid_angles(vertices, old_mesh.tetrahedra), VOID_FLOOR)
+        weight = old_void[donor] * share
+        covered = np.bincount(dest, weight, minlength=n_new)
+        giving = gone & ~self.inert[old]
+        taking = receiving & (covered > 0.0)
 
         def moved(values: FloatArray) -> FloatArray:
-            out = np.bincount(dest, values[old][donor] * share, minlength=n_new)
+            # per unit void, the overlap-weighted mean of the old cells a new cell covers,
+            # times its void; scaled so that the cells that went give exactly their total
+            density = np.bincount(dest, weight * values[old][donor] / old_void[donor], minlength=n_new)
+            out = np.where(taking, density / np.where(taking, covered, 1.0) * voids, 0.0)
+            total = out.sum()
+            out *= values[old][giving].sum() / total if total > 0.0 else 0.0
             out[kept] = values[old][source[kept]]
             return out
 
