@@ -83,26 +83,27 @@ def overlap_energy(positions, radii, pairs, cylinder_radius, z_low, z_high, grad
 
 
 @njit(cache=True)
-def _solid_angle(apex, a, b, c):  # type: ignore[no-untyped-def]
-    """Solid angle at ``apex`` of the triangle (a, b, c) [sr] (Van Oosterom-Strackee)."""
-    ax, ay, az = a[0] - apex[0], a[1] - apex[1], a[2] - apex[2]
-    bx, by, bz = b[0] - apex[0], b[1] - apex[1], b[2] - apex[2]
-    cx, cy, cz = c[0] - apex[0], c[1] - apex[1], c[2] - apex[2]
-    la = np.sqrt(ax * ax + ay * ay + az * az)
-    lb = np.sqrt(bx * bx + by * by + bz * bz)
-    lc = np.sqrt(cx * cx + cy * cy + cz * cz)
-    triple = abs(ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx))
-    denom = la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (ax * cx + ay * cy + az * cz) * lb \
-        + (bx * cx + by * cy + bz * cz) * la
-    return 2.0 * np.arctan2(triple, denom)
+def _squared(p, q):  # type: ignore[no-untyped-def]
+    """|q - p|^2."""
+    return (q[0] - p[0]) ** 2 + (q[1] - p[1]) ** 2 + (q[2] - p[2]) ** 2
 
 
 @njit(cache=True)
-def _corner_angle(apex, a, b):  # type: ignore[no-untyped-def]
-    """Interior angle at ``apex`` of the triangle (apex, a, b) [rad]."""
-    ux, uy, uz = a[0] - apex[0], a[1] - apex[1], a[2] - apex[2]
-    vx, vy, vz = b[0] - apex[0], b[1] - apex[1], b[2] - apex[2]
-    cos = (ux * vx + uy * vy + uz * vz) / np.sqrt((ux * ux + uy * uy + uz * uz) * (vx * vx + vy * vy + vz * vz))
+def _solid_angle(triple, la, lb, lc, ab, ac, bc):  # type: ignore[no-untyped-def]
+    """Solid angle at a tetrahedron's vertex [sr] (Van Oosterom-Strackee) from six times
+    its volume, the lengths of its edges to the other three vertices a, b, c and the
+    squared lengths of the edges between those."""
+    dab = 0.5 * (la * la + lb * lb - ab)
+    dac = 0.5 * (la * la + lc * lc - ac)
+    dbc = 0.5 * (lb * lb + lc * lc - bc)
+    return 2.0 * np.arctan2(triple, la * lb * lc + dab * lc + dac * lb + dbc * la)
+
+
+@njit(cache=True)
+def _corner_angle(opposite, left, right):  # type: ignore[no-untyped-def]
+    """Interior angle of a triangle [rad] from the squared lengths of its sides: the one
+    opposite the corner and the two that meet there."""
+    cos = (left + right - opposite) / (2.0 * np.sqrt(left * right))
     return np.arccos(min(1.0, max(-1.0, cos)))
 
 
@@ -148,10 +149,16 @@ def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sph
         signed = (e1x * (e2y * e3z - e2z * e3y) + e1y * (e2z * e3x - e2x * e3z) + e1z * (e2x * e3y - e2y * e3x)) / 6.0
         flipped[c] = signed <= 0.0
         volume = abs(signed)
-        omega[c, 0] = _solid_angle(p0, p1, p2, p3)
-        omega[c, 1] = _solid_angle(p1, p0, p2, p3)
-        omega[c, 2] = _solid_angle(p2, p0, p1, p3)
-        omega[c, 3] = _solid_angle(p3, p0, p1, p2)
+        # the six edges, shared by the four vertices' solid angles
+        s01, s02, s03 = _squared(p0, p1), _squared(p0, p2), _squared(p0, p3)
+        s12, s13, s23 = _squared(p1, p2), _squared(p1, p3), _squared(p2, p3)
+        l01, l02, l03 = np.sqrt(s01), np.sqrt(s02), np.sqrt(s03)
+        l12, l13, l23 = np.sqrt(s12), np.sqrt(s13), np.sqrt(s23)
+        triple = 6.0 * volume
+        omega[c, 0] = _solid_angle(triple, l01, l02, l03, s12, s13, s23)
+        omega[c, 1] = _solid_angle(triple, l01, l12, l13, s02, s03, s23)
+        omega[c, 2] = _solid_angle(triple, l02, l12, l23, s01, s03, s13)
+        omega[c, 3] = _solid_angle(triple, l03, l13, l23, s01, s02, s12)
         inside = 0.0
         for v in range(4):
             inside += omega[c, v] * clay_radii[tetrahedra[c, v]] ** 3
@@ -184,12 +191,13 @@ def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sph
                    - facet_vertices[f, 0] - facet_vertices[f, 1] - facet_vertices[f, 2]]
         if (nx * (a[0] - o[0]) + ny * (a[1] - o[1]) + nz * (a[2] - o[2]) < 0.0) == (side == c0):
             norm = -norm
+        # squared side opposite each corner
+        sides = (_squared(b, c), _squared(a, c), _squared(a, b))
         for k in range(3):
             vertex = facet_vertices[f, k]
             if vertex >= n_pellets:
                 continue
-            theta = _corner_angle(points[vertex], points[facet_vertices[f, (k + 1) % 3]],
-                                  points[facet_vertices[f, (k + 2) % 3]])
+            theta = _corner_angle(sides[k], sides[(k + 1) % 3], sides[(k + 2) % 3])
             push = 0.5 * theta * sphere_radii[vertex] ** 2 * jump / norm
             parts[f, k, 0] = push * nx
             parts[f, k, 1] = push * ny
