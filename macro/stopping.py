@@ -24,6 +24,8 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
+from shared.progress import MIN_RATE_SAMPLES, SMOOTHING
+
 __all__ = ["DAY", "MONITORED", "RunProgress", "duration_text", "progress_line", "stop_distance",
            "stop_time_estimate"]
 
@@ -164,8 +166,11 @@ def progress_line(label: str, simulated: float, step: int, distance: float, held
 class RunProgress:
     """Log :func:`progress_line` at most every ``interval`` seconds of wall time.
 
-    The pace (wall time per simulated second and per step) is that since the previous
-    line: the time step grows by orders of magnitude over a run.
+    The pace (wall time per simulated second) is smoothed over the lines as
+    :class:`shared.progress.Progress` smooths its rate (weight ``SMOOTHING`` on the pace
+    since the previous line), and unknown until ``MIN_RATE_SAMPLES`` paces are measured:
+    the first lines carry the kernels' compilation, and the time step grows by orders of
+    magnitude over a run. The steps' guard follows the steps' pace since the last line.
 
     Parameters
     ----------
@@ -194,6 +199,8 @@ class RunProgress:
         self.stop_after = float(stop_after)
         self.interval = interval
         self._last = (time.monotonic(), float(simulated), int(step))
+        self._pace: float | None = None
+        self._paces = 0
 
     def update(self, simulated: float, step: int, saturation: Sequence[float],
                times: Sequence[float], distances: Sequence[float], held_by: int,
@@ -220,7 +227,11 @@ class RunProgress:
         if not force and now - wall < self.interval:
             return
         self._last = (now, simulated, step)
-        per_simulated = (now - wall) / (simulated - earlier) if simulated > earlier else float("nan")
+        if simulated > earlier:
+            pace = (now - wall) / (simulated - earlier)
+            self._pace = pace if self._pace is None else SMOOTHING * pace + (1.0 - SMOOTHING) * self._pace
+            self._paces += 1
+        per_simulated = self._pace if self._pace is not None and self._paces >= MIN_RATE_SAMPLES else float("nan")
         # the first guard at the current pace: simulated time, or the steps' worth of it
         guard_time, guard = self.max_time, "max_time_s guard"
         if step > steps_before:

@@ -151,12 +151,43 @@ def test_run_progress_logs_simulated_days(caplog):
     assert "macro test: t = 12.3 d, step 800, stop distance 3.4 (1 = stop; pellet saturation)" in caplog.text
 
 
-def test_run_progress_before_stop_after_names_it(caplog):
-    """Below the threshold before stop_after_s: the stop comes at stop_after_s."""
+def test_run_progress_before_stop_after_names_it(caplog, monkeypatch):
+    """Below the threshold before stop_after_s: the stop comes at stop_after_s (once the
+    pace is known, after two lines)."""
+    import macro.stopping
+
+    clock = iter([0.0, 30.0, 60.0])
+    monkeypatch.setattr(macro.stopping.time, "monotonic", lambda: next(clock))
     progress = RunProgress("macro test", logging.getLogger("test.progress"), 347.0 * DAY, 30000,
                            stop_after=10.0 * DAY)
     times = np.linspace(0.0, 5.0 * DAY, 50)
+    progress.update(4.0 * DAY, 250, (0.5, 0.6), times, np.full(times.size, 0.5), 2, force=True)
     with caplog.at_level(logging.INFO, logger="test.progress"):
         progress.update(5.0 * DAY, 300, (0.5, 0.6), times, np.full(times.size, 0.5), 2, force=True)
     assert "stop distance 0.5 (1 = stop; mean sensor pressure)" in caplog.text
     assert "(stop near 10 d along the distance's trend" in caplog.text
+
+
+def test_run_progress_eta_waits_for_two_paces_and_smooths_them(caplog, monkeypatch):
+    """The pace behind the ETA: unknown on the first line, then the exponential average
+    of the paces between lines (weight 0.3 on the latest), so a slow stretch moves the
+    ETA by 30 % of its change, not all of it."""
+    import macro.stopping
+
+    clock = iter([0.0, 50.0, 100.0, 150.0])
+    monkeypatch.setattr(macro.stopping.time, "monotonic", lambda: next(clock))
+    progress = RunProgress("macro test", logging.getLogger("test.progress"), 347.0 * DAY, 30000)
+    times = np.linspace(0.0, 100.0 * DAY, 50)
+    distances = np.full(times.size, 3.4)  # not falling: the guard bounds the ETA
+    lines = []
+    with caplog.at_level(logging.INFO, logger="test.progress"):
+        # a simulated day per 50 s, twice, then a third of a day in 50 s
+        for day in (1.0, 2.0, 2.0 + 1.0 / 3.0):
+            caplog.clear()
+            progress.update(day * DAY, int(day * 10), (0.5, 0.5), times, distances, 0)
+            lines.append(caplog.text)
+    assert lines[0].rstrip().endswith("ETA unknown")
+    # the max_time_s guard 345 d away at 50 s per day
+    assert "at most 4.8 h" in lines[1]
+    # the pace 150 s/d folded in: 0.3 x 150 + 0.7 x 50 = 80 s/d (the last pace alone: 14.4 h)
+    assert f"at most {(347.0 - 7.0 / 3.0) * 80.0 / 3600.0:.1f} h" in lines[2]
