@@ -95,12 +95,25 @@ def _run(launcher: Path, *args: str, hold: float = 0.0) -> tuple[subprocess.Comp
 ])
 def test_targets_options_and_configfiles_reach_snakemake_as_meant(launcher, args, expected):
     """Targets are never read as configuration files, either form of --configfile counts,
-    and the files go to Snakemake in the order given, the --set overlay last."""
+    and the files go to Snakemake in the order given, a --set overlay at its place."""
     result, received = _run(launcher, *args)
     assert result.returncode == 0, result.stderr
     assert received == ["--cores", "2", *expected]
     if OVERLAY in expected:
         assert "seed: 3" in (launcher / OVERLAY).read_text()
+
+
+def test_set_pairs_and_configfiles_merge_in_the_order_given(launcher):
+    """Each run of --set pairs becomes an overlay at its place among the files: a pair
+    before a file is overridden by it, one after it overrides it."""
+    second = ".snakemake/claychain/overrides-2.yaml"
+    result, received = _run(launcher, "--set", "macro.seed=3", "--configfile", A, "--set=macro.seed=5",
+                            "--set", "micro.n_points=500", "--configfile", B)
+    assert result.returncode == 0, result.stderr
+    assert received == ["--cores", "2", "--configfile", "config/config.yaml", OVERLAY, A, second, B]
+    assert "seed: 3" in (launcher / OVERLAY).read_text()
+    later = (launcher / second).read_text()
+    assert "seed: 5" in later and "n_points: 500" in later and "seed: 3" not in later
 
 
 @pytest.mark.parametrize("content, words", [
