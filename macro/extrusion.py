@@ -17,7 +17,8 @@ step is linearised backward Euler in the cells' pressures (the SPD system of
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
@@ -134,18 +135,16 @@ class Extrusion:
         # each exchange carries the donor's clay: solid, water, V_0 and (pellets) volume
         source = np.where(flux < 0.0, i, j)
         moved = dt * flux
-        held_before = self.water_mass[self.held].sum()
         reference = self.reference_volume[:n_p].copy()
         per_solid = {name: getattr(self, name) / self.solid_volume
                      for name in ("water_mass", "reference_volume", "volume")}
-        self.solid_volume = self.solid_volume + edge_rates(pairs, moved, n)
-        for name, ratio in per_solid.items():
-            setattr(self, name, getattr(self, name) + edge_rates(pairs, moved * ratio[source], n))
+        with self._held_water_booked():
+            self.solid_volume = self.solid_volume + edge_rates(pairs, moved, n)
+            for name, ratio in per_solid.items():
+                setattr(self, name, getattr(self, name) + edge_rates(pairs, moved * ratio[source], n))
         # a pellet's largest volume (its free swelling at zero suction) follows its V_0
         self.max_volume[:n_p] *= self.reference_volume[:n_p] / reference
         self.extruded_volume += float(np.abs(moved).sum())
-        # what the held cells lost entered the interior
-        self.boundary_inflow += float(held_before - self.water_mass[self.held].sum())
 
     def overflow(self) -> None:
         """Hand what no longer fits in a squeezed cell to its face neighbours.
@@ -162,26 +161,39 @@ class Extrusion:
         n_p = self.n_pellets
         cells = slice(n_p, None)
         active = ~self.inert[cells]
-        held_before = self.water_mass[self.held].sum()
         void = self._void / (1.0 + OVERFLOW_MARGIN)
+        with self._held_water_booked():
+            self._overflow_passes(cells, active, void)
+
+    def _overflow_passes(self, cells: slice, active: npt.NDArray[np.bool_], void: FloatArray) -> None:
+        """Up to ``OVERFLOW_PASSES`` passes of :meth:`overflow`'s two spills."""
         for _ in range(OVERFLOW_PASSES):
             densest = self.densest_volume(cells, with_water=False)
             room = np.where(active, np.maximum(void - self.densest_volume(cells), 0.0), 0.0)
             excess = np.where(active, densest - void, 0.0)
-            moved = self._spill(excess / densest, room, ("solid_volume", "water_mass", "reference_volume", "volume"))
+            moved = self._spill(excess / densest, room, self.densest_volume(cells),
+                                ("solid_volume", "water_mass", "reference_volume", "volume"))
             wet = self.densest_volume(cells)
             air = np.where(active, np.maximum(void - wet, 0.0), 0.0)
             moved += self._spill(np.where(active, (wet - void) / np.maximum(wet - self.solid_volume[cells], 1e-300),
-                                          0.0), air, ("water_mass",))
+                                          0.0), air, self.water_mass[cells] / self.settings.density, ("water_mass",))
             if not moved:
                 break
-        # what the held cells lost entered the interior
-        self.boundary_inflow += float(held_before - self.water_mass[self.held].sum())
 
-    def _spill(self, fraction: FloatArray, room: FloatArray, names: tuple[str, ...]) -> int:
+    @contextmanager
+    def _held_water_booked(self) -> Iterator[None]:
+        """What the held cells lose within the block entered the interior: booked as
+        boundary inflow."""
+        before = self.water_mass[self.held].sum()
+        yield
+        self.boundary_inflow += float(before - self.water_mass[self.held].sum())
+
+    def _spill(self, fraction: FloatArray, room: FloatArray, freed: FloatArray, names: tuple[str, ...]) -> int:
         """Move ``fraction`` (n_c,) of the named quantities of each cell (those with a
         positive fraction) to its face neighbours in proportion to their ``room`` [m3]
-        (n_c,), at most the neighbours' room; returns the number of cells that gave."""
+        (n_c,), at most the neighbours' room; ``freed`` (n_c,) is the volume the whole of
+        the quantities takes [m3] (the clay's densest volume, or the water's own); returns
+        the number of cells that gave."""
         n_p = self.n_pellets
         giving = np.flatnonzero(fraction > 0.0)
         if giving.size == 0:
@@ -189,8 +201,7 @@ class Extrusion:
         targets = self.mesh.neighbours[giving]
         room_of = np.where(targets >= 0, np.append(room, 0.0)[targets], 0.0)
         capacity = room_of.sum(axis=1)
-        # the volume a fraction frees: the quantity's share of the densest clay volume
-        wanted = fraction[giving] * self.densest_volume(n_p + giving)
+        wanted = fraction[giving] * freed[giving]
         share = np.where(wanted > 0.0, np.minimum(wanted, capacity) / np.where(wanted > 0.0, wanted, 1.0), 0.0)
         given_fraction = np.minimum(fraction[giving] * share, 1.0)
         weights = room_of / np.where(capacity > 0.0, capacity, 1.0)[:, None]
