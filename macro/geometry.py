@@ -13,6 +13,7 @@ from macro.mixture import (
     cell_voids,
     end_cells,
     exchanges,
+    matching_keys,
     mesh_edges,
     moved_mesh,
     solid_angles,
@@ -102,8 +103,9 @@ class Geometry:
         20 points into each new cell made them as noisy as the points, and the push,
         exponential in dry density, jolted the pellets). The initial void is carried by
         the points alone. The totals are conserved to round-off; what crosses between
-        held and free cells is booked as boundary inflow. A new cell's suction is the water-weighted mean of its donors'
-        (the next local solve corrects it); held cells are re-selected among new cells.
+        held and free cells is booked as boundary inflow. A new cell's suction is the
+        water-weighted mean of its donors' (the next local solve corrects it); held cells
+        are re-selected among new cells.
         """
         from scipy.spatial import cKDTree
 
@@ -233,7 +235,4 @@ def _same_cells(old: npt.NDArray[np.int64], new: npt.NDArray[np.int64], n_vertic
         ordered = np.sort(tetrahedra, axis=1).astype(np.int64)
         return ((ordered[:, 0] * n_vertices + ordered[:, 1]) * n_vertices + ordered[:, 2]) * n_vertices + ordered[:, 3]
 
-    old_keys, new_keys = keys(old), keys(new)
-    order = np.argsort(old_keys)
-    where = np.clip(np.searchsorted(old_keys[order], new_keys), 0, old_keys.size - 1)
-    return np.where(old_keys[order][where] == new_keys, order[where], -1)
+    return matching_keys(keys(old), keys(new))

@@ -25,7 +25,7 @@ from macro.laws import (
     yield_pressure,
     young_modulus,
 )
-from macro.mixture import cell_voids, facet_angles
+from macro.mixture import cell_voids, facet_angles, matching_keys
 from macro.readings import Readings
 from shared.dem import FireState, cylinder_contacts, detect_contacts, fire_step, yielding_hertz_mindlin
 
@@ -312,12 +312,10 @@ class Mechanics:
         if old_pairs is not None and old_shear is not None and old_plastic is not None \
                 and old_pairs.size and pairs.size:
             n = self.n_pellets
-            old_code = old_pairs.min(axis=1) * n + old_pairs.max(axis=1)
-            code = pairs.min(axis=1) * n + pairs.max(axis=1)
-            order = np.argsort(old_code)
-            where = np.clip(np.searchsorted(old_code[order], code), 0, old_code.size - 1)
-            found = old_code[order][where] == code
-            source = order[where[found]]
+            match = matching_keys(old_pairs.min(axis=1) * n + old_pairs.max(axis=1),
+                                  pairs.min(axis=1) * n + pairs.max(axis=1))
+            found = match >= 0
+            source = match[found]
             # the stored force acts on the pair's first pellet: flip where the order flipped
             sign = np.where(old_pairs[source, 0] == pairs[found, 0], 1.0, -1.0)
             shear[found] = old_shear[source] * sign[:, None]

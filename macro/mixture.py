@@ -24,8 +24,8 @@ import numpy.typing as npt
 from shared.mesh import Mesh
 
 __all__ = [
-    "Exchanges", "cell_voids", "container_points", "end_cells", "exchanges", "facet_angles", "mesh_edges", "moved_mesh",
-    "solid_angles",
+    "Exchanges", "cell_voids", "container_points", "end_cells", "exchanges", "facet_angles", "matching_keys",
+    "mesh_edges", "moved_mesh", "solid_angles",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -217,3 +217,13 @@ def moved_mesh(mesh: Mesh, points: FloatArray) -> tuple[Mesh, npt.NDArray[np.boo
         boundary_areas=b_area, boundary_normals=b_normal, boundary_centroids=b_centre,
     )
     return moved, signed <= 0.0
+
+
+def matching_keys(old: IntArray, new: IntArray) -> IntArray:
+    """(n_new,) index of the entry of ``old`` equal to each of ``new`` (integer keys, each
+    at most once in ``old``), -1 where there is none."""
+    if old.size == 0:
+        return np.full(new.shape, -1, dtype=np.int64)
+    order = np.argsort(old)
+    where = np.clip(np.searchsorted(old[order], new), 0, old.size - 1)
+    return np.where(old[order][where] == new, order[where], -1)
