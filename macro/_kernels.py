@@ -126,10 +126,9 @@ def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sph
         (n_pellets, 3) push on the pellets [N].
     pressure
         (n_c,) the cells' pressures [Pa].
-    slope
-        (n_c,) |dP/dV| of the uncapped pressing cells [Pa/m3], 0 elsewhere.
     stiffness
-        (n_pellets,) sum over each pellet's cells of slope (Omega r^2)^2 [N/m].
+        (n_pellets,) sum over each pellet's cells of |dP/dV| (Omega r^2)^2 [N/m] (0 for
+        capped cells).
     inverted
         True if a candidate cell is inverted (its signed volume is not positive).
     """
@@ -219,4 +218,4 @@ def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sph
             if vertex < n_pellets:
                 for d in range(3):
                     forces[vertex, d] += parts[f, k, d]
-    return forces, pressure, slope, stiffness, inverted
+    return forces, pressure, stiffness, inverted

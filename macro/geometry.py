@@ -68,19 +68,16 @@ class Geometry:
 
     def _update_geometry(self) -> None:
         n_p = self.n_pellets
-        if self.steps > 0:
-            mesh, inverted = moved_mesh(self.mesh, self.vertex_positions())
-            if np.any(inverted & ~self.inert[self.n_pellets:]):
-                self._remesh()
-            else:
-                self.mesh = mesh
-            self._omega = solid_angles(self.mesh.points, self.mesh.tetrahedra)
-        assert self._omega is not None
+        if self.steps == 0:
+            self._void = cell_voids(self.mesh, self.clay_radii(), self._omega, VOID_FLOOR)
+        elif not np.array_equal(self.mesh.points, self.vertex_positions()) and not self._moved_geometry():
+            # (where the points are the pellets', the relaxation left the mesh, its solid
+            # angles and voids at them)
+            self._remesh()
+        assert self._omega is not None and self._void is not None
         radii = self.vertex_radii()
-        voids = cell_voids(self.mesh, self.clay_radii(), self._omega, VOID_FLOOR)
         cells = slice(n_p, None)
-        self.max_volume[cells] = voids
-        self._void = voids
+        self.max_volume[cells] = self._void
         if self._edges is None or self._edges_of is not self.mesh.tetrahedra:
             self._edges, self._edges_of = mesh_edges(self.mesh), self.mesh.tetrahedra
         ex = exchanges(self.mesh, radii, n_p, self._omega, MIN_AREA_FRACTION, self._edges)
@@ -186,7 +183,7 @@ class Geometry:
         low = solid + water / self.settings.density
         fitted = np.clip(volume, low * (1.0 + 1e-6), np.maximum(voids, low * (1.0 + 1e-3)))
         volume = np.where(kept, volume, fitted)
-        self.mesh, self._omega = mesh, omega
+        self.mesh, self._omega, self._void = mesh, omega, voids
         self.inert, self.held = inert, held
         self.initial_void = initial_void
         self.water_mass = np.concatenate([self.water_mass[:n_p], water])

@@ -25,7 +25,7 @@ from macro.laws import (
     yield_pressure,
     young_modulus,
 )
-from macro.mixture import cell_voids, facet_angles, matching_keys
+from macro.mixture import facet_angles, matching_keys
 from macro.readings import Readings
 from shared.dem import FireState, cylinder_contacts, detect_contacts, fire_step, yielding_hertz_mindlin
 
@@ -175,7 +175,6 @@ class Mechanics:
                 trial = push(self.positions)
                 if trial[3] and remeshes < REMESHES:
                     self._remesh()
-                    self._void = cell_voids(self.mesh, self.clay_radii(), self._omega, VOID_FLOOR)
                     if s.extrusion.enabled:
                         self.overflow()
                     remeshes += 1
@@ -258,7 +257,7 @@ class Mechanics:
         container = self.container
 
         def push(positions: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, bool]:
-            forces, pressure, _, stiffness, inverted = powder_push(np.concatenate([positions, container]), *constants)
+            forces, pressure, stiffness, inverted = powder_push(np.concatenate([positions, container]), *constants)
             return forces, pressure, stiffness, bool(inverted)
 
         return push
