@@ -67,8 +67,8 @@ def bench_macro_steps(steps: int = 100, pellet_radius: float | None = None) -> d
         model = build_model(config, case, PermeabilityTable.from_file(path, "free"))
         setup = time.perf_counter() - start
         model.step()  # compiles what the set-up did not
-        for key in model.phase_seconds:
-            model.phase_seconds[key] = 0.0
+        for key in model.counters.phase_seconds:
+            model.counters.phase_seconds[key] = 0.0
         start = time.perf_counter()
         for _ in range(steps):
             model.step()
@@ -83,9 +83,9 @@ def bench_macro_steps(steps: int = 100, pellet_radius: float | None = None) -> d
         "steps": steps,
         "steps_per_s": steps / wall,
         "simulated_s": model.time,
-        "phase_s": dict(model.phase_seconds),
-        "newton_fallbacks": model.fallbacks,
-        "remeshes": model.remeshes,
+        "phase_s": dict(model.counters.phase_seconds),
+        "newton_fallbacks": model.counters.newton_fallbacks,
+        "remeshes": model.counters.remeshes,
     }
 
 

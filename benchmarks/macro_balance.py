@@ -50,13 +50,13 @@ def _run(days: float, tolerance: float, substeps: int) -> dict:
     ratios, used, readings = [], [], []
     wall = cpu = 0.0
     while model.time < days * DAY * (1.0 - 1e-12):
-        before = model.dem_substeps_used
+        before = model.counters.dem_substeps
         start, start_cpu = time.perf_counter(), time.process_time()
         model.step(max_dt=float(marks[len(readings)] - model.time))
         wall += time.perf_counter() - start
         cpu += time.process_time() - start_cpu
         ratios.append(model.readings.unbalanced)
-        used.append(model.dem_substeps_used - before)
+        used.append(model.counters.dem_substeps - before)
         if model.time >= marks[len(readings)] * (1.0 - 1e-12):
             r = model.readings
             readings.append([*map(float, r.sensors), r.axial_upper, r.axial_lower])
@@ -73,7 +73,7 @@ def _run(days: float, tolerance: float, substeps: int) -> dict:
         "fire_steps_per_step_max": int(np.max(used)),
         "wall_s_per_step": wall / steps,
         "cpu_s_per_step": cpu / steps,
-        "dem_wall_s_per_step": model.phase_seconds["dem"] / steps,
+        "dem_wall_s_per_step": model.counters.phase_seconds["dem"] / steps,
         "reading_names": [*model.settings.sensors.names, "upper", "lower"],
         "record_days": [float(t) / DAY for t in marks],
         "readings_mpa": (np.asarray(readings) * 1e-6).tolist(),

@@ -48,12 +48,12 @@ def bench_macro_homogenised() -> dict:
     container = np.pi * s.radius**2 * s.height
     global_density = float(model.solid_mass().sum() / container)
     active = ~model.inert[n_p:]
-    push, volumes = model._cell_pressure, mesh.volumes
+    push, volumes = model.cells.pressures, mesh.volumes
     on_container = (mesh.tetrahedra >= n_p).any(axis=1) & active
     side = np.abs(mesh.boundary_normals[:, 2]) <= np.sqrt(0.5)
     hull_cells, areas = mesh.boundary_cells[side], mesh.boundary_areas[side]
     # the same state read with the powder pushing on the container through the hull
-    heights, loads, upper, lower = model._powder_wall_loads()
+    heights, loads, upper, lower = model.powder_wall_loads()
     contacts = model.readings
     with_powder = s.sensors.pressures(heights, loads, s.radius) + contacts.sensors
     area = np.pi * s.radius**2
@@ -75,8 +75,8 @@ def bench_macro_homogenised() -> dict:
         "powder_push_volume_mean_mpa": float((push * volumes)[active].sum() / volumes[active].sum()) * MPA,
         "powder_push_quantiles_at_container_mpa": _quantiles(push[on_container]),
         "powder_push_quantiles_inside_mpa": _quantiles(push[active & ~on_container]),
-        "void_over_tetrahedron_median_at_container": float(np.median((model._void / volumes)[on_container])),
-        "void_over_tetrahedron_median_inside": float(np.median((model._void / volumes)[active & ~on_container])),
+        "void_over_tetrahedron_median_at_container": float(np.median((model.cells.voids / volumes)[on_container])),
+        "void_over_tetrahedron_median_inside": float(np.median((model.cells.voids / volumes)[active & ~on_container])),
         "curved_wall_hull_inert_area_fraction": float(areas[model.inert[n_p:][hull_cells]].sum() / areas.sum()),
         "sensors": [str(v) for v in ds["sensor"].values],
         "sensor_pressure_contacts_mpa": [float(v) * MPA for v in contacts.sensors],

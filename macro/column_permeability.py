@@ -153,11 +153,11 @@ def column_permeability(model: MacroModel) -> ColumnFlow:
         conductance = model.conductances() / s.conductivity_factor
     finally:
         table.looked_up, table.clamped = looked_up, clamped
-    assert model._exchanges is not None
+    assert model.cells.exchanges is not None
     active = ~model.inert
     suction = float(np.average(-model.pressure[active], weights=model.volume[active]))
     # the exchanges' geometry: the mesh's pellet centres and cell centroids
     position = np.concatenate([model.mesh.points[:model.n_pellets, 2], model.mesh.centroids[:, 2]])
     return network_permeability(
-        model._exchanges.pairs, conductance, position, active, s.height, np.pi * s.radius**2,
+        model.cells.exchanges.pairs, conductance, position, active, s.height, np.pi * s.radius**2,
         float(model.radii.mean()), -suction, DROP_FRACTION * suction, s.density, s.viscosity)

@@ -82,6 +82,12 @@ def mobility(saturation: npt.ArrayLike, settings: ExtrusionSettings) -> FloatArr
 class Extrusion:
     """Extrusion part of :class:`macro.model.MacroModel`."""
 
+    READS = ("boundary_inflow", "cells", "counters", "densest_volume", "held", "inert", "material",
+             "max_volume", "mesh", "n_pellets", "pellet_initial_solid", "powder_pressure",
+             "pressure", "reference_volume", "retention_porosity", "saturations", "settings",
+             "solid_mass", "solid_volume", "stress", "volume", "water_mass")
+    """What this part reads of the model's state and of its other parts."""
+
     def extrusion_pressure(self) -> FloatArray:
         """(n,) the pressure that drives the clay [Pa]: a pellet's swelling pressure where it is
         confined (0 at its free volume: a free pellet is not squeezed), at most its
@@ -103,7 +109,7 @@ class Extrusion:
         is booked as boundary inflow (the held cells are the water supply's side).
         """
         settings = self.settings.extrusion
-        ex = self._exchanges
+        ex = self.cells.exchanges
         assert ex is not None
         n_p, n = self.n_pellets, self.volume.size
         pressure = self.extrusion_pressure()
@@ -131,7 +137,7 @@ class Extrusion:
         new[~free] = pressure[~free]
         flux, limited = limited_fluxes(pairs, conductance, new, self.solid_volume, dt, free | ~cells,
                                        1.0 - settings.max_solid_change)
-        self.extrusion_limited += limited
+        self.counters.extrusion_limited_steps += limited
         # each exchange carries the donor's clay: solid, water, V_0 and (pellets) volume
         source = np.where(flux < 0.0, i, j)
         moved = dt * flux
@@ -144,7 +150,7 @@ class Extrusion:
                 setattr(self, name, getattr(self, name) + edge_rates(pairs, moved * ratio[source], n))
         # a pellet's largest volume (its free swelling at zero suction) follows its V_0
         self.max_volume[:n_p] *= self.reference_volume[:n_p] / reference
-        self.extruded_volume += float(np.abs(moved).sum())
+        self.counters.extruded_volume_m3 += float(np.abs(moved).sum())
 
     def overflow(self) -> None:
         """Hand what no longer fits in a squeezed cell to its face neighbours.
@@ -157,11 +163,11 @@ class Extrusion:
         time, L^2 mu m_v / k, is seconds at the cells' size), each in proportion to the
         neighbours' room. Counted in ``overflowed_cells``; conservative to round-off;
         what no neighbour can take stays (then capped in the local problem, counted)."""
-        assert self._void is not None
+        assert self.cells.voids is not None
         n_p = self.n_pellets
         cells = slice(n_p, None)
         active = ~self.inert[cells]
-        void = self._void / (1.0 + OVERFLOW_MARGIN)
+        void = self.cells.voids / (1.0 + OVERFLOW_MARGIN)
         with self._held_water_booked():
             self._overflow_passes(cells, active, void)
 
@@ -212,5 +218,5 @@ class Extrusion:
             values[n_p + giving] -= given
             np.add.at(values, n_p + targets[hit], (given[:, None] * weights)[hit])
         count = int(np.count_nonzero(given_fraction > 0.0))
-        self.overflowed_cells += count
+        self.counters.overflowed_cell_steps += count
         return count

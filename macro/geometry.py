@@ -37,6 +37,12 @@ MIN_AREA_FRACTION = 1e-2
 class Geometry:
     """Mesh part of :class:`macro.model.MacroModel`: vertices, voids, moves and remeshes."""
 
+    READS = ("boundary_inflow", "cells", "container", "counters", "held", "hold_boundary", "inert",
+             "initial_void", "interior_water", "material", "max_volume", "mesh", "on_plate",
+             "positions", "powder_porosity", "pressure", "radii", "reference_volume", "settings",
+             "solid_volume", "steps", "stress", "volume", "water_mass")
+    """What this part reads of the model's state and of its other parts."""
+
     @property
     def n_pellets(self) -> int:
         return int(self.positions.shape[0])
@@ -66,25 +72,25 @@ class Geometry:
         return np.concatenate([np.cbrt(3.0 * self.volume[:self.n_pellets] / (4.0 * np.pi)),
                                np.zeros(self.container.shape[0])])
 
-    def _update_geometry(self) -> None:
+    def update_geometry(self) -> None:
         n_p = self.n_pellets
         if self.steps == 0:
-            self._void = cell_voids(self.mesh, self.clay_radii(), self._omega, VOID_FLOOR)
-        elif not np.array_equal(self.mesh.points, self.vertex_positions()) and not self._moved_geometry():
+            self.cells.voids = cell_voids(self.mesh, self.clay_radii(), self.cells.solid_angles, VOID_FLOOR)
+        elif not np.array_equal(self.mesh.points, self.vertex_positions()) and not self.move_geometry():
             # (where the points are the pellets', the relaxation left the mesh, its solid
             # angles and voids at them)
-            self._remesh()
-        assert self._omega is not None and self._void is not None
+            self.remesh()
+        assert self.cells.solid_angles is not None and self.cells.voids is not None
         radii = self.vertex_radii()
         cells = slice(n_p, None)
-        self.max_volume[cells] = self._void
-        if self._edges is None or self._edges_of is not self.mesh.tetrahedra:
-            self._edges, self._edges_of = mesh_edges(self.mesh), self.mesh.tetrahedra
-        ex = exchanges(self.mesh, radii, n_p, self._omega, MIN_AREA_FRACTION, self._edges)
+        self.max_volume[cells] = self.cells.voids
+        if self.cells.edges is None or self.cells.edges_of is not self.mesh.tetrahedra:
+            self.cells.edges, self.cells.edges_of = mesh_edges(self.mesh), self.mesh.tetrahedra
+        ex = exchanges(self.mesh, radii, n_p, self.cells.solid_angles, MIN_AREA_FRACTION, self.cells.edges)
         keep = ~self.inert[ex.pairs].any(axis=1)
-        self._exchanges = Exchanges(ex.pairs[keep], ex.area[keep], ex.length[keep], ex.kind[keep])
+        self.cells.exchanges = Exchanges(ex.pairs[keep], ex.area[keep], ex.length[keep], ex.kind[keep])
 
-    def _remesh(self) -> None:
+    def remesh(self) -> None:
         """New Delaunay mesh when an active cell inverted; the powder moves with it.
 
         The new mesh keeps most cells: a cell with the same four vertices before and
@@ -183,7 +189,7 @@ class Geometry:
         low = solid + water / self.settings.density
         fitted = np.clip(volume, low * (1.0 + 1e-6), np.maximum(voids, low * (1.0 + 1e-3)))
         volume = np.where(kept, volume, fitted)
-        self.mesh, self._omega, self._void = mesh, omega, voids
+        self.mesh, self.cells.solid_angles, self.cells.voids = mesh, omega, voids
         self.inert, self.held = inert, held
         self.initial_void = initial_void
         self.water_mass = np.concatenate([self.water_mass[:n_p], water])
@@ -194,19 +200,19 @@ class Geometry:
         self.pressure = np.concatenate([self.pressure[:n_p],
                                         -np.where(empty, self.material.initial_suction, suction)])
         self.stress = np.concatenate([self.stress[:n_p], stress])
-        self._hold_boundary()
+        self.hold_boundary()
         self.boundary_inflow += self.interior_water() - interior_before
-        self.remeshes += 1
+        self.counters.remeshes += 1
 
-    def _moved_geometry(self) -> bool:
+    def move_geometry(self) -> bool:
         """The cells' geometry and voids at the pellets' current positions (same
         connectivity); False, and nothing changed, when an active cell has inverted."""
         mesh, inverted = moved_mesh(self.mesh, self.vertex_positions())
         if np.any(inverted & ~self.inert[self.n_pellets:]):
             return False
         self.mesh = mesh
-        self._omega = solid_angles(mesh.points, mesh.tetrahedra)
-        self._void = cell_voids(mesh, self.clay_radii(), self._omega, VOID_FLOOR)
+        self.cells.solid_angles = solid_angles(mesh.points, mesh.tetrahedra)
+        self.cells.voids = cell_voids(mesh, self.clay_radii(), self.cells.solid_angles, VOID_FLOOR)
         return True
 
 

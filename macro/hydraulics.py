@@ -28,7 +28,13 @@ IMPLICIT_LOSS = 0.99
 class Hydraulics:
     """Transport part of :class:`macro.model.MacroModel`."""
 
-    def _hold_boundary(self) -> None:
+    READS = ("boundary_inflow", "cells", "counters", "densest_volume", "held", "inert", "material",
+             "max_volume", "mesh", "n_pellets", "pellet_frames", "positions", "pressure",
+             "reference_volume", "settings", "solid_volume", "swelling_volume", "table",
+             "trial_time_step", "volume", "water_mass")
+    """What this part reads of the model's state and of its other parts."""
+
+    def hold_boundary(self) -> None:
         """Held cells at the boundary suction: S, V from the laws, V capped by their void
         (at least their solid at the smallest porosity). Called at every step: the held
         cells are the water supply's side, so the water a shrinking void squeezes out
@@ -71,13 +77,13 @@ class Hydraulics:
 
     def conductances(self) -> FloatArray:
         """Mass conductance of every exchange [kg/(Pa s)]."""
-        ex = self._exchanges
+        ex = self.cells.exchanges
         assert ex is not None
         k = self.permeabilities()
         i, j = ex.pairs[:, 0], ex.pairs[:, 1]
         k_i, k_j = k[i], k[j]
         if self.pellet_frames is not None:
-            k_i, k_j = self._directional_permeabilities(k_i, k_j)
+            k_i, k_j = self.directional_permeabilities(k_i, k_j)
         k_edge = harmonic_mean(k_i, k_j)
         cc = ex.kind == 2
         sat, por = self.saturations(), self.porosities()
@@ -86,17 +92,17 @@ class Hydraulics:
         s = self.settings
         return conductances(ex.area, ex.length, k_edge, s.density, s.viscosity, s.conductivity_factor)
 
-    def _directional_permeabilities(self, k_i: FloatArray, k_j: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def directional_permeabilities(self, k_i: FloatArray, k_j: FloatArray) -> tuple[FloatArray, FloatArray]:
         """The pellet ends of the exchanges with the table's tensor (thesis Sec. 6.3): each
         pellet's tensor, rotated into the lab by its random frame (its compaction axis),
         read along the exchange, d^T R K R^T d (d the unit vector between the systems'
         centres); the cell ends keep the powder's."""
-        assert self._exchanges is not None and self.pellet_frames is not None
+        assert self.cells.exchanges is not None and self.pellet_frames is not None
         n_p = self.n_pellets
         frames = self.pellet_frames
         tensor = frames @ self.table.tensor(-self.pressure[:n_p], "water") @ np.swapaxes(frames, 1, 2)
         centres = np.concatenate([self.positions, self.mesh.centroids])
-        i, j = self._exchanges.pairs[:, 0], self._exchanges.pairs[:, 1]
+        i, j = self.cells.exchanges.pairs[:, 0], self.cells.exchanges.pairs[:, 1]
         d = centres[j] - centres[i]
         d /= np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
         k_i, k_j = k_i.copy(), k_j.copy()
@@ -107,7 +113,7 @@ class Hydraulics:
 
     def time_step(self, conductance: FloatArray) -> float:
         """Stable explicit step of Eq. 4.58 [s]."""
-        assert self._exchanges is not None
+        assert self.cells.exchanges is not None
         # dp/dS grows without bound as S -> 1: no system is driven wetter than the
         # boundary, so the slope is taken no wetter than at half the boundary suction
         porosity = self.retention_porosity()
@@ -115,7 +121,7 @@ class Hydraulics:
         sat = np.clip(self.saturations(), 1e-12, wettest)
         slope = suction_derivative(sat, porosity, self.material)
         pore = self.volume - self.solid_volume
-        return stable_time_step(self._exchanges.pairs, conductance, pore, slope, self.held | self.inert,
+        return stable_time_step(self.cells.exchanges.pairs, conductance, pore, slope, self.held | self.inert,
                                 self.settings.density, self.settings.chi)
 
     def saturation_limited_step(self, conductance: FloatArray) -> float:
@@ -124,8 +130,8 @@ class Hydraulics:
         [s]: the explicit update follows a retention curve
         whose slope changes by orders of magnitude, which Eq. 4.58's local slope misses
         (a dry cell next to a wet one would otherwise be drained below zero water)."""
-        assert self._exchanges is not None
-        rate = mass_rates(self._exchanges.pairs, conductance, self.pressure, self.volume.size)
+        assert self.cells.exchanges is not None
+        rate = mass_rates(self.cells.exchanges.pairs, conductance, self.pressure, self.volume.size)
         free = ~self.held & ~self.inert
         pore = (self.volume - self.solid_volume)[free]
         change = np.abs(rate[free]) / (self.settings.density * pore)
@@ -136,8 +142,8 @@ class Hydraulics:
 
     def transport(self, dt: float, conductance: FloatArray) -> None:
         """Explicit mass update (Eq. 4.23); held systems keep their mass, their loss is inflow."""
-        assert self._exchanges is not None
-        rate = mass_rates(self._exchanges.pairs, conductance, self.pressure, self.volume.size)
+        assert self.cells.exchanges is not None
+        rate = mass_rates(self.cells.exchanges.pairs, conductance, self.pressure, self.volume.size)
         self.boundary_inflow -= float(dt * rate[self.held].sum())
         free = ~self.held
         self.water_mass[free] += dt * rate[free]
@@ -172,9 +178,9 @@ class Hydraulics:
         outflows of a system that would lose more than ``IMPLICIT_LOSS`` of its water are
         limited (:func:`macro.transport.limited_rates`, counted in ``limited_systems``).
         """
-        assert self._exchanges is not None
+        assert self.cells.exchanges is not None
         s = self.settings
-        pairs = self._exchanges.pairs
+        pairs = self.cells.exchanges.pairs
         free = ~self.held & ~self.inert
         capacity = self.capacities()
         # a system smaller than the median counts as the median: tiny cells may swing
@@ -182,9 +188,9 @@ class Hydraulics:
         pore = (self.volume - self.solid_volume)[free]
         pore = np.maximum(pore, np.median(pore))
         limit = s.max_saturation_change
-        if self._next_dt <= 0.0:
-            self._next_dt = self.time_step(conductance)
-        dt = min(self._next_dt, s.max_time_step, max_dt)
+        if self.trial_time_step <= 0.0:
+            self.trial_time_step = self.time_step(conductance)
+        dt = min(self.trial_time_step, s.max_time_step, max_dt)
         start = self.water_at(self.pressure)
         for _ in range(20):
             # modified Picard (Celia et al. 1990): the storage of each iterate from the
@@ -209,8 +215,8 @@ class Hydraulics:
             if largest <= limit:
                 break
             dt *= 0.9 * limit / largest
-        self.limited_systems += limited
-        self._next_dt = 2.0 * dt if largest <= 0.5 * limit else dt
+        self.counters.flux_limited_system_steps += limited
+        self.trial_time_step = 2.0 * dt if largest <= 0.5 * limit else dt
         self.boundary_inflow -= float(dt * rate[self.held].sum())
         self.water_mass[~self.held] += dt * rate[~self.held]
         return dt

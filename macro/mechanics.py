@@ -43,6 +43,13 @@ MAX_OVERLAP_LOSS = 0.3
 class Mechanics:
     """Mechanics part of :class:`macro.model.MacroModel`."""
 
+    READS = ("cells", "clay_radii", "contacts", "container", "counters", "densest_volume", "inert",
+             "material", "mesh", "move_geometry", "n_cells", "n_pellets", "n_vertices",
+             "occupied_loss", "overflow", "positions", "powder_wall_loads", "pressure", "radii",
+             "reference_volume", "remesh", "retention_porosity", "settings", "solid_mass", "spins",
+             "stress", "velocities", "vertex_radii")
+    """What this part reads of the model's state and of its other parts."""
+
     def powder_pressure(self) -> tuple[FloatArray, FloatArray]:
         """Pressure of the powder on its cell contour [Pa] (Eqs. 4.31-4.35) and the
         magnitude of its derivative with respect to the cell's void [Pa/m3], both (n_c,).
@@ -61,8 +68,8 @@ class Mechanics:
         cells = slice(self.n_pellets, None)
         if not self.settings.powder_pressure:
             return np.zeros(self.n_cells), np.zeros(self.n_cells)
-        assert self._void is not None
-        held = np.maximum(self._void, self.densest_volume(cells, with_water=False))
+        assert self.cells.voids is not None
+        held = np.maximum(self.cells.voids, self.densest_volume(cells, with_water=False))
         suction = -self.pressure[cells]
         solid_mass = self.solid_mass()[cells]
         free = free_volume(suction, self.reference_volume[cells], self.material)
@@ -124,12 +131,12 @@ class Mechanics:
         powder's (time unit 1; the rotations' inertia m r^2). One power and one mixing
         act on both, so that the friction's torques and forces stay consistent. The
         powder's push is evaluated exactly at every step's positions (one numba pass over
-        the cells and triangles, :meth:`_push_field`), so a balanced state is balanced
+        the cells and triangles, :meth:`push_field`), so a balanced state is balanced
         against the push of its own geometry. (Updating it only every 50 steps, with a
         linearised push in between, left 1/3 of the records unbalanced at 0.01: each
         update jolted the forces by a few per cent of the carried load, see
         docs/macro.md, "Quasi-static DEM and balanced readings".) When the pellets invert
-        an active cell, the mesh is rebuilt at once (:meth:`_remesh`, its overflow
+        an active cell, the mesh is rebuilt at once (:meth:`remesh`, its overflow
         handed on), at most ``REMESHES`` times; beyond that the push stays linearised
         about the last positions it held, with the isotropic stiffness dP/dV_c A^2 over
         the pellet's cells. The container's friction (``wall_friction``) keeps its
@@ -148,7 +155,7 @@ class Mechanics:
         n_p = self.n_pellets
         young = young_modulus(-self.pressure[:n_p], self.material)
         strength = yield_force(-self.pressure[:n_p], self.material)
-        assert self._wall_plastic is not None and self._wall_shear is not None
+        assert self.contacts.wall_plastic is not None and self.contacts.wall_shear is not None
         nu = self.material.poisson_ratio
         z_lo, z_hi = -0.5 * s.height, 0.5 * s.height
         skin = 0.2 * float(self.radii.mean())
@@ -158,7 +165,7 @@ class Mechanics:
         floor = 2.0 * young / (1.0 - nu * nu) * self.radii * np.sqrt(1e-3)
         # FIRE's rows: 0..n_p-1 the translations, n_p..2 n_p-1 the rotations times the radii [m]
         cap = np.tile(MAX_STEP * self.radii, 2)
-        push = self._push_field()
+        push = self.push_field()
         external, cell_pressure, powder_stiffness, frozen = push(self.positions)
         fire = FireState()
         rates = np.zeros((2 * n_p, 3))
@@ -174,11 +181,11 @@ class Mechanics:
             if k and not frozen:
                 trial = push(self.positions)
                 if trial[3] and remeshes < REMESHES:
-                    self._remesh()
+                    self.remesh()
                     if s.extrusion.enabled:
                         self.overflow()
                     remeshes += 1
-                    push = self._push_field()
+                    push = self.push_field()
                     trial = push(self.positions)
                 frozen = trial[3]
                 if not frozen:
@@ -198,7 +205,7 @@ class Mechanics:
                                             stiffness, strength, plastic)
             radial, lower, upper = cylinder_contacts(
                 self.positions, moved, turned, self.radii, young, nu, s.wall_friction, s.radius, z_lo, z_hi,
-                forces, torques, stiffness, strength, self._wall_plastic, self._wall_shear)
+                forces, torques, stiffness, strength, self.contacts.wall_plastic, self.contacts.wall_shear)
             carried = np.concatenate([normal[normal > 0.0], radial[radial > 0.0],
                                       lower[lower > 0.0], upper[upper > 0.0]])
             resultant = np.sqrt((forces**2).sum(axis=1)).mean()
@@ -213,17 +220,17 @@ class Mechanics:
             self.positions += moved
             k += 1
         self.velocities, self.spins = rates[:n_p], rates[n_p:] / self.radii[:, None]
-        self._contact_pairs, self._shear, self._plastic = pairs, shear, plastic
-        self.dem_substeps_used += k
-        self._cell_pressure = cell_pressure
-        self._moved_geometry()
+        self.contacts.pairs, self.contacts.shear, self.contacts.plastic = pairs, shear, plastic
+        self.counters.dem_substeps += k
+        self.cells.pressures = cell_pressure
+        self.move_geometry()
         self._confine(pairs, normal, np.maximum(radial, 0.0) + np.maximum(lower, 0.0) + np.maximum(upper, 0.0))
         # radial loads on the curved wall at their contact's height above the lower plate
         heights, loads = self.positions[:, 2] + 0.5 * s.height, radial
         area = np.pi * s.radius**2
         upper_force, lower_force = float(upper.sum()), float(lower.sum())
         if s.powder_on_walls:
-            wall_heights, wall_loads, extra_upper, extra_lower = self._powder_wall_loads()
+            wall_heights, wall_loads, extra_upper, extra_lower = self.powder_wall_loads()
             heights = np.concatenate([np.repeat(heights[:, None], 3, axis=1), wall_heights])
             loads = np.concatenate([loads, wall_loads])
             upper_force += extra_upper
@@ -232,7 +239,7 @@ class Mechanics:
                         s.bands.pressures(heights, loads, s.radius),
                         upper_force / area, lower_force / area, unbalanced)
 
-    def _push_field(self) -> Callable[[FloatArray], tuple[FloatArray, FloatArray, FloatArray, bool]]:
+    def push_field(self) -> Callable[[FloatArray], tuple[FloatArray, FloatArray, FloatArray, bool]]:
         """The powder's push as a function of the pellets' positions, for one relaxation:
         ``push(positions)`` is the push on the pellets (n_p, 3) [N], the cells' pressures
         [Pa], the push's stiffness per pellet, dP/dV_c A^2 over its cells [N/m], and
@@ -274,13 +281,13 @@ class Mechanics:
         (with other pellets and the container) are the volume the sphere of a pellet
         loses, so that its radius keeps its clay volume (:meth:`step`).
         """
-        assert self.stress is not None and self._omega is not None and self._cell_pressure is not None
+        assert self.stress is not None and self.cells.solid_angles is not None and self.cells.pressures is not None
         n_p, s = self.n_pellets, self.settings
         radii = self.radii
         load = walls + np.bincount(pairs[:, 0], normal, minlength=n_p) \
             + np.bincount(pairs[:, 1], normal, minlength=n_p)
         tet = self.mesh.tetrahedra
-        surface = self._cell_pressure[:, None] * self._omega * self.vertex_radii()[tet] ** 2
+        surface = self.cells.pressures[:, None] * self.cells.solid_angles * self.vertex_radii()[tet] ** 2
         load += np.bincount(tet.ravel(), surface.ravel(), minlength=self.n_vertices)[:n_p]
         measured = load / (4.0 * np.pi * radii**2)
         self.stress[:n_p] += s.stress_relaxation * (measured - self.stress[:n_p])
@@ -296,7 +303,7 @@ class Mechanics:
         for depth in (radii + axis - s.radius, radii - self.positions[:, 2] - 0.5 * s.height,
                       radii + self.positions[:, 2] - 0.5 * s.height):
             lost += _cap_volume(radii, np.maximum(depth, 0.0))
-        self._occupied_loss = np.minimum(lost / (4.0 / 3.0 * np.pi * radii**3), MAX_OVERLAP_LOSS)
+        self.occupied_loss = np.minimum(lost / (4.0 / 3.0 * np.pi * radii**3), MAX_OVERLAP_LOSS)
 
     def _contacts(self, pairs: npt.NDArray[np.int64], old_pairs: npt.NDArray[np.int64] | None = None,
                   old_shear: FloatArray | None = None, old_plastic: FloatArray | None = None,
@@ -305,7 +312,7 @@ class Mechanics:
         same pairs before (by default the contacts at the end of the last relaxation); new
         pairs start at 0."""
         if old_pairs is None:
-            old_pairs, old_shear, old_plastic = self._contact_pairs, self._shear, self._plastic
+            old_pairs, old_shear, old_plastic = self.contacts.pairs, self.contacts.shear, self.contacts.plastic
         shear = np.zeros((pairs.shape[0], 3))
         plastic = np.zeros(pairs.shape[0])
         if old_pairs is not None and old_shear is not None and old_plastic is not None \

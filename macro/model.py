@@ -23,8 +23,9 @@ from macro.geometry import VOID_FLOOR, Geometry, _cell_roles
 from macro.hydraulics import Hydraulics
 from macro.laws import MixtureParameters, saturation, swelling_strain
 from macro.mechanics import Mechanics
-from macro.mixture import Exchanges, cell_voids, container_points, solid_angles
+from macro.mixture import cell_voids, container_points, solid_angles
 from macro.packing import Packing
+from macro.parts import CellGeometry, Contacts, Counters
 from macro.pressure_volume import PressureVolume
 from macro.readings import Readings, WallReadings
 from macro.settings import MacroSettings, powder_porosity
@@ -68,36 +69,17 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
     time: float = 0.0
     steps: int = 0
     boundary_inflow: float = 0.0
-    fallbacks: int = 0
-    remeshes: int = 0
-    capped_cells: int = 0
-    overflowed_cells: int = 0
-    newton_iterations: int = 0
-    dem_substeps_used: int = 0
-    limited_systems: int = 0
-    extrusion_limited: int = 0
-    extruded_volume: float = 0.0
-    phase_seconds: dict[str, float] = field(default_factory=lambda: {
-        "remesh": 0.0, "transport": 0.0, "extrusion": 0.0, "newton": 0.0, "dem": 0.0})
-    _omega: FloatArray | None = None
-    _exchanges: Exchanges | None = None
-    _cell_pressure: FloatArray | None = None
-    _readings: Readings | None = None
-    _next_dt: float = 0.0
+    counters: Counters = field(default_factory=Counters)
+    cells: CellGeometry | None = None
+    contacts: Contacts | None = None
+    latest_readings: Readings | None = None
+    trial_time_step: float = 0.0
     spins: FloatArray | None = None
-    _contact_pairs: npt.NDArray[np.int64] | None = None
-    _shear: FloatArray | None = None
-    _plastic: FloatArray | None = None
-    _wall_plastic: FloatArray | None = None
-    _wall_shear: FloatArray | None = None
-    _void: FloatArray | None = None
-    _edges: npt.NDArray[np.int64] | None = None
-    _edges_of: npt.NDArray[np.int64] | None = None
     pellet_frames: FloatArray | None = None
     stress: FloatArray | None = None
     powder_porosity: float = 0.0
     initial_interior_water: float = 0.0
-    _occupied_loss: FloatArray | None = None
+    occupied_loss: FloatArray | None = None
     pellet_initial_solid: FloatArray | None = None
     packing: Packing | None = None
     """The packing the model was built on (:func:`macro.run.build_model`)."""
@@ -143,20 +125,19 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
             max_volume=v_max, held=held, inert=inert, initial_void=voids,
             container=container, on_plate=on_plate,
         )
-        model._omega = omega
+        model.cells = CellGeometry(omega, voids)
+        model.contacts = Contacts(np.zeros((n_p, 3)), np.zeros((n_p, 3, 3)))
         model.pellet_initial_solid = solid[:n_p].copy()
         model.powder_porosity = phi_powder
         model.stress = np.zeros(n_p + n_c)
-        model._occupied_loss = np.zeros(n_p)
+        model.occupied_loss = np.zeros(n_p)
         model.spins = np.zeros_like(packing.positions)
-        model._wall_plastic = np.zeros((n_p, 3))
-        model._wall_shear = np.zeros((n_p, 3, 3))
         if settings.pellet_permeability == "tensor":
             frames = Rotation.random(n_p, random_state=np.random.default_rng(settings.seed + 2))
             model.pellet_frames = frames.as_matrix()
-        model._hold_boundary()
-        model._update_geometry()
-        model._readings = model.relax(0)
+        model.hold_boundary()
+        model.update_geometry()
+        model.latest_readings = model.relax(0)
         model.initial_interior_water = model.interior_water()
         return model
 
@@ -165,10 +146,10 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
         """Advance one coupled step; returns the time step used [s]."""
         clock = time.perf_counter()
         if self.steps > 0:
-            self._update_geometry()
-            self._hold_boundary()
+            self.update_geometry()
+            self.hold_boundary()
         now = time.perf_counter()
-        self.phase_seconds["remesh"] += now - clock
+        self.counters.phase_seconds["remesh"] += now - clock
         clock = now
         conductance = self.conductances()
         if self.settings.transport_scheme == "implicit":
@@ -177,23 +158,23 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
             dt = min(self.time_step(conductance), self.saturation_limited_step(conductance), max_dt)
             self.transport(dt, conductance)
         now = time.perf_counter()
-        self.phase_seconds["transport"] += now - clock
+        self.counters.phase_seconds["transport"] += now - clock
         clock = now
         if self.settings.extrusion.enabled:
             self.extrude(dt)
             self.overflow()
         now = time.perf_counter()
-        self.phase_seconds["extrusion"] += now - clock
+        self.counters.phase_seconds["extrusion"] += now - clock
         clock = now
         self.solve_local()
         now = time.perf_counter()
-        self.phase_seconds["newton"] += now - clock
+        self.counters.phase_seconds["newton"] += now - clock
         clock = now
         n_p = self.n_pellets
-        assert self._occupied_loss is not None
-        self.radii = np.cbrt(3.0 * self.volume[:n_p] / (4.0 * np.pi * (1.0 - self._occupied_loss)))
-        self._readings = self.relax(self.settings.dem_substeps)
-        self.phase_seconds["dem"] += time.perf_counter() - clock
+        assert self.occupied_loss is not None
+        self.radii = np.cbrt(3.0 * self.volume[:n_p] / (4.0 * np.pi * (1.0 - self.occupied_loss)))
+        self.latest_readings = self.relax(self.settings.dem_substeps)
+        self.counters.phase_seconds["dem"] += time.perf_counter() - clock
         self.time += dt
         self.steps += 1
         return dt

@@ -15,6 +15,11 @@ FloatArray = npt.NDArray[np.float64]
 class PressureVolume:
     """Pressure-volume part of :class:`macro.model.MacroModel`."""
 
+    READS = ("cells", "counters", "held", "inert", "material", "max_volume", "mesh", "n_pellets",
+             "pressure", "reference_volume", "retention_porosity", "settings", "solid_volume",
+             "stress", "volume", "water_mass")
+    """What this part reads of the model's state and of its other parts."""
+
     def solid_mass(self) -> FloatArray:
         """(n,) dry mass of every system [kg] (pellets and powder of one grain density)."""
         return self.material.grain_density * self.solid_volume
@@ -45,14 +50,14 @@ class PressureVolume:
         its tetrahedron less Omega / (4 pi) of each pellet's clay volume, so pellets that
         take their shares leave every cell its densest state on the whole; a cell that
         one pellet squeezes more than its share hands the excess on (:meth:`overflow`)."""
-        assert self._void is not None and self._omega is not None
+        assert self.cells.voids is not None and self.cells.solid_angles is not None
         n_p = self.n_pellets
         tet = self.mesh.tetrahedra
         # a held cell's water leaves through the boundary as it is squeezed: its solid alone counts
         densest = np.where(self.held[n_p:], self.densest_volume(slice(n_p, None), with_water=False),
                            self.densest_volume(slice(n_p, None)))
-        room = np.where(self.inert[n_p:], 0.0, np.maximum(self._void - densest, 0.0))
-        share = np.where(tet < n_p, self._omega, 0.0)
+        room = np.where(self.inert[n_p:], 0.0, np.maximum(self.cells.voids - densest, 0.0))
+        share = np.where(tet < n_p, self.cells.solid_angles, 0.0)
         total = share.sum(axis=1)
         parts = room[:, None] * share / np.where(total > 0.0, total, 1.0)[:, None]
         pellet = tet < n_p
@@ -71,7 +76,7 @@ class PressureVolume:
         needed = self.densest_volume(slice(None)) * (1.0 + 1e-6)
         capped = (self.max_volume < needed) & ~self.inert
         capped[:n_p] = False
-        self.capped_cells += int(np.count_nonzero(capped))
+        self.counters.capped_cell_steps += int(np.count_nonzero(capped))
         self.max_volume = np.where(capped, needed, self.max_volume)
         limit = self.max_volume.copy()
         limit[:n_p] = np.minimum(limit[:n_p], np.maximum(self.volume[:n_p] + self.growth_room(), needed[:n_p]))
@@ -90,5 +95,5 @@ class PressureVolume:
         volume, pressure, iterations, fallbacks = solve_pressure_volume(
             problem, self.material, self.settings.newton, self.volume[free], -self.pressure[free])
         self.volume[free], self.pressure[free] = volume, pressure
-        self.newton_iterations += iterations
-        self.fallbacks += fallbacks
+        self.counters.newton_iterations += iterations
+        self.counters.newton_fallbacks += fallbacks

@@ -28,21 +28,27 @@ class Readings:
 class WallReadings:
     """Readings part of :class:`macro.model.MacroModel`."""
 
+    READS = ("boundary_inflow", "cells", "held", "inert", "initial_interior_water", "initial_void",
+             "latest_readings", "material", "mesh", "n_pellets", "n_vertices", "positions",
+             "pressure", "reference_volume", "saturations", "settings", "solid_mass",
+             "solid_volume", "volume", "water_mass")
+    """What this part reads of the model's state and of its other parts."""
+
     def wall_point_pressure(self) -> FloatArray:
         """(n_w,) the powder's pressure at each container point [Pa]: the mean over the
         active cells around the point, weighted by their solid angle at it. The hull's
         slivers (cells between container points only, inert) hold no powder and do not
         count: the powder around a point presses on the container there, whatever the
         slivers the triangulation puts between the points."""
-        assert self._cell_pressure is not None and self._omega is not None
+        assert self.cells.pressures is not None and self.cells.solid_angles is not None
         n_p, tet = self.n_pellets, self.mesh.tetrahedra
-        weight = np.where((tet >= n_p) & ~self.inert[n_p:, None], self._omega, 0.0)
-        total = np.bincount(tet.ravel(), (weight * self._cell_pressure[:, None]).ravel(),
+        weight = np.where((tet >= n_p) & ~self.inert[n_p:, None], self.cells.solid_angles, 0.0)
+        total = np.bincount(tet.ravel(), (weight * self.cells.pressures[:, None]).ravel(),
                             minlength=self.n_vertices)[n_p:]
         covered = np.bincount(tet.ravel(), weight.ravel(), minlength=self.n_vertices)[n_p:]
         return np.where(covered > 0.0, total / np.where(covered > 0.0, covered, 1.0), 0.0)
 
-    def _powder_wall_loads(self) -> tuple[FloatArray, FloatArray, float, float]:
+    def powder_wall_loads(self) -> tuple[FloatArray, FloatArray, float, float]:
         """Sec. 4.10: the powder pushes on the container through the mesh's hull, each
         triangle at the mean of its three points' :meth:`wall_point_pressure`.
 
@@ -64,8 +70,8 @@ class WallReadings:
 
     @property
     def readings(self) -> Readings:
-        assert self._readings is not None
-        return self._readings
+        assert self.latest_readings is not None
+        return self.latest_readings
 
     def neglected_void_fraction(self) -> float:
         """Fraction of the cells' initial void in cells without powder [1]."""
@@ -88,7 +94,7 @@ class WallReadings:
         solid = self.solid_volume[:n_p].sum() + self.solid_volume[cells].sum()
         water = self.water_mass[:n_p].sum() + self.water_mass[cells].sum()
         powder = self.solid_volume[cells] + self.water_mass[cells] / rho
-        assert self._void is not None
+        assert self.cells.voids is not None
         return {
             "water_pellets": float(self.water_mass[:n_p].sum()),
             "water_powder": float(self.water_mass[free_cells].sum()),
@@ -96,7 +102,7 @@ class WallReadings:
             "water_residual": self.interior_water() - self.initial_interior_water - self.boundary_inflow,
             "solid_water_fraction": float((solid + water / rho) / container),
             "occupied_fraction": float((self.volume[:n_p].sum() + powder.sum()) / container),
-            "largest_overfill": float(np.max(powder / self._void[cells - n_p]) - 1.0),
+            "largest_overfill": float(np.max(powder / self.cells.voids[cells - n_p]) - 1.0),
             "dry_density": float(self.material.grain_density * solid / container),
             "dry_density_spread": self.dry_density_spread(),
         }

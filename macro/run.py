@@ -280,14 +280,7 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
         "table_condition": s.table_condition,
         "table_lookups": table.looked_up,
         "table_clamped_lookups": table.clamped,
-        "newton_iterations": model.newton_iterations,
-        "newton_fallbacks": model.fallbacks,
-        "capped_cell_steps": model.capped_cells,
-        "overflowed_cell_steps": model.overflowed_cells,
-        "extrusion_limited_steps": model.extrusion_limited,
-        "extruded_volume_m3": model.extruded_volume,
-        "flux_limited_system_steps": model.limited_systems,
-        "remeshes": model.remeshes,
+        **model.counters.attributes(),
         "steps": model.steps,
         "inert_void_fraction": model.neglected_void_fraction(),
         "boundary_inflow_kg": model.boundary_inflow,
@@ -303,7 +296,6 @@ def _dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray
         "sensor_area_convention": ("force / (2 pi R dz)" if s.sensors.area_share == 1.0
                                    else "force / (pi R dz), the thesis's getPressure"),
         "stop_monitored": ", ".join(MONITORED),
-        **{f"seconds_{k}": v for k, v in model.phase_seconds.items()},
     }
     return xr.Dataset(data, coords=coords, attrs=attrs)
 

@@ -89,16 +89,16 @@ def _swelling_config(steps):
 
 def _remesh_steps(monkeypatch, table_path, config, output):
     """Run uninterrupted in this process; the result and the steps that remeshed."""
-    remesh = MacroModel._remesh
+    remesh = MacroModel.remesh
     steps = []
 
     def counted(self):
         steps.append(self.steps + 1)
         remesh(self)
 
-    monkeypatch.setattr(MacroModel, "_remesh", counted)
+    monkeypatch.setattr(MacroModel, "remesh", counted)
     run(config, "small", table_path, output)
-    monkeypatch.setattr(MacroModel, "_remesh", remesh)
+    monkeypatch.setattr(MacroModel, "remesh", remesh)
     return xr.load_dataset(output), steps
 
 
@@ -142,7 +142,7 @@ def test_a_run_killed_three_times_resumes_to_the_uninterrupted_result(table_path
         assert not out.exists()
         model = _snapshot_model(snapshot)
         assert model["steps"] == kill_at
-        remeshes.append(model["remeshes"])
+        remeshes.append(model["counters"]["object"]["remeshes"])
     assert remeshes[0] == 0 < remeshes[1] <= remeshes[2] <= whole.attrs["remeshes"], remeshes
     assert not snapshot.exists()
     resumed = xr.load_dataset(out)
@@ -277,7 +277,7 @@ def test_the_whole_model_and_attributes_added_later_go_through_a_snapshot(model,
     _assert_same_state(rows, loaded_rows, "rows")
     model.step()
     loaded.step()
-    model.phase_seconds = loaded.phase_seconds  # wall time, not state
+    model.counters.phase_seconds = loaded.counters.phase_seconds  # wall time, not state
     _assert_same_state(model, loaded, "model")
 
 

@@ -55,9 +55,10 @@ def test_short_step_moves_the_explicit_fluxes_and_conserves_solid_water_and_refe
     model = dataclasses.replace(model)
     for name in ("solid_volume", "water_mass", "reference_volume", "volume", "max_volume"):
         setattr(model, name, getattr(model, name).copy())
+    model.counters = dataclasses.replace(model.counters)
     before, solid = _totals(model), model.solid_volume.copy()
     pressure = model.extrusion_pressure()
-    ex = model._exchanges
+    ex = model.cells.exchanges
     n_p = model.n_pellets
     pairs, kind = ex.pairs[ex.kind > 0], ex.kind[ex.kind > 0]
     i, j = pairs[:, 0], pairs[:, 1]
@@ -102,10 +103,10 @@ def test_hydrating_column_homogenises_by_extrusion_only(table_path, homogenisati
     assert _totals(model)[0] == pytest.approx(solid, rel=1e-12)
     ratio = model.dry_density_spread() / start
     if homogenisation == "extrusion":
-        assert model.extruded_volume > 0.0
+        assert model.counters.extruded_volume_m3 > 0.0
         assert ratio < 0.25
     else:
-        assert model.extruded_volume == 0.0
+        assert model.counters.extruded_volume_m3 == 0.0
         assert ratio > 0.45
 
 
@@ -114,14 +115,16 @@ def test_overflow_returns_a_squeezed_cell_within_its_void(wetted):
     neighbours: it ends within its void, and solid, water and V_0 are conserved."""
     _, model = wetted
     model = dataclasses.replace(model)
-    for name in ("solid_volume", "water_mass", "reference_volume", "volume", "_void"):
+    for name in ("solid_volume", "water_mass", "reference_volume", "volume"):
         setattr(model, name, getattr(model, name).copy())
+    model.cells = dataclasses.replace(model.cells, voids=model.cells.voids.copy())
+    model.counters = dataclasses.replace(model.counters)
     n_p = model.n_pellets
     cell = int(np.flatnonzero(~model.inert[n_p:] & ~model.held[n_p:])[0])
     densest = float(model.densest_volume(np.array([n_p + cell]))[0])
-    model._void[cell] = 0.5 * densest
+    model.cells.voids[cell] = 0.5 * densest
     before = _totals(model)
     model.overflow()
-    assert model.densest_volume(np.array([n_p + cell]))[0] <= model._void[cell] * (1.0 + 1e-9)
+    assert model.densest_volume(np.array([n_p + cell]))[0] <= model.cells.voids[cell] * (1.0 + 1e-9)
     np.testing.assert_allclose(_totals(model), before, rtol=1e-12)
-    assert model.overflowed_cells > 0
+    assert model.counters.overflowed_cell_steps > 0

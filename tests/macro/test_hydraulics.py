@@ -25,7 +25,7 @@ def test_water_changes_only_by_the_boundary_inflow(model):
     for _ in range(6):
         conductance = model.conductances()
         dt = min(model.time_step(conductance), model.saturation_limited_step(conductance))
-        rate = mass_rates(model._exchanges.pairs, conductance, model.pressure, model.volume.size)
+        rate = mass_rates(model.cells.exchanges.pairs, conductance, model.pressure, model.volume.size)
         inflow -= dt * rate[model.held].sum()  # what the held systems lose
         model.transport(dt, conductance)
         model.solve_local()
@@ -41,7 +41,7 @@ def test_model_step_respects_eq_4_58(model):
     conductance = model.conductances()
     dt = model.time_step(conductance)
     n = model.volume.size
-    pairs = model._exchanges.pairs
+    pairs = model.cells.exchanges.pairs
     total = np.bincount(pairs[:, 0], conductance, minlength=n) + np.bincount(pairs[:, 1], conductance, minlength=n)
     pore = model.volume - model.solid_volume
     sat = model.water_mass / (1000.0 * pore)
@@ -77,10 +77,10 @@ def test_closed_column_keeps_the_water_of_its_systems(model):
     was_held = model.held.copy()
     model.held[:] = False
     total, given = model.water_mass.sum(), model.water_mass[was_held].sum()
-    remeshes, inflow = model.remeshes, model.boundary_inflow
+    remeshes, inflow = model.counters.remeshes, model.boundary_inflow
     for _ in range(8):
         model.step()
-    assert model.remeshes == remeshes  # a remesh would hold the end cells again
+    assert model.counters.remeshes == remeshes  # a remesh would hold the end cells again
     assert model.water_mass.sum() == pytest.approx(total, rel=1e-12, abs=0.0)
     assert model.water_mass[was_held].sum() < 0.99 * given
     assert model.boundary_inflow == inflow
@@ -115,7 +115,7 @@ def test_interior_gains_the_water_crossing_from_the_held_cells(model, monkeypatc
         free = np.where(ends[:, 0], pairs[:, 1], pairs[:, 0])[across]
         assert np.all(pressure[held] >= pressure[free])
         crossed += dt * float(np.sum(conductance[across] * (pressure[held] - pressure[free])))
-    assert model.remeshes == 0
+    assert model.counters.remeshes == 0
     assert crossed > 0.0
     assert model.water_mass[~model.held].sum() - start == pytest.approx(crossed, rel=1e-10, abs=0.0)
 
@@ -162,9 +162,9 @@ def test_tensor_permeability_is_read_along_the_exchange(tmp_path):
     n_p = model.n_pellets
     model.pellet_frames = np.broadcast_to(np.eye(3), (n_p, 3, 3)).copy()
     k = model.permeabilities()
-    k_i, _ = model._directional_permeabilities(k[model._exchanges.pairs[:, 0]], k[model._exchanges.pairs[:, 1]])
+    pairs = model.cells.exchanges.pairs
+    k_i, _ = model.directional_permeabilities(k[pairs[:, 0]], k[pairs[:, 1]])
     tensor = model.table.tensor(-model.pressure[:n_p], "water")
-    pairs = model._exchanges.pairs
     centres = np.concatenate([model.positions, model.mesh.centroids])
     d = centres[pairs[:, 1]] - centres[pairs[:, 0]]
     d /= np.linalg.norm(d, axis=1)[:, None]
@@ -175,6 +175,6 @@ def test_tensor_permeability_is_read_along_the_exchange(tmp_path):
     np.testing.assert_allclose(zz / xx, 10.0, rtol=1e-6)
     model.pellet_frames = None
     random = build_model(config, "small", PermeabilityTable.from_file(path, "free"))
-    k_r, _ = random._directional_permeabilities(k[pairs[:, 0]], k[pairs[:, 1]])
+    k_r, _ = random.directional_permeabilities(k[pairs[:, 0]], k[pairs[:, 1]])
     assert np.all(k_r[pellet] >= xx * (1 - 1e-9)) and np.all(k_r[pellet] <= zz * (1 + 1e-9))
     assert not np.allclose(k_r[pellet], expected, rtol=1e-3, atol=0.0)

@@ -52,10 +52,10 @@ def test_relaxation_of_the_small_column_balances_to_the_tolerance(model, toleran
     model.settings = replace(model.settings, dem_balance_tolerance=tolerance)
     for _ in range(5):
         model.step()
-    used = model.dem_substeps_used
+    used = model.counters.dem_substeps
     readings = model.relax(400)
     assert readings.unbalanced < tolerance
-    assert model.dem_substeps_used - used < 400
+    assert model.counters.dem_substeps - used < 400
 
 
 def test_frictional_walls_keep_the_balance_and_carry_shear(model):
@@ -65,7 +65,7 @@ def test_frictional_walls_keep_the_balance_and_carry_shear(model):
     for _ in range(5):
         model.step()
     assert model.readings.unbalanced < 0.01
-    tangential = np.linalg.norm(model._wall_shear, axis=2)
+    tangential = np.linalg.norm(model.contacts.wall_shear, axis=2)
     assert tangential.max() > 0.0
     # the normal forces of the same contacts (plastic overlaps of a copy)
     n_p, s, rest = model.n_pellets, model.settings, np.zeros((model.n_pellets, 3))
@@ -74,7 +74,7 @@ def test_frictional_walls_keep_the_balance_and_carry_shear(model):
     normal = np.column_stack(cylinder_contacts(
         model.positions, rest, rest, model.radii, young, model.material.poisson_ratio, 0.0, s.radius,
         -0.5 * s.height, 0.5 * s.height, np.zeros((n_p, 3)), np.zeros((n_p, 3)), np.zeros(n_p), strength,
-        model._wall_plastic.copy(), np.zeros((n_p, 3, 3))))
+        model.contacts.wall_plastic.copy(), np.zeros((n_p, 3, 3))))
     assert np.all(tangential <= s.wall_friction * normal * (1.0 + 1e-12))
     assert np.all(tangential[normal == 0.0] == 0.0)
 
@@ -86,15 +86,15 @@ def test_fused_push_equals_the_pressure_and_facet_forces_computed_apart(model):
     pressures and forces to round-off, and the same inverted-cell verdict."""
     for _ in range(3):
         model.step()
-    push = model._push_field()
+    push = model.push_field()
     model.positions += np.random.default_rng(3).normal(scale=1e-3 * model.radii.mean(), size=model.positions.shape)
     forces, pressure, stiffness, inverted = push(model.positions)
-    assert model._moved_geometry() is not inverted
+    assert model.move_geometry() is not inverted
     reference, slope = model.powder_pressure()
     assert (reference > 0.0).sum() > 10
     np.testing.assert_allclose(pressure, reference, rtol=1e-10, atol=1e-6)
     np.testing.assert_allclose(forces, model.hydro_forces(reference), rtol=1e-8, atol=1e-9 * np.abs(forces).max())
-    area = model._omega * model.vertex_radii()[model.mesh.tetrahedra] ** 2
+    area = model.cells.solid_angles * model.vertex_radii()[model.mesh.tetrahedra] ** 2
     by_pellet = np.bincount(model.mesh.tetrahedra.ravel(), (slope[:, None] * area**2).ravel(),
                             minlength=model.n_vertices)[:model.n_pellets]
     np.testing.assert_allclose(stiffness, by_pellet, rtol=1e-10)

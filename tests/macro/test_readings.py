@@ -20,7 +20,7 @@ def test_uniform_powder_push_reads_its_pressure_on_walls_and_plates(table_path):
     push = 2.0e5
     cells = model.n_cells
     uniform = np.full(cells, push)
-    model._push_field = lambda: lambda positions: (model.hydro_forces(uniform), uniform, np.zeros(model.n_pellets),
+    model.push_field = lambda: lambda positions: (model.hydro_forces(uniform), uniform, np.zeros(model.n_pellets),
                                                    False)
     readings = model.relax(0)
     macro = config["macro"]

@@ -104,8 +104,8 @@ def _column_flow(model: MacroModel, position: FloatArray, layer: float) -> float
     ``position`` [m] (along the axis, 0 at mid-height): see
     :func:`macro.column_permeability.network_permeability`."""
     s = model.settings
-    assert model._exchanges is not None
-    flow = network_permeability(model._exchanges.pairs, model.conductances() / s.conductivity_factor, position,
+    assert model.cells.exchanges is not None
+    flow = network_permeability(model.cells.exchanges.pairs, model.conductances() / s.conductivity_factor, position,
                                 ~model.inert, s.height, np.pi * s.radius**2, layer, -1e6, 1e5,
                                 s.density, s.viscosity)
     return flow.permeability
