@@ -1,5 +1,7 @@
 # CT stage (imaging/ct): greyscale -> calibrated density -> porosity grid; REV and chord
-# lengths (imaging/morphology). Each rule's params hold every config key its script reads.
+# lengths (imaging/morphology). Each rule's params hold every config key its script reads,
+# the imaging keys from the one list of them (imaging/ct_keys.py).
+from imaging.ct_keys import POROSITY_KEYS, RESOURCE_KEYS, REV_KEYS
 
 
 rule imaging_phantom:
@@ -42,17 +44,7 @@ rule imaging_porosity:
     params:
         code=script_code("imaging_porosity.py"),
         sample=get_sample_config,
-        imaging=sample_settings(
-            "calibration",
-            "mask",
-            "grid_spacing_m",
-            "min_specimen_fraction",
-            "chunk_mb",
-            "workers",
-            "memory_limit_gb",
-            "dask_scheduler",
-            "store_scan",
-        ),
+        imaging=sample_settings(*POROSITY_KEYS, *RESOURCE_KEYS),
         # one phi_0: the calibration anchors the mean dry density at the pellet's
         # reference porosity, that of the retention and permeability laws
         material={
@@ -89,9 +81,7 @@ rule imaging_rev:
     params:
         code=script_code("imaging_rev.py"),
         sample=get_sample_config,
-        settings=sample_settings(
-            "rev", "chords", "chunk_mb", "workers", "memory_limit_gb", "dask_scheduler"
-        ),
+        settings=sample_settings(*REV_KEYS, *RESOURCE_KEYS),
     threads: lambda wildcards: sample_settings("workers")(wildcards)["workers"]
     conda:
         "../envs/claychain.yaml"
