@@ -67,8 +67,6 @@ def test_the_entry_points_read_the_listed_keys(tmp_path: Path, monkeypatch: pyte
 
 
 TARGET = "results/rev/pellet.nc"
-
-
 # the outputs of the jobs that TARGET needs
 OUTPUTS = ("results/phantom/pellet.tif", "results/images/pellet.nc", "results/porosity/pellet.nc",
            "results/porosity/pellet.png", TARGET, "results/rev/pellet.png")
@@ -105,8 +103,8 @@ def test_the_rules_params_hold_the_listed_science_keys(ct_run_folder: Path) -> N
 
 
 def _planned(folder: Path, tmp: Path, edit: dict[str, Any]) -> str:
-    """The jobs a dry run plans after ``edit`` (imaging key -> value) of the finished run's
-    config: ``snakemake -n`` output's job counts."""
+    """What a dry run (``snakemake -n``) prints after ``edit`` (imaging key -> value) of
+    the recorded run's config, on a copy of it."""
     def apply(config: dict) -> None:
         config["imaging"].update(edit)
     copy = edited_copy(folder, tmp / "wf", apply)
