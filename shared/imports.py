@@ -18,6 +18,9 @@ from pathlib import Path
 
 __all__ = ["PACKAGES", "imported_sources"]
 
+# The pipeline's packages, the one list: the code hashes, the provenance and the tests
+# import it; pyproject.toml's import-linter lists, which cannot import it, are checked
+# against it, and so is the set of packages at the repository root (tests/shared/test_imports.py).
 PACKAGES: tuple[str, ...] = ("imaging", "micro", "macro", "shared")
 
 

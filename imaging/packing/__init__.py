@@ -10,17 +10,25 @@ numerical API: ``from imaging.packing.run import run``.
 
 The names below are imported from their submodule on first use (PEP 562), so that
 importing a light submodule (:mod:`.config` for the workflow's checks) does not compile
-the numba kernels. The modules in full: docs/packing.md, "imaging.packing".
+the numba kernels; each numerical submodule's ``__all__`` is exported whole. The modules
+in full: docs/packing.md, "imaging.packing".
+
+The ``if TYPE_CHECKING:`` block is the one list of names: type checkers and IDEs read it,
+and ``shared.lazy.lazy_package`` reads it from this file to build ``__all__`` and the lazy map.
 """
+
+# the block's names are this package's exports, not unused imports (ruff reads no derived __all__)
+# ruff: noqa: F401
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from shared.lazy import lazy_getattr
+from shared.lazy import lazy_package
 
 if TYPE_CHECKING:
     from imaging.packing.analysis import (
+        HYDRATED_VERMICULITE_DENSITY,
         OrderParameters,
         basal_contact_area,
         legendre_order,
@@ -29,76 +37,15 @@ if TYPE_CHECKING:
         order_profile,
         order_tensor,
         porosity_profile,
+        profile_edges,
         rocking_curve,
         surface_areas,
         zone_porosity,
     )
     from imaging.packing.deposition import DepositionParameters, Packing, deposit
     from imaging.packing.measures import PackingMeasures, measure_packing
-    from imaging.packing.orientation import euler_angles, normals, rotation_matrices
+    from imaging.packing.orientation import euler_angles, fold_upward, normals, rotation_matrices
     from imaging.packing.population import Population, equivalent_diameter, sample_semi_axes, volumes
     from imaging.packing.voxels import VoxelImage, overlap_fraction, voxel_counts, voxelize
 
-__all__ = [
-    "DepositionParameters",
-    "OrderParameters",
-    "Packing",
-    "PackingMeasures",
-    "Population",
-    "VoxelImage",
-    "basal_contact_area",
-    "deposit",
-    "equivalent_diameter",
-    "euler_angles",
-    "legendre_order",
-    "linear_zone",
-    "measure_packing",
-    "normals",
-    "order_parameters",
-    "order_profile",
-    "order_tensor",
-    "overlap_fraction",
-    "porosity_profile",
-    "rocking_curve",
-    "rotation_matrices",
-    "sample_semi_axes",
-    "surface_areas",
-    "voxel_counts",
-    "voxelize",
-    "volumes",
-    "zone_porosity",
-]
-
-# public name -> its submodule
-_EXPORTS = {
-    "OrderParameters": "analysis",
-    "basal_contact_area": "analysis",
-    "legendre_order": "analysis",
-    "linear_zone": "analysis",
-    "order_parameters": "analysis",
-    "order_profile": "analysis",
-    "order_tensor": "analysis",
-    "porosity_profile": "analysis",
-    "rocking_curve": "analysis",
-    "surface_areas": "analysis",
-    "zone_porosity": "analysis",
-    "DepositionParameters": "deposition",
-    "Packing": "deposition",
-    "deposit": "deposition",
-    "PackingMeasures": "measures",
-    "measure_packing": "measures",
-    "euler_angles": "orientation",
-    "normals": "orientation",
-    "rotation_matrices": "orientation",
-    "Population": "population",
-    "equivalent_diameter": "population",
-    "sample_semi_axes": "population",
-    "volumes": "population",
-    "VoxelImage": "voxels",
-    "overlap_fraction": "voxels",
-    "voxel_counts": "voxels",
-    "voxelize": "voxels",
-}
-
-
-__getattr__ = lazy_getattr(__name__, _EXPORTS, globals())
+__all__, __getattr__ = lazy_package(globals())

@@ -12,14 +12,20 @@ Typical use in a coupled loop::
 
 The names below are imported from their submodule on first use (PEP 562), so that
 importing a light submodule (:mod:`.parameters` for the workflow's key lists) does not
-import numba.
+import numba. Each submodule's ``__all__`` is exported whole.
+
+The ``if TYPE_CHECKING:`` block is the one list of names: type checkers and IDEs read it,
+and ``shared.lazy.lazy_package`` reads it from this file to build ``__all__`` and the lazy map.
 """
+
+# the block's names are this package's exports, not unused imports (ruff reads no derived __all__)
+# ruff: noqa: F401
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from shared.lazy import lazy_getattr
+from shared.lazy import lazy_package
 
 if TYPE_CHECKING:
     from shared.dem.contacts import (
@@ -41,7 +47,7 @@ if TYPE_CHECKING:
         step,
         unbalanced_force,
     )
-    from shared.dem.parameters import DEMParameters
+    from shared.dem.parameters import DEM_MATERIAL_KEYS, DEMParameters, dem_parameters
     from shared.dem.points import cube_points
     from shared.dem.state import ContactList, DEMState, new_state
     from shared.dem.walls import (
@@ -53,78 +59,4 @@ if TYPE_CHECKING:
     )
     from shared.dem.yielding import cylinder_contacts, hertz_yield, yielding_hertz_mindlin
 
-__all__ = [
-    "dem_parameters",
-    "ContactList",
-    "DEMParameters",
-    "DEMState",
-    "StepReport",
-    "WallLoads",
-    "Walls",
-    "bond_pairs",
-    "bond_stretches",
-    "bond_tension",
-    "contact_forces",
-    "contacts_need_update",
-    "point_bins",
-    "cube_points",
-    "detect_contacts",
-    "integrate",
-    "new_state",
-    "pair_values",
-    "held_points",
-    "servo_walls",
-    "stable_time_step",
-    "step",
-    "unbalanced_force",
-    "update_contacts",
-    "wall_forces",
-    "walls_around",
-    "limit_speed",
-    "cylinder_contacts",
-    "FireParameters",
-    "FireState",
-    "fire_step",
-    "hertz_yield",
-    "yielding_hertz_mindlin",
-]
-
-# public name -> its submodule
-_EXPORTS = {
-    "bond_pairs": "contacts",
-    "contacts_need_update": "contacts",
-    "detect_contacts": "contacts",
-    "held_points": "contacts",
-    "pair_values": "contacts",
-    "point_bins": "contacts",
-    "update_contacts": "contacts",
-    "bond_stretches": "hertz",
-    "bond_tension": "hertz",
-    "contact_forces": "hertz",
-    "StepReport": "integrator",
-    "integrate": "integrator",
-    "limit_speed": "integrator",
-    "stable_time_step": "integrator",
-    "step": "integrator",
-    "unbalanced_force": "integrator",
-    "DEMParameters": "parameters",
-    "dem_parameters": "parameters",
-    "cube_points": "points",
-    "ContactList": "state",
-    "DEMState": "state",
-    "new_state": "state",
-    "WallLoads": "walls",
-    "Walls": "walls",
-    "servo_walls": "walls",
-    "wall_forces": "walls",
-    "walls_around": "walls",
-    "FireParameters": "fire",
-    "FireState": "fire",
-    "fire_step": "fire",
-    "cylinder_contacts": "yielding",
-    "hertz_yield": "yielding",
-    "yielding_hertz_mindlin": "yielding",
-}
-
-
-__getattr__ = lazy_getattr(__name__, _EXPORTS, globals())
+__all__, __getattr__ = lazy_package(globals())

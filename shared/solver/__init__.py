@@ -9,15 +9,14 @@ row-wise backward error max_i |b - A x|_i / (|a_ii| ||x||_inf + |b_i|) <=
 ``amg_unknowns`` unknowns and with a classical Ruge-Stueben hierarchy (pyamg) above.
 A stale factor or hierarchy is refreshed by rules that count CG iterations, not time,
 so they are deterministic. The rules in full: docs/performance.md, "shared.solver".
-Parts: :mod:`.spd` (the dispatcher and CG), :mod:`.factor`, :mod:`.multigrid`,
-:mod:`.state` (checkpoints).
+Parts: :mod:`.spd` (the dispatcher and CG, and its reuse state for checkpoints),
+:mod:`.factor`, :mod:`.multigrid`.
 """
 
-from shared.solver._kernels import _scaled_drift, _symmetric_product
 from shared.solver.base import SolverError, SolverStats
 from shared.solver.factor import set_cholmod_blas_threads
 from shared.solver.multigrid import AMG_STRENGTH, AMG_UNKNOWNS
 from shared.solver.spd import SPDSolver
 
 __all__ = ["SolverError", "SolverStats", "SPDSolver", "set_cholmod_blas_threads",
-           "AMG_UNKNOWNS", "AMG_STRENGTH", "_scaled_drift", "_symmetric_product"]
+           "AMG_UNKNOWNS", "AMG_STRENGTH"]

@@ -4,12 +4,15 @@ conjugate gradients on the current matrix, judged by a row-wise backward error.
 :class:`SPDSolver` keeps the sparsity pattern and the matrix its preconditioner was
 bought for, chooses the path (:mod:`shared.solver.factor`,
 :mod:`shared.solver.multigrid`), hands a system the hierarchy cannot solve to the factor
-(``method="auto"``), and runs the CG iterations both paths share. Its reuse state for
-checkpoints is :mod:`shared.solver.state`.
+(``method="auto"``), and runs the CG iterations both paths share. Its reuse state (what
+decides its next refactorisations) is saved in a checkpoint and restored by its own
+methods (:meth:`SPDSolver.reuse_state`, :meth:`SPDSolver.restore_reuse_state`), so that a
+resumed run continues bit for bit.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Mapping
 from typing import Any
@@ -19,7 +22,6 @@ import numpy.typing as npt
 import scipy.sparse as sp
 from sksparse.cholmod import Factor
 
-from shared.solver import state
 from shared.solver._kernels import _cg_update, _check_lower, _scaled_drift, _symmetric_product
 from shared.solver.base import Since, SolverError, SolverStats
 from shared.solver.factor import FactorReuse, set_cholmod_blas_threads
@@ -151,16 +153,87 @@ class SPDSolver:
         self._indptr = None
 
     def reuse_state(self) -> tuple[dict[str, Any], dict[str, npt.NDArray[Any]]]:
-        """What decides this solver's next refactorisations, for a checkpoint file
-        (:func:`shared.solver.state.reuse_state`)."""
-        return state.reuse_state(self)
+        """What decides this solver's next refactorisations, for a checkpoint file.
+
+        Neither a CHOLMOD factor nor a pyamg hierarchy can be saved, but each is a
+        deterministic function of its matrix (and the ordering): the state keeps the
+        factored lower triangle, and :meth:`restore_reuse_state` builds the
+        preconditioner again from it.
+
+        Returns
+        -------
+        scalars : dict
+            The preconditioner choice (``method``, ``amg_unknowns``, ``amg_strength``),
+            the rent-or-buy counters (stale iterations and solves, last rent, solves left
+            to buy at once, back-off; on the multigrid path the iterations of the first
+            solve since the setup, and whether the factor took over the pattern), the
+            diagnostics ``last_drift`` and ``last_residual``, the work counters of
+            ``stats`` and the ordering of the current analysis (JSON-serialisable).
+        arrays : dict
+            ``indptr``, ``indices`` and ``data`` of the factored lower triangle, empty if
+            there is no factor or hierarchy.
+        """
+        factor, multigrid, since = self._cholmod, self._multigrid, self._since
+        scalars: dict[str, Any] = {
+            "stale_iterations": since.iterations, "last_rent": factor.last_rent,
+            "stale_solves": since.solves, "buy_at_once": factor.buy_at_once,
+            "backoff": factor.backoff, "last_drift": self.last_drift,
+            "last_residual": self.last_residual, "ordering": factor.ordering,
+            "method": self.method, "amg_unknowns": self.amg_unknowns,
+            "amg_strength": self.amg_strength, "setup_iterations": multigrid.setup_iterations,
+            "fallback": self._fallback,
+            "stats": dataclasses.asdict(self.stats),
+        }
+        arrays: dict[str, npt.NDArray[Any]] = {}
+        if (factor.factor is not None or multigrid.cycle is not None) \
+                and self._factored_data is not None:
+            assert self._indptr is not None and self._indices is not None
+            arrays = {"indptr": self._indptr, "indices": self._indices,
+                      "data": self._factored_data}
+        return scalars, arrays
 
     def restore_reuse_state(
         self, scalars: Mapping[str, Any], arrays: Mapping[str, npt.NDArray[Any]]
     ) -> None:
-        """Continue as the solver whose :meth:`reuse_state` this was, bit for bit
-        (:func:`shared.solver.state.restore_reuse_state`)."""
-        state.restore_reuse_state(self, scalars, arrays)
+        """Continue as the solver whose :meth:`reuse_state` this was, bit for bit.
+
+        With a saved factored matrix, it is analysed (same ordering) and factored, or its
+        hierarchy built, again: CHOLMOD and the Ruge-Stueben setup are deterministic for
+        a given matrix (and ordering), so the new preconditioner applies exactly as the
+        lost one did.
+        """
+        # states saved before the multigrid path existed are factor states
+        self.method = scalars.get("method", "direct")
+        self.amg_unknowns = int(scalars.get("amg_unknowns", self.amg_unknowns))
+        # states saved before the threshold was a setting used pyamg's default
+        self.amg_strength = float(scalars.get("amg_strength", 0.25))
+        self._fallback = bool(scalars.get("fallback", False))
+        if arrays:
+            n = arrays["indptr"].shape[0] - 1
+            matrix = sp.csc_matrix(
+                (np.array(arrays["data"], dtype=np.float64),
+                 np.array(arrays["indices"], dtype=np.int32),
+                 np.array(arrays["indptr"], dtype=np.int32)), shape=(n, n))
+            self.ordering_method, saved_method = scalars["ordering"], self.ordering_method
+            try:
+                self.reset()
+                self._buy(matrix, ordered=False)
+            finally:
+                self.ordering_method = saved_method
+        else:
+            self.reset()
+            self._factored_data = None
+        factor, since = self._cholmod, self._since
+        factor.ordering = scalars["ordering"]
+        since.iterations = int(scalars["stale_iterations"])
+        factor.last_rent = int(scalars["last_rent"])
+        since.solves = int(scalars["stale_solves"])
+        factor.buy_at_once = int(scalars["buy_at_once"])
+        factor.backoff = int(scalars["backoff"])
+        self._multigrid.setup_iterations = int(scalars.get("setup_iterations", 0))
+        self.last_drift = float(scalars["last_drift"])
+        self.last_residual = float(scalars["last_residual"])
+        self.stats = SolverStats(**{"fallbacks": 0, **scalars["stats"]})
 
     def _same_pattern(self, matrix: sp.csc_matrix) -> bool:
         return (

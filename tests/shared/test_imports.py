@@ -1,13 +1,15 @@
 """shared.imports: the modules a script imports, read from the sources on a tree built
 for the test (absolute, relative, nested and lazy imports; standard and third-party
-modules and names that are not modules are not followed)."""
+modules and names that are not modules are not followed); the one list of packages,
+PACKAGES, against the tree and pyproject.toml."""
 
 from __future__ import annotations
 
 import sys
+import tomllib
 from pathlib import Path
 
-from shared.imports import imported_sources
+from shared.imports import PACKAGES, imported_sources
 
 
 def _write(path: Path, text: str) -> None:
@@ -37,3 +39,30 @@ def test_the_import_graph_of_a_small_tree(tmp_path: Path) -> None:
     }
     assert list(found) == sorted(found)
     assert "pkg" not in sys.modules  # read, not imported
+
+
+ROOT = Path(__file__).resolve().parents[2]
+# a package at the root that no rule runs, so that no code hash covers it: the
+# performance harness (benchmarks/README.md)
+NOT_PIPELINE = {"benchmarks"}
+
+
+def test_the_packages_are_the_root_folders_that_are_packages() -> None:
+    """A new package at the root that PACKAGES misses would fall outside every code hash."""
+    found = {d.name for d in ROOT.iterdir() if (d / "__init__.py").is_file()}
+    assert found - NOT_PIPELINE == set(PACKAGES) and len(PACKAGES) == len(set(PACKAGES))
+
+
+def test_pyprojects_package_lists_are_the_packages() -> None:
+    """pyproject.toml cannot import PACKAGES: its lists are checked against it here."""
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    linter = pyproject["tool"]["importlinter"]
+    assert linter["root_packages"] == list(PACKAGES)
+    contracts = {c["name"]: c for c in linter["contracts"]}
+    stages = [p for p in PACKAGES if p != "shared"]
+    assert contracts["stages are independent of each other"]["modules"] == stages
+    layers = contracts["shared sits below every stage"]["layers"]
+    assert [sorted(layer.replace(" ", "").split("|")) for layer in layers] == [sorted(stages), ["shared"]]
+    installed = pyproject["tool"]["setuptools"]["packages"]["find"]["include"]
+    assert set(PACKAGES) <= {pattern.rstrip("*") for pattern in installed}
+    assert set(PACKAGES) <= set(pyproject["tool"]["ruff"]["lint"]["isort"]["known-first-party"])

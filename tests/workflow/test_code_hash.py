@@ -11,7 +11,7 @@ import pytest
 import xarray as xr
 
 import shared.io
-from shared.imports import imported_sources
+from shared.imports import PACKAGES, imported_sources
 from shared.io import read_dataset, write_dataset
 from shared.provenance import module_sha256, script_sha256
 
@@ -24,7 +24,7 @@ MICRO_SCRIPTS = ["micro_case.py", "micro_compare.py", "micro_convergence.py", "m
 @pytest.fixture
 def tree(tmp_path: Path) -> Path:
     """A copy of the packages and scripts, to edit."""
-    for name in ("imaging", "micro", "macro", "shared", "workflow/scripts"):
+    for name in (*PACKAGES, "workflow/scripts"):
         shutil.copytree(ROOT / name, tmp_path / name,
                         ignore=shutil.ignore_patterns("__pycache__"))
     return tmp_path
@@ -62,8 +62,7 @@ def test_the_static_walk_covers_what_python_imports(module, tmp_path):
     script = tmp_path / "script.py"
     script.write_text(f"import {module}\n")
     code = (f"import sys, {module}\n"
-            "print(' '.join(m for m in sys.modules if m.split('.')[0] in "
-            "('imaging', 'micro', 'macro', 'shared')))")
+            f"print(' '.join(m for m in sys.modules if m.split('.')[0] in {PACKAGES!r}))")
     loaded = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
                             text=True, check=True, timeout=300).stdout.split()
     assert set(loaded) <= set(imported_sources(script, ROOT))

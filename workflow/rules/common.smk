@@ -1,6 +1,7 @@
 # Shared helpers of the rules: validation, sample sheet, code hash, input functions.
 import sys
 
+from imaging.ct_keys import RESOURCE_KEYS, resource_value
 from imaging.packing.config import check_packings
 from macro.config import check_ensembles, ensemble_cases, ensemble_members
 from macro.laws import case_materials
@@ -137,6 +138,22 @@ def sample_settings(*keys):
         return {key: imaging[key] for key in keys}
 
     return settings
+
+
+def get_imaging_threads(wildcards):
+    """Threads of a CT job: the sample's ``imaging.workers`` (a resource, not a param: the
+    results do not depend on it, and changing it reruns nothing)."""
+    return sample_settings("workers")(wildcards)["workers"]
+
+
+def _imaging_resource(key):
+    """Input function: a resource of a CT job, the sample's imaging ``key``
+    (imaging.ct_keys.resource_value; a null key sets no resource)."""
+    return lambda wildcards: resource_value(sample_settings(key)(wildcards)[key])
+
+
+# the CT jobs' resources besides their threads: a change reruns nothing (docs/design.md §7)
+IMAGING_RESOURCES = {key: _imaging_resource(key) for key in RESOURCE_KEYS[1:]}
 
 
 def get_scan(wildcards):

@@ -1,5 +1,9 @@
 # CT stage (imaging/ct): greyscale -> calibrated density -> porosity grid; REV and chord
-# lengths (imaging/morphology). Each rule's params hold every config key its script reads.
+# lengths (imaging/morphology). Each rule's params hold every science key its script reads,
+# the imaging keys from the one list of them (imaging/ct_keys.py); the machine resources
+# (imaging.workers, chunk_mb, memory_limit_gb, dask_scheduler) are its threads and
+# resources, never params, so that changing them reruns nothing (docs/design.md §7).
+from imaging.ct_keys import POROSITY_KEYS, REV_KEYS
 
 
 rule imaging_phantom:
@@ -42,17 +46,7 @@ rule imaging_porosity:
     params:
         code=script_code("imaging_porosity.py"),
         sample=get_sample_config,
-        imaging=sample_settings(
-            "calibration",
-            "mask",
-            "grid_spacing_m",
-            "min_specimen_fraction",
-            "chunk_mb",
-            "workers",
-            "memory_limit_gb",
-            "dask_scheduler",
-            "store_scan",
-        ),
+        imaging=sample_settings(*POROSITY_KEYS),
         # one phi_0: the calibration anchors the mean dry density at the pellet's
         # reference porosity, that of the retention and permeability laws
         material={
@@ -60,7 +54,9 @@ rule imaging_porosity:
             for key in ("dry_density_kg_m3", "reference_porosity")
         },
         micro_spacing=get_point_spacing,
-    threads: lambda wildcards: sample_settings("workers")(wildcards)["workers"]
+    threads: get_imaging_threads
+    resources:
+        **IMAGING_RESOURCES,
     conda:
         "../envs/claychain.yaml"
     log:
@@ -89,10 +85,10 @@ rule imaging_rev:
     params:
         code=script_code("imaging_rev.py"),
         sample=get_sample_config,
-        settings=sample_settings(
-            "rev", "chords", "chunk_mb", "workers", "memory_limit_gb", "dask_scheduler"
-        ),
-    threads: lambda wildcards: sample_settings("workers")(wildcards)["workers"]
+        settings=sample_settings(*REV_KEYS),
+    threads: get_imaging_threads
+    resources:
+        **IMAGING_RESOURCES,
     conda:
         "../envs/claychain.yaml"
     log:

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from shared.solver import SolverError, SPDSolver, _scaled_drift, _symmetric_product
+from shared.solver import SolverError, SPDSolver
+from shared.solver._kernels import _scaled_drift, _symmetric_product
 from tests.shared.solver._systems import drift_conductances, flow_system, laplacian_system, lower_of
 
 
