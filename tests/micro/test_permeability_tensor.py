@@ -8,12 +8,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from micro.permeability import (
-    _dissipative,
-    measure_permeability_tensor,
-    permeability_tensor,
-    principal_permeability,
-)
+from micro.permeability import measure_permeability_tensor, permeability_tensor, principal_permeability
+from micro.permeability.tensor import _dissipative
 from micro.run import _tensor_variables
 from shared.fv import facet_conductance
 from shared.mesh import WALLS, Mesh, boundary_cell_mask, build_mesh
