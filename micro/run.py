@@ -81,6 +81,7 @@ __all__ = [
     "checkpoints_reached",
     "hydrate",
     "micro_settings",
+    "settled",
     "phase_wall_times",
     "run",
     # the settings' builders (micro.settings): tests and benchmarks read them here
@@ -441,7 +442,7 @@ def run(
                  else f", {hydration.balance.flow_steps} flow steps into the next")
     progress = Progress(len(settings.checkpoints), f"micro {case}", log, interval=0.0,
                         trend=True, done_before=len(hydration.records))
-    checkpointer.last_save = time.monotonic()
+    checkpointer.last_save = time.monotonic()  # the cadence counts from here, settled
     clock = checkpointer.clock
     with measuring(hydration.state.mesh.n_cells) as executor:
         for reached in checkpoints_reached(hydration, clock, executor, checkpointer):
@@ -451,8 +452,7 @@ def run(
             if vtk_dir is not None:
                 with clock.phase("output"):
                     vtk.write_checkpoint_snapshot(vtk_dir, output.stem, reached.index,
-                                                  hydration.state, np.asarray(settings.checkpoints,
-                                                                              dtype=float))
+                                                  hydration.state, settings.checkpoints)
             progress.update(reached.index + 1)
     ds = hydration.dataset()
     ds.attrs.update(wall_time_s=checkpointer.wall_time(),
