@@ -5,14 +5,17 @@ DAG without importing the model (no numba, no xarray).
 - the studies of ``micro.studies`` (thesis Secs. 3.5.8-3.5.9): the convergence study's
   cases, the scale study's realizations (:func:`scale_realizations`), their checks
   (:func:`check_studies`);
-- the sources of the pellet permeability table (:func:`source_names`).
+- the sources of the pellet permeability table (:func:`source_names`);
+- :class:`MicroSettings`, the validated settings of one case that
+  :func:`micro.run.hydrate` takes (built by :func:`micro.run.micro_settings`; its
+  field types are the model's, imported here for type checkers only).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,8 +23,15 @@ from shared.config import ConfigError
 from shared.dem.parameters import DEM_MATERIAL_KEYS
 from shared.materials import CLAY_CONFIG_KEYS
 
+if TYPE_CHECKING:
+    from micro.hydration import HydrationSettings
+    from micro.pellet import SpecimenSpec
+    from shared.dem.parameters import DEMParameters
+    from shared.materials import ClayParameters
+
 __all__ = [
     "MATERIAL_KEYS",
+    "MicroSettings",
     "Realization",
     "case_edge_length",
     "case_n_points",
@@ -34,6 +44,36 @@ __all__ = [
 
 MATERIAL_KEYS = (*CLAY_CONFIG_KEYS.values(), *DEM_MATERIAL_KEYS)
 """Keys of ``materials.pellet`` the micro model reads (its rules' params hold these)."""
+
+
+@dataclass(frozen=True)
+class MicroSettings:
+    """Everything one micro case's hydration reads, validated.
+
+    Attributes
+    ----------
+    name
+        The case's name, in log lines and messages.
+    specimen
+        The specimen: cube edge [m], points, layout, confinement [Pa], seed, offset [m].
+    hydration
+        The staggered scheme's numerical settings (crack coupling included).
+    material, parameters
+        Clay and DEM parameters of the case.
+    checkpoints
+        Boundary suctions of the checkpoints [Pa], decreasing.
+    heterogeneous
+        True: the porosity field from the CT grid; False: homogeneous at the grid's
+        mean over the specimen.
+    """
+
+    name: str
+    specimen: SpecimenSpec
+    hydration: HydrationSettings
+    material: ClayParameters
+    parameters: DEMParameters
+    checkpoints: tuple[float, ...]
+    heterogeneous: bool
 
 
 

@@ -1,11 +1,20 @@
 """Entry point of the micro stage: hydrate one pellet case through its suction checkpoints.
 
 A case is a specimen (CT-informed or homogeneous porosity), a crack model switch and a
-confinement. After each checkpoint the whole state goes to a checkpoint file beside the
-output, so that a killed run resumes at its last checkpoint; the file is removed when
-the case finishes. The result is ``results/micro/<case>.nc`` (docs/design.md §2) and a figure;
-with ``micro.vtk_snapshots``, also ParaView snapshots in ``results/micro/<case>_vtk/``
-(:mod:`micro.vtk`).
+confinement. Three layers:
+
+* :func:`hydrate`, the library function: a porosity grid and validated settings
+  (:class:`micro.config.MicroSettings`, from :func:`micro_settings`) in, the case's
+  Dataset out, with no file (callable from a notebook);
+* :func:`checkpoints_reached`, the run loop as a generator: it hydrates a
+  :class:`Hydration` to each checkpoint in turn and yields a :class:`Checkpoint`, so that
+  the caller decides what to write;
+* :func:`run`, the stage's entry point: it reads the grid, resumes from the restart file
+  beside the output (:class:`Checkpointer`: a killed run resumes at its last save), saves
+  after each checkpoint and between flow steps, and writes ``results/micro/<case>.nc``
+  (docs/design.md §2) and a figure; with ``micro.vtk_snapshots``, also ParaView
+  snapshots in ``results/micro/<case>_vtk/`` (:mod:`micro.vtk`). The restart file is
+  removed when the case finishes.
 """
 
 from __future__ import annotations
@@ -21,6 +30,8 @@ import time
 from collections.abc import Iterator, Mapping
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import AbstractContextManager, contextmanager, nullcontext
+from dataclasses import dataclass, field
+from functools import partial
 from logging.handlers import QueueHandler, QueueListener
 from multiprocessing.queues import Queue
 from pathlib import Path
@@ -33,33 +44,47 @@ from threadpoolctl import threadpool_limits
 
 from micro import figures, vtk
 from micro.checkpoint import checkpoint_wall_time, load_checkpoint, save_checkpoint
+from micro.config import MicroSettings
 from micro.hydration import (
     BalanceProgress,
     DivergenceError,
     FlowSystem,
-    HydrationSettings,
+    PelletState,
     advance_to_balance,
 )
 from micro.pellet import (
-    POROSITY_BINS,
     CheckpointMeasurement,
     SpecimenSpec,
     initial_state,
     measure_checkpoint,
     settle,
 )
-from micro.permeability import principal_permeability
-from shared.config import ConfigError
-from shared.dem.parameters import DEMParameters, dem_parameters
+from micro.results import records_dataset
+from micro.settings import (
+    case_material,
+    case_parameters,
+    case_settings,
+    hydration_settings,
+    micro_settings,
+)
+from shared.dem.parameters import DEMParameters
 from shared.io import read_dataset, write_dataset
-from shared.materials import ClayParameters, clay_parameters
+from shared.materials import ClayParameters
 from shared.mesh import mesh_from_tetrahedra
 from shared.progress import ConvergenceProgress, PhaseClock, Progress
 from shared.provenance import config_sha256, module_sha256
 
 __all__ = [
+    "Checkpoint",
+    "Checkpointer",
+    "Hydration",
+    "checkpoints_reached",
+    "hydrate",
+    "micro_settings",
+    "settled",
     "phase_wall_times",
     "run",
+    # the settings' builders (micro.settings): tests and benchmarks read them here
     "case_settings",
     "hydration_settings",
     "case_material",
@@ -75,171 +100,285 @@ WORKER_PARENT_POLL_S = 1.0
 
 log = logging.getLogger("micro")
 
-_SCALARS = {
-    "saturation": ("1", "pore-volume weighted water saturation"),
-    "eps_v": ("1", "volumetric strain of the specimen from its state at 132 MPa"),
-    "porosity_mean": ("1", "volume-weighted mean porosity"),
-    "crack_count": ("1", "number of open bonds on mesh edges (cracks)"),
-    "crack_count_imbibed": ("1", "number of water-filled cracks"),
-    "crack_count_gas": ("1", "number of gas-filled cracks"),
-    "crack_area": ("m2", "total crack area"),
-    "crack_area_imbibed": ("m2", "area of water-filled cracks"),
-    "crack_area_gas": ("m2", "area of gas-filled cracks"),
-    "crack_volume": ("m3", "total crack volume"),
-    "time": ("s", "simulated hydration time"),
-    "n_remesh": ("1", "number of Delaunay remeshes so far"),
-    "flow_steps": ("1", "flow steps taken to reach the checkpoint"),
-    "dem_steps": ("1", "DEM relaxation steps taken to reach the checkpoint"),
-    "unbalanced_force": ("1", "unbalanced-force ratio at the end of the checkpoint"),
-    "suction_misfit": ("1", "largest relative departure of a cell's suction from the boundary's"),
-    "balanced": ("1", "1 if hydraulic and mechanical balance were reached, else 0"),
-}
-_COUNTS = ("crack_count", "crack_count_imbibed", "crack_count_gas", "n_remesh", "flow_steps",
-           "dem_steps", "balanced")
-"""The scalars that count something, stored as integers."""
-
-
-def case_settings(config: Mapping[str, Any], case: str) -> tuple[SpecimenSpec, HydrationSettings, bool]:
-    """Specimen, numerical settings and porosity source (True: CT grid) of a case.
-
-    Raises
-    ------
-    ConfigError
-        If the case is unknown.
-    """
-    micro = config["micro"]
-    if case not in micro["cases"]:
-        raise ConfigError(f"config key 'micro.cases.{case}': no such case")
-    entry = micro["cases"][case]
-    spec = SpecimenSpec(
-        edge_length=entry.get("specimen_size_m", micro["specimen_size_m"]),
-        n_points=entry.get("n_points", micro["n_points"]), layout=micro["layout"],
-        jitter=micro["jitter"], confinement=entry["confinement_pa"], seed=micro["seed"],
-        offset=tuple(entry["offset_m"]),
-    )
-    settings = hydration_settings(micro["numerics"], entry["crack_coupling"])
-    return spec, settings, entry["porosity"] == "ct"
-
-
-def hydration_settings(numerics: Mapping[str, Any], cracks: bool) -> HydrationSettings:
-    """The staggered scheme's settings from a validated ``micro.numerics`` section."""
-    return HydrationSettings(
-        initial_time_step=numerics["initial_time_step_s"],
-        time_step_growth=numerics["time_step_growth"],
-        max_flow_steps=numerics["max_flow_steps"],
-        hydraulic_tolerance=numerics["hydraulic_tolerance"],
-        unbalanced_force_tolerance=numerics["unbalanced_force_tolerance"],
-        max_relaxation_steps=numerics["max_relaxation_steps"],
-        final_relaxations=numerics["final_relaxations"],
-        check_interval=numerics["check_interval"],
-        ramp_steps=numerics["ramp_steps"],
-        damping=numerics["relaxation_damping"],
-        max_step_fraction=numerics["max_step_fraction"],
-        porosity_bounds=tuple(numerics["porosity_bounds"]),
-        cracks=cracks,
-        solver=numerics["solver"],
-        amg_unknowns=numerics["amg_unknowns"],
-    )
-
-
-def case_material(config: Mapping[str, Any], case: str) -> dict[str, Any]:
-    """``materials.pellet`` with this case's own values (``micro.cases.<case>.materials``)."""
-    return {**config["materials"]["pellet"], **config["micro"]["cases"][case]["materials"]}
-
-
-def case_parameters(config: Mapping[str, Any], case: str) -> tuple[ClayParameters, DEMParameters]:
-    """Clay and DEM parameters of a case, from its material and ``micro.numerics``."""
-    material = case_material(config, case)
-    return clay_parameters(material), dem_parameters(material, config["micro"]["numerics"])
-
-
-def _dataset(records: list[dict[str, Any]], checkpoints: np.ndarray) -> xr.Dataset:
-    suction = checkpoints[: len(records)]
-    data: dict[str, Any] = {}
-    for name, (units, long_name) in _SCALARS.items():
-        dtype = np.int64 if name in _COUNTS else float
-        data[name] = ("suction", np.array([r[name] for r in records], dtype=dtype),
-                      {"units": units, "long_name": long_name})
-    data["permeability"] = (
-        ("suction", "phase", "axis"), np.stack([r["permeability"] for r in records]),
-        {"units": "m2", "long_name": "intrinsic x relative permeability, measured by a steady "
-                                     "solve with a linear boundary pressure"},
-    )
-    data.update(_tensor_variables(records))
-    for suffix, label in (("", "all"), ("_imbibed", "water-filled"), ("_gas", "gas-filled")):
-        data[f"crack_fabric{suffix}"] = (
-            ("suction", "i", "j"), np.stack([r[f"crack_fabric{suffix}"] for r in records]),
-            {"units": "m2", "long_name": f"crack fabric tensor (1/N) sum a_c n n of {label} cracks"},
-        )
-    data["porosity_hist"] = (
-        ("suction", "bin"), np.stack([r["porosity_hist"] for r in records]),
-        {"units": "1", "long_name": "volume fraction of cells per porosity bin"},
-    )
-    centres = 0.5 * (POROSITY_BINS[1:] + POROSITY_BINS[:-1])
-    coords = {
-        # suction indexes the checkpoints (ds.sel(suction=1e6)); the checkpoint's number
-        # is a coordinate along it (the ParaView series' time step, micro/vtk.py)
-        "suction": ("suction", suction, {"units": "Pa", "long_name": "boundary suction"}),
-        "checkpoint": ("suction", np.arange(len(records)), {"units": "1", "long_name": "checkpoint index"}),
-        "phase": ("phase", np.array(["water", "gas"]), {"long_name": "fluid phase"}),
-        "axis": ("axis", np.array(["x", "y", "z"]), {"long_name": "direction (z: compaction axis)"}),
-        "i": ("i", np.arange(3), {"units": "1", "long_name": "tensor row (x, y, z)"}),
-        "j": ("j", np.arange(3), {"units": "1", "long_name": "tensor column (x, y, z)"}),
-        "bin": ("bin", centres, {"units": "1", "long_name": "porosity bin centre"}),
-        "principal": ("principal", np.arange(3),
-                      {"units": "1", "long_name": "principal axis, by ascending principal value"}),
-    }
-    return xr.Dataset(data, coords=coords)
-
-
-def _tensor_variables(records: list[dict[str, Any]]) -> dict[str, Any]:
-    """The permeability tensors of the records and their principal values and directions.
-
-    A record without a tensor (from a checkpoint file of an older version) gives NaN.
-    """
-    missing = np.full((2, 3, 3), np.nan)
-    if any("permeability_tensor" not in r for r in records):
-        log.warning("records without a permeability tensor (resumed from an older checkpoint "
-                    "file): stored as NaN")
-    tensor = np.stack([np.asarray(r.get("permeability_tensor", missing), dtype=float)
-                       for r in records])
-    derived = principal_permeability(tensor)
-    how = ("linear pressure on all six walls along x, y and z in turn (one factorisation per "
-           "phase), Darcy velocity averaged over the inner 80 % of the box")
-    return {
-        "permeability_tensor": (
-            ("suction", "phase", "i", "j"), tensor,
-            {"units": "m2", "long_name": "permeability tensor K_ij = -mu <v_i> / (grad p)_j, "
-                                         f"{how}"},
-        ),
-        "permeability_tensor_symmetric": (
-            ("suction", "phase", "i", "j"), derived.symmetric,
-            {"units": "m2", "long_name": "symmetric part (K + K^T)/2 of the permeability tensor"},
-        ),
-        "permeability_principal": (
-            ("suction", "phase", "principal"), derived.values,
-            {"units": "m2", "long_name": "principal permeabilities: eigenvalues of the symmetric "
-                                         "part, ascending"},
-        ),
-        "permeability_principal_direction": (
-            ("suction", "phase", "i", "principal"), derived.directions,
-            {"units": "1", "long_name": "principal directions: unit eigenvectors (components "
-                                        "i = x, y, z) of the symmetric part, largest component "
-                                        "positive"},
-        ),
-        "permeability_asymmetry": (
-            ("suction", "phase"), derived.asymmetry,
-            {"units": "1", "long_name": "relative asymmetry ||K - K^T||_F / ||K||_F of the "
-                                        "permeability tensor"},
-        ),
-    }
-
 
 def phase_wall_times(attrs: Mapping[str, Any]) -> dict[str, float]:
     """The wall time per phase [s] that :func:`run` writes as ``wall_time_<phase>_s``
     attributes, by phase name (empty for an output written before phases were timed)."""
     return {key[len("wall_time_"):-len("_s")]: float(value) for key, value in attrs.items()
             if key.startswith("wall_time_") and key.endswith("_s") and key != "wall_time_s"}
+
+
+@dataclass
+class Hydration:
+    """A case's hydration under way, which :func:`checkpoints_reached` advances.
+
+    Attributes
+    ----------
+    settings
+        The case's settings.
+    state, system
+        The coupled state and its flow system.
+    records
+        The records of the checkpoints done (:mod:`micro.results`).
+    reference_volume
+        Volume of the settled specimen [m3], the reference of ``eps_v``.
+    balance
+        The balance under way towards the next checkpoint (a run resumed between two
+        flow steps), else None.
+    pending
+        The last checkpoint's measurement, whose permeabilities a worker process may
+        still be solving (its record is not in ``records`` yet).
+    """
+
+    settings: MicroSettings
+    state: PelletState
+    system: FlowSystem
+    records: list[dict[str, Any]]
+    reference_volume: float
+    balance: BalanceProgress | None = None
+    pending: CheckpointMeasurement | None = None
+
+    def record_pending(self, clock: PhaseClock) -> None:
+        """Wait for the pending measurement and add its record."""
+        if self.pending is None:
+            return
+        with clock.phase("measurement"):
+            record = self.pending.result()
+        self.pending = None
+        log.info("%s: s = %.3g Pa, S = %.3f, eps_v = %.4f, cracks %d, k_w,x = %.3g m2, "
+                 "k_g,x = %.3g m2, balanced %d", self.settings.name,
+                 self.settings.checkpoints[len(self.records)], record["saturation"],
+                 record["eps_v"], record["crack_count"], record["permeability"][0, 0],
+                 record["permeability"][1, 0], record["balanced"])
+        self.records.append(record)
+
+    def dataset(self) -> xr.Dataset:
+        """The records so far as the case's Dataset, with the specimen's attributes."""
+        settings = self.settings
+        ds = records_dataset(self.records, np.asarray(settings.checkpoints, dtype=float))
+        ds.attrs.update(n_points=self.state.dem.n_points, n_cells=self.state.mesh.n_cells,
+                        confinement=settings.specimen.confinement,
+                        crack_model=int(settings.hydration.cracks),
+                        porosity_source="ct" if settings.heterogeneous else "homogeneous")
+        return ds
+
+
+def settled(porosity: xr.DataArray, settings: MicroSettings, clock: PhaseClock) -> Hydration:
+    """A case's hydration at its start: the specimen built on the porosity grid [1] and
+    settled at the initial suction (timed as ``settling`` on ``clock``)."""
+    spec, material, parameters = settings.specimen, settings.material, settings.parameters
+    source = porosity if settings.heterogeneous else None
+    mean = None if settings.heterogeneous else _specimen_mean(spec, porosity, material, parameters)
+    with clock.phase("settling"):
+        state = initial_state(spec, source, mean, material, parameters)
+        system, diagnostics = settle(
+            state, FlowSystem.for_mesh(state.mesh, settings=settings.hydration), spec, source,
+            mean, settings.hydration, material, parameters)
+    log.info("%s: settled at the initial suction in %d DEM steps (unbalanced force %.3g)",
+             settings.name, diagnostics["dem_steps"], diagnostics["unbalanced_force"])
+    return Hydration(settings, state, system, [], float(state.mesh.volumes.sum()))
+
+
+@dataclass(frozen=True)
+class Checkpoint:
+    """A checkpoint reached by :func:`checkpoints_reached`.
+
+    Attributes
+    ----------
+    index
+        Its number, from 0.
+    in_background
+        Whether a worker process still solves its permeabilities (its record then joins
+        the records with the next checkpoint, or at the end).
+    """
+
+    index: int
+    in_background: bool
+
+
+@dataclass
+class Checkpointer:
+    """A case's restart file: resume from it, and save to it between flow steps every
+    ``interval`` [s] (:meth:`flow_step`) and whenever the caller asks (:meth:`save`).
+
+    Attributes
+    ----------
+    path
+        The restart file, ``<output>.checkpoint.npz``.
+    digest
+        Hash of the case's configuration and code: a file of another digest is not resumed.
+    interval
+        Wall time between two saves between flow steps [s] (``micro.snapshot_interval_s``).
+    started
+        ``time.monotonic()`` at the run's start.
+    earlier
+        Wall time of the killed runs before, up to their last save [s].
+    clock
+        The wall time per phase, the earlier runs' included.
+    last_save
+        ``time.monotonic()`` at the last save (or since the cadence started).
+    """
+
+    path: Path
+    digest: str
+    interval: float
+    started: float
+    earlier: float = 0.0
+    clock: PhaseClock = field(default_factory=PhaseClock)
+    last_save: float = field(default_factory=time.monotonic)
+
+    def resume(self, settings: MicroSettings) -> Hydration | None:
+        """The hydration saved in the file, or None (no file, or one of other settings
+        or code); resuming carries the earlier runs' wall time over."""
+        resumed = load_checkpoint(self.path, self.digest, settings.material)
+        if resumed is None:
+            return None
+        self.earlier, phase_seconds = checkpoint_wall_time(self.path)
+        self.clock = PhaseClock(phase_seconds)
+        return Hydration(settings, *resumed)
+
+    def wall_time(self) -> float:
+        """The case's wall time so far [s], the earlier runs' included."""
+        return self.earlier + time.monotonic() - self.started
+
+    def due(self, intervals: float) -> bool:
+        """Whether ``intervals`` times ``interval`` have passed since the last save."""
+        return time.monotonic() - self.last_save >= intervals * self.interval
+
+    def save(self, hydration: Hydration, system: FlowSystem, balance: BalanceProgress | None) -> None:
+        """Save the state with every record so far (waits for a pending measurement)."""
+        hydration.record_pending(self.clock)
+        with self.clock.phase("output"):
+            save_checkpoint(self.path, self.digest, hydration.state, system, hydration.records,
+                            hydration.reference_volume, wall_time=self.wall_time(),
+                            balance=balance, phase_seconds=self.clock.seconds)
+        self.last_save = time.monotonic()
+
+    def flow_step(self, hydration: Hydration, system: FlowSystem, balance: BalanceProgress) -> None:
+        """Save the state between two flow steps when ``interval`` has passed. A save
+        waits for the worker: while it measures, the save is put off until it is done,
+        for one more interval at most."""
+        pending = hydration.pending
+        if self.due(1.0) and (pending is None or pending.done() or self.due(2.0)):
+            self.save(hydration, system, balance)
+
+
+def checkpoints_reached(
+    hydration: Hydration, clock: PhaseClock, executor: Executor | None = None,
+    checkpointer: Checkpointer | None = None,
+) -> Iterator[Checkpoint]:
+    """Hydrate to each checkpoint not yet recorded, in turn, yielding each one reached.
+
+    Each checkpoint is measured on a mesh rebuilt from the moved points (not the
+    per-step update_mesh, which rounds differently; a restart file keeps it). With
+    ``executor`` (:func:`measurement_executor`), the worker solves the permeabilities
+    while the next checkpoint hydrates, unless it still measures the one before (it
+    lags) or a save is overdue: both processes then share this one's solves. The last
+    record joins ``hydration.records`` when the generator ends.
+
+    Parameters
+    ----------
+    hydration
+        The case's hydration, advanced in place.
+    clock
+        Times the phases (settling, flow, ..., measurement).
+    executor
+        The measurement worker, or None (this process measures).
+    checkpointer
+        Saves between flow steps at its cadence (:meth:`Checkpointer.flow_step`); None
+        saves nothing.
+
+    Raises
+    ------
+    DivergenceError
+        If the coupled solution diverges; the message names the case and checkpoint.
+    """
+    settings = hydration.settings
+    count = len(settings.checkpoints)
+    for index in range(len(hydration.records), count):
+        suction = float(settings.checkpoints[index])
+        # flow steps and the largest relative suction misfit, down to the tolerance
+        balancing = ConvergenceProgress(
+            settings.hydration.hydraulic_tolerance,
+            f"{settings.name}: balance at {suction:.3g} Pa (checkpoint {index + 1}/{count}), "
+            "suction misfit", log)
+        try:
+            hydration.system, diagnostics = advance_to_balance(
+                hydration.state, hydration.system, suction, settings.hydration,
+                settings.material, settings.parameters, start=hydration.balance,
+                snapshot=partial(_flow_step, hydration, balancing, checkpointer), clock=clock)
+            hydration.balance = None
+        except DivergenceError as err:
+            kept = "" if checkpointer is None else (
+                f"; the last good checkpoint is kept in {checkpointer.path}")
+            raise DivergenceError(
+                f"case {settings.name}, checkpoint {index} ({suction:.4g} Pa): {err}{kept}"
+            ) from err
+        overdue = checkpointer is not None and checkpointer.due(2.0)
+        background = index + 1 < count and not overdue and (
+            hydration.pending is None or hydration.pending.done())
+        state = hydration.state
+        with clock.phase("measurement"):
+            state.mesh = mesh_from_tetrahedra(state.dem.positions, state.mesh.tetrahedra,
+                                              state.mesh.neighbours, reorient=False)
+            measurement = measure_checkpoint(state, suction, hydration.reference_volume,
+                                             settings.material, settings.hydration.cracks,
+                                             executor=executor, background=background)
+        measurement.record.update(diagnostics)
+        hydration.record_pending(clock)
+        hydration.pending = measurement
+        yield Checkpoint(index, measurement.in_background)
+    hydration.record_pending(clock)
+
+
+def _flow_step(hydration: Hydration, balancing: ConvergenceProgress,
+               checkpointer: Checkpointer | None, system: FlowSystem,
+               balance: BalanceProgress) -> None:
+    """After each flow step: log the balance's progress (once a minute) and let the
+    checkpointer save the state."""
+    balancing.update(balance.flow_steps, balance.misfit)
+    if checkpointer is not None:
+        checkpointer.flow_step(hydration, system, balance)
+
+
+@contextmanager
+def measuring(n_cells: int) -> Iterator[Executor | None]:
+    """The measurement worker of a mesh of ``n_cells`` cells (:func:`measurement_executor`),
+    with one BLAS thread in this process: numba's kernels own the job's threads, and an
+    idle OpenBLAS thread spins after every call (pyamg's norms), taking the core the
+    worker solves on."""
+    with measurement_executor(n_cells) as executor, threadpool_limits(1, user_api="blas"):
+        yield executor
+
+
+def hydrate(porosity_grid: xr.Dataset, settings: MicroSettings) -> xr.Dataset:
+    """Hydrate one case through its suction checkpoints; no file is read or written.
+
+    Parameters
+    ----------
+    porosity_grid
+        The imaging stage's grid (``results/porosity/<sample>.nc``): its ``porosity``
+        variable [1] on (z, y, x) node coordinates [m].
+    settings
+        The case's settings (:func:`micro_settings`).
+
+    Returns
+    -------
+    xarray.Dataset
+        One record per checkpoint along ``suction`` [Pa] (:mod:`micro.results`): what
+        :func:`run` writes, less the provenance and wall-time attributes.
+
+    Raises
+    ------
+    DivergenceError
+        If the coupled solution diverges.
+    """
+    clock = PhaseClock()
+    hydration = settled(porosity_grid["porosity"], settings, clock)
+    with measuring(hydration.state.mesh.n_cells) as executor:
+        for _ in checkpoints_reached(hydration, clock, executor):
+            pass
+    return hydration.dataset()
 
 
 def run(
@@ -269,10 +408,10 @@ def run(
     Returns
     -------
     xarray.Dataset
-        The written results. Besides ``wall_time_s`` and ``peak_memory_mb``, the
-        attributes ``wall_time_<phase>_s`` split the wall time [s] into settling,
-        flow, swelling, relaxation, geometry, remesh, cracks, measurement and output
-        (what remains is set-up and the figure).
+        The written results (:func:`hydrate`'s). Besides ``wall_time_s`` and
+        ``peak_memory_mb``, the attributes ``wall_time_<phase>_s`` split the wall time
+        [s] into settling, flow, swelling, relaxation, geometry, remesh, cracks,
+        measurement and output (what remains is set-up and the figure).
 
     Raises
     ------
@@ -280,149 +419,50 @@ def run(
         If the coupled solution diverges; the last good checkpoint stays on disk.
     """
     started = time.monotonic()
-    spec, settings, heterogeneous = case_settings(config, case)
+    settings = micro_settings(config, case)
     # the studies aggregate finished cases: they are not part of a case's configuration
     section = {"micro": {k: v for k, v in config["micro"].items() if k != "studies"}, "case": case,
                "material": case_material(config, case)}
-    checkpoints = np.asarray(config["micro"]["checkpoints_suction_pa"], dtype=float)
     output = Path(output)
-    state_file = output.with_suffix(".checkpoint.npz")
     # the code too (this module and what it imports): a checkpoint of other code is not resumed
-    digest = config_sha256({**section, "code": module_sha256(__file__)})
-    grid = read_dataset(porosity_input, ["porosity"])["porosity"]
-    material, parameters = case_parameters(config, case)
-    resumed = load_checkpoint(state_file, digest, material)
+    checkpointer = Checkpointer(output.with_suffix(".checkpoint.npz"),
+                                config_sha256({**section, "code": module_sha256(__file__)}),
+                                float(config["micro"]["snapshot_interval_s"]), started)
+    grid = read_dataset(porosity_input, ["porosity"])
+    hydration = checkpointer.resume(settings)
     # optional ParaView snapshots, a side product beside the netCDF (not a rule output)
-    vtk_dir = None
-    if config["micro"].get("vtk_snapshots", False):
-        vtk_dir = output.with_name(f"{output.stem}_vtk")
-    if resumed is None:
+    vtk_dir = output.with_name(f"{output.stem}_vtk") if config["micro"].get("vtk_snapshots") else None
+    if hydration is None:
         if vtk_dir is not None:
             vtk.clear_snapshots(vtk_dir, output.stem)
-        source = grid if heterogeneous else None
-        mean = None if heterogeneous else _specimen_mean(spec, grid, material, parameters)
-        clock = PhaseClock()
-        with clock.phase("settling"):
-            state = initial_state(spec, source, mean, material, parameters)
-            system, settled = settle(state, FlowSystem.for_mesh(state.mesh, settings=settings),
-                                     spec, source, mean, settings, material, parameters)
-        log.info("%s: settled at the initial suction in %d DEM steps (unbalanced force %.3g)",
-                 case, settled["dem_steps"], settled["unbalanced_force"])
-        records: list[dict[str, Any]] = []
-        reference_volume = float(state.mesh.volumes.sum())
-        earlier = 0.0
-        balance = None
+        hydration = settled(grid["porosity"], settings, checkpointer.clock)
     else:
-        state, system, records, reference_volume, balance = resumed
-        # the wall time of the runs before, up to their last checkpoint file
-        earlier, phase_seconds = checkpoint_wall_time(state_file)
-        clock = PhaseClock(phase_seconds)
-        log.info("%s: resuming after checkpoint %d of %d%s", case, len(records), checkpoints.size,
-                 "" if balance is None else f", {balance.flow_steps} flow steps into the next")
-    progress = Progress(checkpoints.size, f"micro {case}", log, interval=0.0, trend=True,
-                        done_before=len(records))
-    interval = float(config["micro"]["snapshot_interval_s"])
-    last_save = time.monotonic()
-    balancing: ConvergenceProgress | None = None
-
-    pending: CheckpointMeasurement | None = None
-
-    def record_pending() -> None:
-        """Wait for the last checkpoint's measurement and add its record."""
-        nonlocal pending
-        if pending is None:
-            return
-        with clock.phase("measurement"):
-            record = pending.result()
-        pending = None
-        log.info("%s: s = %.3g Pa, S = %.3f, eps_v = %.4f, cracks %d, k_w,x = %.3g m2, "
-                 "k_g,x = %.3g m2, balanced %d", case, checkpoints[len(records)],
-                 record["saturation"], record["eps_v"], record["crack_count"],
-                 record["permeability"][0, 0], record["permeability"][1, 0],
-                 record["balanced"])
-        records.append(record)
-
-    def save(system: FlowSystem, balance: BalanceProgress | None) -> None:
-        """Save the state with every record so far (waits for a pending measurement)."""
-        nonlocal last_save
-        record_pending()
-        with clock.phase("output"):
-            save_checkpoint(state_file, digest, state, system, records, reference_volume,
-                            wall_time=earlier + time.monotonic() - started, balance=balance,
-                            phase_seconds=clock.seconds)
-        last_save = time.monotonic()
-
-    def due(intervals: float) -> bool:
-        """Whether ``intervals`` times ``interval`` have passed since the last save."""
-        return time.monotonic() - last_save >= intervals * interval
-
-    def snapshot(system: FlowSystem, balance: BalanceProgress) -> None:
-        """Log the balance's progress (once a minute); save the state between two flow
-        steps when ``interval`` has passed. A save waits for the worker: while it
-        measures, the save is put off until it is done, for one more interval at most."""
-        if balancing is not None:
-            balancing.update(balance.flow_steps, balance.misfit)
-        if due(1.0) and (pending is None or pending.done() or due(2.0)):
-            save(system, balance)
-
-    # one BLAS thread: numba's kernels own the job's threads, and an idle OpenBLAS thread
-    # spins after every call (pyamg's norms), taking the core the worker solves on
-    with measurement_executor(state.mesh.n_cells) as executor, threadpool_limits(
-            1, user_api="blas"):
-        for index in range(len(records), checkpoints.size):
-            suction = float(checkpoints[index])
-            # flow steps and the largest relative suction misfit, down to the tolerance
-            balancing = ConvergenceProgress(
-                settings.hydraulic_tolerance,
-                f"{case}: balance at {suction:.3g} Pa (checkpoint {index + 1}/{checkpoints.size}), "
-                "suction misfit", log)
-            try:
-                system, diagnostics = advance_to_balance(state, system, suction, settings,
-                                                         material, parameters, start=balance,
-                                                         snapshot=snapshot, clock=clock)
-                balance = None
-            except DivergenceError as err:
-                raise DivergenceError(
-                    f"case {case}, checkpoint {index} ({suction:.4g} Pa): {err}; "
-                    f"the last good checkpoint is kept in {state_file}"
-                ) from err
-            # each checkpoint is measured on a mesh rebuilt from the moved points (not the
-            # per-step update_mesh, which rounds differently); the checkpoint file keeps it.
-            # The worker solves the permeabilities while the next checkpoint hydrates,
-            # unless the worker still measures the one before (it lags) or a save is
-            # overdue: both processes then share this one's solves, and a checkpoint
-            # measured so is saved.
-            background = index + 1 < checkpoints.size and not due(2.0) and (
-                pending is None or pending.done())
-            with clock.phase("measurement"):
-                state.mesh = mesh_from_tetrahedra(state.dem.positions, state.mesh.tetrahedra,
-                                                  state.mesh.neighbours, reorient=False)
-                measurement = measure_checkpoint(state, suction, reference_volume, material,
-                                                 settings.cracks, executor=executor,
-                                                 background=background)
-            measurement.record.update(diagnostics)
-            record_pending()
-            pending = measurement
-            if not measurement.in_background:
-                save(system, None)
+        log.info("%s: resuming after checkpoint %d of %d%s", case, len(hydration.records),
+                 len(settings.checkpoints), "" if hydration.balance is None
+                 else f", {hydration.balance.flow_steps} flow steps into the next")
+    progress = Progress(len(settings.checkpoints), f"micro {case}", log, interval=0.0,
+                        trend=True, done_before=len(hydration.records))
+    checkpointer.last_save = time.monotonic()  # the cadence counts from here, settled
+    clock = checkpointer.clock
+    with measuring(hydration.state.mesh.n_cells) as executor:
+        for reached in checkpoints_reached(hydration, clock, executor, checkpointer):
+            # a checkpoint measured here (not by the worker) is saved at once
+            if not reached.in_background:
+                checkpointer.save(hydration, hydration.system, None)
             if vtk_dir is not None:
                 with clock.phase("output"):
-                    vtk.write_checkpoint_snapshot(vtk_dir, output.stem, index, state,
-                                                  checkpoints)
-            progress.update(index + 1)
-        record_pending()
-    ds = _dataset(records, checkpoints)
-    ds.attrs.update(n_points=state.dem.n_points, n_cells=state.mesh.n_cells,
-                    confinement=spec.confinement, crack_model=int(settings.cracks),
-                    porosity_source="ct" if heterogeneous else "homogeneous",
-                    wall_time_s=earlier + time.monotonic() - started,
+                    vtk.write_checkpoint_snapshot(vtk_dir, output.stem, reached.index,
+                                                  hydration.state, settings.checkpoints)
+            progress.update(reached.index + 1)
+    ds = hydration.dataset()
+    ds.attrs.update(wall_time_s=checkpointer.wall_time(),
                     peak_memory_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
                     **{f"wall_time_{name}_s": seconds for name, seconds in clock.seconds.items()})
     write_dataset(ds, output, stage="micro", title=f"micro pellet hydration, case {case}",
-                  config=section, seed=spec.seed, inputs=[porosity_input], rule=rule,
+                  config=section, seed=settings.specimen.seed, inputs=[porosity_input], rule=rule,
                   references="Caulk (2022), PhD thesis, Univ. Grenoble Alpes, Chap. 3")
     figures.case_figure(ds, case, figure_output)
-    state_file.unlink(missing_ok=True)
+    checkpointer.path.unlink(missing_ok=True)
     return ds
 
 

@@ -4,20 +4,20 @@ from __future__ import annotations
 from pathlib import Path
 
 from micro.figures import case_figure, comparison_figure
-from micro.run import _dataset
+from micro.results import records_dataset
 from tests._figures import check_figure, kept_figures  # noqa: F401
 from tests.micro.test_run import SUCTIONS, _records
 
 
 def test_case_figure(tmp_path: Path, kept_figures) -> None:  # noqa: F811
-    ds = _dataset(_records(3), SUCTIONS)
+    ds = records_dataset(_records(3), SUCTIONS)
     case_figure(ds, "c", tmp_path / "c.png")
     labels = check_figure(kept_figures[-1])
     assert {"permeability [m2]", "boundary suction [Pa]", "saturation [-]"} <= labels
 
 
 def test_comparison_figure_defines_its_mean(tmp_path: Path, kept_figures) -> None:  # noqa: F811
-    cases = {"a": _dataset(_records(3), SUCTIONS), "b": _dataset(_records(3), SUCTIONS * 0.9)}
+    cases = {"a": records_dataset(_records(3), SUCTIONS), "b": records_dataset(_records(3), SUCTIONS * 0.9)}
     comparison_figure(cases, tmp_path / "cmp.png")
     fig = kept_figures[-1]
     labels = check_figure(fig)
@@ -55,7 +55,7 @@ def test_scale_figure_spells_out_its_labels(tmp_path: Path, kept_figures, rng) -
 
 def test_case_figure_names_the_case_counts_cracks_on_integers_and_hides_an_empty_panel(
         tmp_path: Path, kept_figures) -> None:  # noqa: F811
-    ds = _dataset(_records(3), SUCTIONS)
+    ds = records_dataset(_records(3), SUCTIONS)
     case_figure(ds, "het", tmp_path / "het.png")
     fig = kept_figures[-1]
     check_figure(fig)  # integer ticks on "number of cracks", one legend entry per line

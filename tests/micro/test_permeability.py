@@ -54,6 +54,31 @@ def _assert_velocity_method_exact(mesh: Mesh) -> None:
         assert result["water"][axis] == pytest.approx(K0, rel=1e-9)
 
 
+def test_no_free_cell_in_the_inner_region_is_nan_with_a_warning_for_both_methods(caplog) -> None:
+    """27 points (the smallest specimen the configuration allows): every cell whose
+    centroid lies in the inner 80 % is a wall cell. The velocity method and the tensor,
+    which average over that region, are NaN with the same warning (one policy, not an
+    error for one and NaN for the other); the wall-flux method, which needs no inner
+    region, still returns the input permeability of a uniform medium."""
+    import logging
+
+    from micro.permeability import measure_permeability_tensor
+
+    coarse = jittered_mesh(3, seed=0)
+    conductance = facet_conductance(coarse, np.ones(coarse.n_cells), np.full(coarse.n_cells, 0.3),
+                                    "water", MATERIAL)
+    with caplog.at_level(logging.WARNING, logger="micro.permeability"):
+        velocity = measure_permeability(coarse, conductance, MATERIAL.water_viscosity, 0,
+                                        mean_pressure=-1e6, pressure_drop=1e5, method="velocity")
+        tensor = measure_permeability_tensor(coarse, conductance, MATERIAL.water_viscosity,
+                                             pressure_drop=1e5)
+    assert np.isnan(velocity) and np.all(np.isnan(tensor))
+    assert caplog.text.count("no free cell in the inner region") == 2
+    wall = measure_permeability(coarse, conductance, MATERIAL.water_viscosity, 0,
+                                mean_pressure=-1e6, pressure_drop=1e5)
+    assert wall == pytest.approx(K0, rel=0.1)
+
+
 def test_permeability_partial_saturation_and_porosity(mesh: Mesh) -> None:
     # S = 0.5: k_r = 0.25 for water and gas (n = 2); phi = 0.4: k_M = K0 exp(2 * 0.1).
     water = np.full(mesh.n_cells, 0.5)
@@ -198,9 +223,9 @@ def test_permeabilities_measured_on_two_threads_equal_the_serial_ones(
     solver paths), they return bit for bit what one thread returns."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from micro import permeability
+    from micro.permeability import steady
 
-    monkeypatch.setattr(permeability, "_MEASUREMENT_AMG_UNKNOWNS", amg_unknowns)
+    monkeypatch.setattr(steady, "_MEASUREMENT_AMG_UNKNOWNS", amg_unknowns)
     serial, tensor = _measured()
     with ThreadPoolExecutor(1) as pool:
         threaded, threaded_tensor = _measured(pool)

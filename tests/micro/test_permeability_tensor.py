@@ -8,13 +8,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from micro.permeability import (
-    _dissipative,
-    measure_permeability_tensor,
-    permeability_tensor,
-    principal_permeability,
-)
-from micro.run import _tensor_variables
+from micro.permeability import measure_permeability_tensor, permeability_tensor, principal_permeability
+from micro.permeability.tensor import _dissipative
+from micro.results import tensor_variables
 from shared.fv import facet_conductance
 from shared.mesh import WALLS, Mesh, boundary_cell_mask, build_mesh
 from shared.permeability import intrinsic_permeability
@@ -249,7 +245,7 @@ def test_tensor_variables_of_the_micro_dataset() -> None:
     good = np.stack([np.diag([1.0, 2.0, 3.0]), np.diag([4.0, 4.0, 4.0])]) * 1e-20
     failed = good.copy()
     failed[1, 0, 2] = np.nan
-    variables = _tensor_variables([{"permeability_tensor": good},
+    variables = tensor_variables([{"permeability_tensor": good},
                                    {"permeability_tensor": failed}, {}])
     expected = {
         "permeability_tensor": (("suction", "phase", "i", "j"), "m2"),

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from micro.pellet import POROSITY_BINS
-from micro.run import _COUNTS, _SCALARS, _dataset
+from micro.results import SCALARS, records_dataset
 from shared.io import read_dataset, write_dataset
 
 SUCTIONS = np.array([132.0e6, 38.0e6, 4.0e6])
@@ -18,8 +18,8 @@ def _records(n: int) -> list[dict[str, object]]:
     rng = np.random.default_rng(5)
     records = []
     for _ in range(n):
-        record: dict[str, object] = {name: float(rng.integers(1, 50)) if name in _COUNTS else float(rng.uniform())
-                                     for name in _SCALARS}
+        record: dict[str, object] = {name: float(rng.integers(1, 50)) if dtype is np.int64
+                                     else float(rng.uniform()) for name, (_, _, dtype) in SCALARS.items()}
         record["permeability"] = 10.0 ** rng.uniform(-22, -19, (2, 3))
         record["permeability_tensor"] = np.stack([np.diag(10.0 ** rng.uniform(-22, -19, 3))] * 2)
         for suffix in ("", "_imbibed", "_gas"):
@@ -34,7 +34,7 @@ def test_suction_indexes_the_checkpoints_and_counts_are_integers(tmp_path: Path)
     (``ds.sel(suction=...)`` works as a user types it), the checkpoint's number a coordinate
     along it, and the counts are integers."""
     path = tmp_path / "c.nc"
-    write_dataset(_dataset(_records(3), SUCTIONS), path, stage="micro", title="test")
+    write_dataset(records_dataset(_records(3), SUCTIONS), path, stage="micro", title="test")
     ds = read_dataset(path, ["suction", "permeability"])
     assert ds["suction"].dims == ("suction",) and "suction" in ds.indexes
     assert ds["permeability"].dims == ("suction", "phase", "axis")
@@ -53,5 +53,5 @@ def test_suction_indexes_the_checkpoints_and_counts_are_integers(tmp_path: Path)
 @pytest.mark.parametrize("n", [2])
 def test_a_partial_run_labels_its_checkpoints(n: int) -> None:
     """A run stopped early labels only its finished checkpoints."""
-    ds = _dataset(_records(n), SUCTIONS)
+    ds = records_dataset(_records(n), SUCTIONS)
     np.testing.assert_array_equal(ds["suction"].values, SUCTIONS[:n])
