@@ -27,6 +27,7 @@ CASE_MODULES = (
     "benchmarks.macro_homogenised",
     "benchmarks.macro_ogs",
     "benchmarks.macro_balance",
+    "benchmarks.macro_fire",
     "benchmarks.macro_packing",
     "benchmarks.macro_mixture",
     "benchmarks.micro_profile",

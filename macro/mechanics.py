@@ -27,7 +27,7 @@ from macro.laws import (
 )
 from macro.mixture import facet_angles, matching_keys
 from macro.readings import Readings
-from shared.dem import FireState, cylinder_contacts, detect_contacts, fire_step, yielding_hertz_mindlin
+from shared.dem import FireParameters, FireState, cylinder_contacts, detect_contacts, fire_step, yielding_hertz_mindlin
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -36,6 +36,11 @@ MAX_STEP = 1e-3
 radii: a pellet entering a contact stiffer than its mass moves at most this far."""
 REMESHES = 2
 """Largest number of new meshes within one relaxation."""
+FIRE = FireParameters(dt_start=1.0, alpha_start=0.25)
+"""FIRE's constants for the relaxation: each row's mass is its own stiffness (frequency 1
+per row), so the largest time step, 1, needs no ramp from Bitzek et al.'s dt_start 0.1;
+alpha_start is FIRE 2.0's (Guenole et al. 2020). Fewer FIRE steps for the same readings
+(benchmarks/reference/macro_fire.json)."""
 MAX_OVERLAP_LOSS = 0.3
 """Largest fraction of a pellet's sphere that its overlaps may cut off."""
 
@@ -167,7 +172,7 @@ class Mechanics:
         cap = np.tile(MAX_STEP * self.radii, 2)
         push = self.push_field()
         external, cell_pressure, powder_stiffness, frozen = push(self.positions)
-        fire = FireState()
+        fire = FireState(FIRE)
         rates = np.zeros((2 * n_p, 3))
         # displacement and rotation of the last step (none before the first)
         moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))

@@ -37,6 +37,7 @@ FAST = {
     "upscaling": {"suction_range_pa": [60.0e6, 132.0e6]},
     "macro": {
         "cylinder_height_m": 0.05, "cylinder_radius_m": 0.015, "pellet_radius_m": 4.0e-3,
+        "mixture": {"pellet_powder_dry_mass_ratio": None},  # the default's 80/20 packs no small column
         "boundary_suction_pa": 60.0e6,  # the table's lowest suction (it covers 60-132 MPa)
         "sensors": {"S10": {"height_m": 0.01, "band_width_m": 0.008}},
         "numerics": {"packing_iterations": 1500, "max_steps": 5},

@@ -34,6 +34,7 @@ TINY = {
     # table's lowest suction (a table must cover a case's range within a decade)
     "macro": {
         "cylinder_height_m": 0.05, "cylinder_radius_m": 0.015, "pellet_radius_m": 4.0e-3,
+        "mixture": {"pellet_powder_dry_mass_ratio": None},  # the default's 80/20 packs no small column
         "boundary_suction_pa": 60.0e6,
         "sensors": {name: {"height_m": height, "band_width_m": 0.008}
                     for name, height in (("S10", 0.01), ("S25", 0.025), ("S40", 0.04))},
