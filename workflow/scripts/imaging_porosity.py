@@ -7,10 +7,14 @@ sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
 import _logging  # noqa: E402
 
 from imaging.ct import run  # noqa: E402
+from imaging.ct.settings import PorositySettings, ScanResources  # noqa: E402
 
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
-run.porosity(
-    sm.wildcards.sample, sm.params.sample, sm.params.imaging, sm.params.material, sm.params.micro_spacing,
-    sm.input.scan, sm.output.image, sm.output.porosity, sm.output.figure, rule=sm.rule,
-)
+settings = PorositySettings.from_config(sm.wildcards.sample, sm.params.imaging, sm.params.material,
+                                        sm.params.micro_spacing)
+# the machine resources: the rule's threads, and its resources or (until they move there) params
+resources = ScanResources.from_mapping({**sm.params.imaging, **dict(sm.resources.items()),
+                                        "workers": sm.threads})
+outputs = run.PorosityOutputs(sm.output.image, sm.output.porosity, sm.output.figure)
+run.porosity(sm.input.scan, sm.params.sample, settings, outputs, resources, rule=sm.rule)

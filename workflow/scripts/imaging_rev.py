@@ -7,10 +7,13 @@ sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
 import _logging  # noqa: E402
 
 from imaging.ct import run  # noqa: E402
+from imaging.ct.settings import RevSettings, ScanResources  # noqa: E402
 
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
-run.rev(
-    sm.wildcards.sample, sm.params.sample, sm.params.settings, sm.input.scan, sm.input.image,
-    sm.input.porosity, sm.output.rev, sm.output.figure, rule=sm.rule,
-)
+settings = RevSettings(sm.params.settings["rev"], sm.params.settings["chords"], sm.wildcards.sample)
+# the machine resources: the rule's threads, and its resources or (until they move there) params
+resources = ScanResources.from_mapping({**sm.params.settings, **dict(sm.resources.items()),
+                                        "workers": sm.threads})
+run.rev(sm.input.scan, sm.params.sample, settings, (sm.input.image, sm.input.porosity),
+        (sm.output.rev, sm.output.figure), resources, rule=sm.rule)
