@@ -32,12 +32,16 @@ log = logging.getLogger("imaging.ct")
 
 def calibration_of(attrs: Mapping[str, Any]) -> Calibration:
     """The calibration recorded in a porosity grid's attributes
-    (:func:`imaging.ct.datasets.porosity_dataset`)."""
-    return Calibration(
-        grey_air=attrs["grey_air"], grey_muscovite=attrs["grey_muscovite"],
-        air_density=attrs["air_density"], muscovite_density=attrs["muscovite_density"],
-        dry_density=attrs["dry_density"], mean_porosity=attrs["mean_porosity_anchor"],
-    )
+    (:func:`imaging.ct.datasets.porosity_dataset`).
+
+    The anchors are numpy float64 scalars, as read from a file, in memory too: the float32
+    voxels are then mapped to porosity in float64 (NumPy's promotion rules), the same
+    arithmetic whether the grid comes from its file or from memory.
+    """
+    keys = {"grey_air": "grey_air", "grey_muscovite": "grey_muscovite",
+            "air_density": "air_density", "muscovite_density": "muscovite_density",
+            "dry_density": "dry_density", "mean_porosity": "mean_porosity_anchor"}
+    return Calibration(**{name: np.float64(attrs[key]) for name, key in keys.items()})
 
 
 def scan_rev(scan: Any, image: xr.Dataset, porosity: xr.Dataset, settings: RevSettings, *,
