@@ -100,7 +100,6 @@ def phantom(
     return write_tiff_stack(grey, output)
 
 
-
 def open_scan(entry: Mapping[str, Any], scan: str | Path, chunk_mb: float) -> Any:
     """A sample's scan as a lazy dask array in slabs of about ``chunk_mb`` MiB."""
     raw = entry.get("raw", {})

@@ -170,7 +170,7 @@ class PorositySettings:
 
 @dataclass(frozen=True)
 class RevSettings:
-    """Settings of :func:`imaging.ct.rev_scan.scan_rev`: the ``imaging.rev`` and
+    """Settings of :func:`imaging.ct.rev.scan_rev`: the ``imaging.rev`` and
     ``imaging.chords`` sections (validated).
 
     Attributes
