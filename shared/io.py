@@ -27,8 +27,8 @@ from shared.errors import OutputError
 from shared.imports import PACKAGES
 from shared.provenance import code_sha256, code_version, config_sha256, inputs_record, module_sha256
 
-__all__ = ["OutputError", "read_dataset", "write_dataset", "netcdf_safe_attrs", "atomic_write",
-           "write_failure"]
+__all__ = ["OutputError", "read_dataset", "write_dataset", "write_outputs", "netcdf_safe_attrs",
+           "atomic_write", "write_failure"]
 
 
 @cache
@@ -172,6 +172,58 @@ def write_dataset(
         if var.dtype.kind in "iuf" and var.ndim > 0
     }
     return atomic_write(path, lambda tmp: out.to_netcdf(tmp, engine="netcdf4", encoding=encoding))
+
+
+def write_outputs(
+    ds: xr.Dataset,
+    path: str | Path,
+    *,
+    files: Mapping[str | Path, bytes | Callable[[str], object]] | None = None,
+    figure: tuple[str | Path, Callable[[str | Path], object]] | None = None,
+    **provenance: Any,
+) -> Path:
+    """Write a stage's outputs: its netCDF file, its other files, then its figure.
+
+    The one writer of the stages' ``run()`` functions: the netCDF file through
+    :func:`write_dataset`, each other file (a CSV export, a restart file) through
+    :func:`atomic_write`, and the figure last, so that a failure leaves no file half
+    written and a figure never describes a file that was not written.
+
+    Parameters
+    ----------
+    ds
+        The dataset (:func:`write_dataset`'s contract).
+    path
+        Target ``.nc`` path.
+    files
+        Other files: per path, its bytes, or a function writing the file at the
+        temporary path it is given.
+    figure
+        ``(png_path, draw)``: ``draw(png_path)`` writes the figure (through
+        :func:`shared.figures.save_figure`, atomic too).
+    **provenance
+        The keyword arguments of :func:`write_dataset` (``stage`` and ``title``
+        required); ``code`` defaults to the caller's module, as there.
+
+    Returns
+    -------
+    Path
+        The netCDF path.
+    """
+    provenance.setdefault("code", sys._getframe(1).f_code.co_filename)
+    written = write_dataset(ds, path, **provenance)
+    for target, content in (files or {}).items():
+        write = content if callable(content) else _bytes_writer(content)
+        atomic_write(target, write)
+    if figure is not None:
+        target, draw = figure
+        draw(target)
+    return written
+
+
+def _bytes_writer(content: bytes) -> Callable[[str], object]:
+    """A writer of ``content`` to the path it is given (:func:`atomic_write`)."""
+    return lambda tmp: Path(tmp).write_bytes(content)
 
 
 def _umask() -> int:

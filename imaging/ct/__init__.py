@@ -2,9 +2,11 @@
 
 Readers of greyscale volumes (:mod:`.io`), the specimen mask, the grey -> density ->
 porosity calibration, block averaging onto the porosity grid, and a synthetic pellet
-phantom so that the chain runs without data. The stage's entry points (:mod:`.run`), its
-datasets and figures are not imported here, to keep matplotlib and the netCDF writer out
-of the import of the numerical API: ``from imaging.ct import run``.
+phantom so that the chain runs without data. The stage's computations on arrays
+(:func:`.porosity.porosity_grid`, :func:`.rev.scan_rev`, docs/api.md), its entry points
+(:mod:`.run`), datasets and figures are not imported here, to keep xarray, matplotlib and
+the netCDF writer out of the import of the numerical API:
+``from imaging.ct.porosity import porosity_grid``, ``from imaging.ct import run``.
 """
 
 from imaging.ct.calibration import Calibration, density_to_porosity, grey_anchors, grey_to_density

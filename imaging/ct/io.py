@@ -32,6 +32,7 @@ __all__ = [
     "open_slice_folder",
     "open_raw",
     "open_netcdf_volume",
+    "in_slabs",
     "read_volume",
     "read_tiff_stack",
     "read_slice_folder",
@@ -438,6 +439,28 @@ def open_volume(
     if source == "netcdf":
         return open_netcdf_volume(path, chunk_bytes=chunk_bytes)
     raise ImageError(f"{path}: unknown image source {source!r}")
+
+
+def in_slabs(volume: Any, chunk_bytes: int = DEFAULT_CHUNK_BYTES, source: str = "scan") -> Any:
+    """A greyscale volume held in memory (or a dask array) as a dask array chunked, like
+    :func:`open_volume`'s, in slabs of whole slices of about ``chunk_bytes``.
+
+    A dask array whose chunks are already whole slices is returned as it is.
+
+    Raises
+    ------
+    ImageError
+        Naming ``source``, if the volume is not 3-D or not 8/16-bit greyscale.
+    """
+    if volume.ndim != 3:
+        raise ImageError(f"{source}: expected a 3-D volume, got shape {volume.shape}")
+    _check_dtype(volume.dtype, source)
+    if isinstance(volume, da.Array):
+        whole_slices = len(volume.chunks[1]) == 1 and len(volume.chunks[2]) == 1
+        return volume if whole_slices else volume.rechunk((volume.chunks[0][0], -1, -1))
+    volume = np.asarray(volume)
+    step = _slices_per_chunk(volume.shape[1:], volume.dtype, chunk_bytes)
+    return da.from_array(volume, chunks=(step, -1, -1))
 
 
 def read_volume(source: str, path: str | Path, **layout: Any) -> npt.NDArray[np.unsignedinteger]:

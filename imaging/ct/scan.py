@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import dask.array as da
@@ -24,8 +25,10 @@ import numpy.typing as npt
 from imaging.ct.calibration import Calibration
 from imaging.ct.grid import block_sums
 from imaging.ct.mask import border_counts, sample_stride, slice_masks
+from imaging.ct.settings import ScanResources, setting_keys
 from imaging.morphology.slabs import slab as read_slab
 from imaging.morphology.slabs import slabs_in_order
+from shared.errors import InputError
 from shared.progress import Progress
 
 __all__ = [
@@ -38,6 +41,7 @@ __all__ = [
     "grid_sums",
     "mask_array",
     "estimated_peak_bytes",
+    "check_memory",
 ]
 
 log = logging.getLogger("imaging.ct")
@@ -217,3 +221,28 @@ def estimated_peak_bytes(shape: tuple[int, ...], chunk_slices: int, workers: int
     slab_voxels = int(chunk_slices) * int(np.prod(shape[1:]))
     return int(BASE_BYTES + 2 * max(1, workers) * BYTES_PER_SLAB_VOXEL * slab_voxels
                + BYTES_PER_WINDOW * n_windows)
+
+
+def check_memory(sample: str, source: str | Path, grey: Any, resources: ScanResources,
+                 n_windows: int = 0) -> None:
+    """Refuse, before reading the scan, a job whose estimated peak (slabs in flight and
+    ``n_windows`` REV windows) exceeds the resources' memory limit.
+
+    Raises
+    ------
+    InputError
+        Naming ``source`` and the settings that lower the peak.
+    """
+    peak = estimated_peak_bytes(grey.shape, int(grey.chunks[0][0]), resources.workers, n_windows)
+    limit = resources.memory_limit_bytes()
+    log.info("%s: %s voxels of %s in slabs of %d slices, estimated peak %.2f GiB (limit %.1f GiB)",
+             sample, "x".join(map(str, grey.shape)), grey.dtype, grey.chunks[0][0],
+             peak / 2**30, limit / 2**30)
+    if peak > limit:
+        raise InputError(
+            f"{source}: the imaging of this {'x'.join(map(str, grey.shape))} scan would need about "
+            f"{peak / 2**30:.1f} GiB, more than the {limit / 2**30:.1f} GiB allowed: lower "
+            f"{setting_keys(sample, 'chunk_mb')} ({resources.chunk_mb:g}), "
+            f"{setting_keys(sample, 'workers')} ({resources.workers})"
+            + (" or rev.n_positions" if n_windows else "") + ", or raise imaging.memory_limit_gb"
+        )

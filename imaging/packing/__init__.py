@@ -4,7 +4,7 @@ Reference implementation of Ferrage et al., Phys. Rev. E 91, 062210 (2015):
 :mod:`.population` (particle sizes and shapes, Table I), :mod:`.deposition` (the
 sequential deposition, Sec. II), :mod:`.analysis`, :mod:`.voxels` and :mod:`.measures`
 (porosity and order profiles, Q tensor, rocking curve, surface areas, voxel image,
-overlap fraction; Secs. III-V). The stage's modules (:mod:`.config`, :mod:`.run`,
+overlap fraction; Secs. III-V). The stage's modules (:mod:`.config`, :mod:`.dataset`, :mod:`.run`,
 :mod:`.figures`) are not imported here, to keep xarray and matplotlib out of the
 numerical API: ``from imaging.packing.run import run``.
 

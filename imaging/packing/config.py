@@ -4,7 +4,8 @@ Every key of ``packings.<name>``, its type, bounds, default and meaning is in th
 schema (``workflow/schemas/config.schema.yaml``), which validates the entry and fills in
 its defaults. This module holds what the schema cannot express: checks across keys
 (:func:`check_packings`), and the conversion of a validated entry into the parameters of
-the deposition (:func:`population_of`, :func:`parameters_of`).
+the deposition (:func:`population_of`, :func:`parameters_of`). :func:`packing_settings`
+makes a validated entry from a few keys, as a notebook needs one.
 """
 
 from __future__ import annotations
@@ -14,12 +15,12 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 from imaging.packing.population import Population
-from shared.config import ConfigError
+from shared.config import DEFAULT_CONFIG_PATH, ConfigError, read_config_file, validate_config
 
 if TYPE_CHECKING:
     from imaging.packing.deposition import DepositionParameters
 
-__all__ = ["check_packing", "check_packings", "population_of", "parameters_of"]
+__all__ = ["check_packing", "check_packings", "packing_settings", "population_of", "parameters_of"]
 
 
 def check_packings(config: Mapping[str, Any]) -> None:
@@ -37,6 +38,33 @@ def check_packings(config: Mapping[str, Any]) -> None:
     """
     for name, section in config.get("packings", {}).items():
         check_packing(name, section)
+
+
+def packing_settings(entry: Mapping[str, Any] | None = None, name: str = "packing"
+                     ) -> dict[str, Any]:
+    """A packing entry as the workflow hands it to the stage: validated against the schema
+    with its defaults filled in, and checked across keys (:func:`check_packings`).
+
+    The entry replaces the packings of the default configuration, which is validated as a
+    whole, so errors read as the workflow's: ``config key 'packings.<name>.<key>': ...``.
+
+    Parameters
+    ----------
+    entry : mapping, optional
+        Keys of ``packings.<name>`` (the schema's defaults for the others).
+    name : str
+        The entry's name, in messages.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``packings.<name>.<key>``.
+    """
+    config = read_config_file(DEFAULT_CONFIG_PATH)
+    config["packings"] = {name: dict(entry or {})}
+    validate_config(config)
+    check_packings(config)
+    return config["packings"][name]
 
 
 def check_packing(name: str, section: Mapping[str, Any]) -> None:
@@ -57,7 +85,7 @@ def check_packing(name: str, section: Mapping[str, Any]) -> None:
         :func:`_largest_semi_major_axis`); a contact distance not small against the
         median particle thickness; a truncation of the basal surface law at or below its
         median; zone bounds in the wrong order. Size laws without a bound are checked
-        against the sampled particles by :func:`imaging.packing.run.run`.
+        against the sampled particles by :func:`imaging.packing.dataset.packed_bed`.
     """
 
     def fail(key: str, reason: str) -> ConfigError:

@@ -25,7 +25,7 @@ def packing_figure(ds: xr.Dataset, image: VoxelImage, path: str | Path) -> Path:
     Parameters
     ----------
     ds : xarray.Dataset
-        The packing dataset (:func:`imaging.packing.run.packing_dataset`).
+        The packing dataset (:func:`imaging.packing.dataset.packing_dataset`).
     image : VoxelImage
         Its voxel image.
     path : str or Path

@@ -1,9 +1,15 @@
 """Upscaling: micro permeability curves -> the pellet permeability table macro reads.
 
-``table`` condenses micro results (pure), ``run`` is the stage's entry point (files,
+``table`` condenses micro results (pure: :func:`upscale`), ``run`` is the stage's entry point (files,
 CSV export, figure). The reader and interpolator live in :mod:`shared.upscaling`.
 """
 
-from micro.upscaling.table import SOURCE_VARIABLES, table_rows, upscaling_table
+from micro.upscaling.table import (
+    SOURCE_VARIABLES,
+    UpscalingSettings,
+    table_rows,
+    upscale,
+    upscaling_table,
+)
 
-__all__ = ["SOURCE_VARIABLES", "table_rows", "upscaling_table"]
+__all__ = ["SOURCE_VARIABLES", "UpscalingSettings", "table_rows", "upscale", "upscaling_table"]

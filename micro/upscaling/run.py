@@ -1,9 +1,10 @@
 """Entry point of the upscaling stage: micro results -> ``results/upscaling/pellet_permeability``.
 
-Writes the netCDF table (the only thing macro reads from micro, docs/design.md §2), its CSV
-export (condition, suction, phase, axis, k) for users of other tools, whose sha256 the
-table records (a hand edit of the export is refused, :func:`shared.table_export.check_csv_export`),
-and a figure. The
+Reads the micro results, computes the table (:func:`micro.upscaling.table.upscale`, no
+file I/O) and writes, through :func:`shared.io.write_outputs`, the netCDF table (the only
+thing macro reads from micro, docs/design.md §2), its CSV export (condition, suction,
+phase, axis, k) for users of other tools, whose sha256 the table records (a hand edit of
+the export is refused, :func:`shared.table_export.check_csv_export`), and a figure. The
 table is checked before anything is written, and every file is replaced atomically, so
 a refused source leaves no partial table.
 """
@@ -21,9 +22,9 @@ from typing import Any
 import xarray as xr
 
 from micro.upscaling.figures import table_figure
-from micro.upscaling.table import SOURCE_VARIABLES, table_rows, upscaling_table
+from micro.upscaling.table import SOURCE_VARIABLES, UpscalingSettings, table_rows, upscale
 from shared.config import ConfigError
-from shared.io import OutputError, atomic_write, read_dataset, write_dataset
+from shared.io import OutputError, read_dataset, write_outputs
 from shared.table_export import CSV_EXPORT_ATTRIBUTE
 
 __all__ = ["run"]
@@ -76,17 +77,16 @@ def run(
             except OutputError as err:
                 raise ConfigError(f"upscaling source of condition {condition!r}: {err}") from err
         sources[condition] = members
-    low, high = upscaling["suction_range_pa"]
-    table = upscaling_table(sources, (float(low), float(high)))
+    table = upscale(sources, UpscalingSettings.from_config(upscaling))
     files = [str(p) for paths in inputs.values() for p in paths]
     export = _csv_export(table).encode()
     # the export's hash in the table: a hand edit of the export is refused, not ignored
     table.attrs[CSV_EXPORT_ATTRIBUTE] = hashlib.sha256(export).hexdigest()
-    write_dataset(table, output, stage="upscaling", title="pellet permeability table",
+    write_outputs(table, output, stage="upscaling", title="pellet permeability table",
                   config=dict(upscaling), inputs=files, rule=rule,
-                  references="Caulk (2022), PhD thesis, Sec. 3.5.3 and 4.6")
-    atomic_write(csv_output, lambda tmp: Path(tmp).write_bytes(export))
-    table_figure(table, figure_output)
+                  references="Caulk (2022), PhD thesis, Sec. 3.5.3 and 4.6",
+                  files={csv_output: export},
+                  figure=(figure_output, lambda path: table_figure(table, path)))
     for condition in table["condition"].values:
         k = table["k"].sel(condition=condition, phase="water")
         log.info("%s: water k %.3g-%.3g m2 over %.3g-%.3g Pa from %d result(s)", condition,

@@ -5,20 +5,24 @@ an ensemble of cases (realizations). Over an ensemble, permeability is averaged 
 (geometric mean, with the standard deviation of log10 k, thesis Sec. 3.5.9 reports the
 spread on a log axis), the tensor by the mean of the realizations' symmetric parts, and
 saturation and strain arithmetically. The suction coordinate ascends, as the macro
-model's interpolator (:mod:`shared.upscaling`) reads it. The functions here do no I/O.
+model's interpolator (:mod:`shared.upscaling`) reads it. The functions here do no I/O:
+:func:`upscale` is the stage's computation, from datasets in memory and
+:class:`UpscalingSettings`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import xarray as xr
 
-from shared.config import ConfigError
+from shared.config import ConfigError, check_ordered_pair
 from shared.upscaling import check_table
 
-__all__ = ["SOURCE_VARIABLES", "upscaling_table", "table_rows"]
+__all__ = ["SOURCE_VARIABLES", "UpscalingSettings", "upscale", "upscaling_table", "table_rows"]
 
 SOURCE_VARIABLES = ("suction", "saturation", "eps_v", "permeability", "permeability_tensor")
 """Variables a micro result must hold to be a source of the table."""
@@ -150,3 +154,66 @@ def table_rows(table: xr.Dataset) -> list[tuple[str, float, str, str, float]]:
         (str(row.condition), float(row.suction), str(row.phase), str(row.axis), float(row.k))
         for row in frame.itertuples(index=False)
     ]
+
+
+@dataclass(frozen=True)
+class UpscalingSettings:
+    """Settings of :func:`upscale`.
+
+    Attributes
+    ----------
+    suction_range : tuple of float
+        (smallest, largest) suction the macro model reads [Pa]
+        (``upscaling.suction_range_pa``); every source's checkpoints must span it.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``upscaling.suction_range_pa`` unless smallest < largest.
+    """
+
+    suction_range: tuple[float, float]
+
+    def __post_init__(self) -> None:
+        check_ordered_pair(self.suction_range, "upscaling.suction_range_pa")
+        low, high = self.suction_range
+        object.__setattr__(self, "suction_range", (float(low), float(high)))
+
+    @classmethod
+    def from_config(cls, upscaling: Mapping[str, Any]) -> UpscalingSettings:
+        """The settings of the validated ``upscaling`` section."""
+        return cls(tuple(upscaling["suction_range_pa"]))
+
+
+def upscale(datasets: Mapping[str, Sequence[xr.Dataset | tuple[str, xr.Dataset]]],
+            settings: UpscalingSettings) -> xr.Dataset:
+    """The pellet permeability table of micro results held in memory.
+
+    Parameters
+    ----------
+    datasets
+        Per condition (``free``, ``confined``), its micro results (datasets of
+        :data:`SOURCE_VARIABLES`): one case, or the realizations of an ensemble, each a
+        dataset or a (name, dataset) pair; messages name a bare dataset
+        ``<condition>[<index>]``.
+    settings
+        The suction range.
+
+    Returns
+    -------
+    xarray.Dataset
+        The table of :func:`upscaling_table`: ``k(condition, phase, axis, suction)`` [m2],
+        ``k_log10_std`` [1], ``k_tensor`` [m2], ``saturation`` and ``eps_v`` [1],
+        ``n_realizations``.
+
+    Raises
+    ------
+    ConfigError
+        As :func:`upscaling_table`.
+    """
+    sources = {
+        condition: [member if isinstance(member, tuple) else (f"{condition}[{index}]", member)
+                    for index, member in enumerate(members)]
+        for condition, members in datasets.items()
+    }
+    return upscaling_table(sources, settings.suction_range)

@@ -3,14 +3,15 @@
 import json
 import os
 import stat
+from pathlib import Path
 
 import numpy as np
 import pytest
 import xarray as xr
 
 from shared.figures import new_figure, save_figure
-from shared.io import OutputError, read_dataset, write_dataset
-from shared.provenance import config_sha256, file_sha256
+from shared.io import OutputError, read_dataset, write_dataset, write_outputs
+from shared.provenance import config_sha256, file_sha256, module_sha256
 
 
 def _dataset() -> xr.Dataset:
@@ -31,6 +32,34 @@ def test_round_trip_is_identical(tmp_path):
     assert back.attrs["seed"] == 4
     assert back.attrs["config_sha256"] == config_sha256({"a": True, "b": [1, 2]})
     assert back.attrs["Conventions"] == "CF-1.11"
+
+
+def test_write_outputs_writes_the_file_the_others_then_the_figure(tmp_path):
+    """The stages' one writer: the netCDF round trip, a file given as bytes and one given
+    as a writer function, the figure drawn last with its path; the code hash is the
+    caller's module; a refused dataset leaves nothing."""
+    drawn = []
+
+    def draw(path):
+        assert (tmp_path / "t.csv").read_bytes() == b"a,b\n"  # the other files come first
+        fig, axes = new_figure(1, 1)
+        axes.flat[0].plot([0, 1], [0, 1])
+        drawn.append(save_figure(fig, path))
+
+    path = write_outputs(_dataset(), tmp_path / "t.nc", stage="imaging", title="t", seed=2,
+                         files={tmp_path / "t.csv": b"a,b\n",
+                                tmp_path / "t.txt": lambda tmp: Path(tmp).write_text("x")},
+                         figure=(tmp_path / "t.png", draw))
+    back = read_dataset(path)
+    xr.testing.assert_identical(back.drop_attrs(deep=False), _dataset())
+    assert back.attrs["seed"] == 2 and back.attrs["code_sha256"] == module_sha256(__file__)
+    assert (tmp_path / "t.txt").read_text() == "x"
+    assert drawn == [tmp_path / "t.png"] and (tmp_path / "t.png").stat().st_size > 1000
+    refused = tmp_path / "refused"
+    with pytest.raises(OutputError, match="units"):
+        write_outputs(_dataset().assign(bad=("z", np.zeros(4))), refused / "t.nc", stage="imaging",
+                      title="t", files={refused / "t.csv": b""}, figure=(refused / "t.png", draw))
+    assert not refused.exists() or not any(refused.iterdir())
 
 
 def test_inputs_are_hashed(tmp_path):

@@ -49,7 +49,7 @@ def test_the_type_checking_block_is_read_as_the_lazy_map(tmp_path: Path) -> None
 
 # the lazy packages, and their public submodules that they do not re-export (stage
 # modules that would import xarray and matplotlib: docstring of imaging/packing)
-LAZY_PACKAGES = {"shared.dem": set(), "imaging.packing": {"config", "run", "figures"}}
+LAZY_PACKAGES = {"shared.dem": set(), "imaging.packing": {"config", "dataset", "run", "figures"}}
 
 
 @pytest.mark.parametrize("name", sorted(LAZY_PACKAGES))

@@ -32,6 +32,8 @@ import xarray as xr
 from imaging.ct import run as ct_run
 from imaging.ct.io import ImageError, write_tiff_stack
 from imaging.ct.phantom import pellet_phantom
+from imaging.ct.porosity import CLAMPED_WARNING_FRACTION
+from imaging.ct.settings import PorositySettings, ScanResources
 from imaging.packing.config import check_packings
 from micro import run as micro_run
 from micro.config import check_studies
@@ -234,11 +236,17 @@ def _porosity(tmp: Path, source: str, scan: Path, *, imaging: dict | None = None
     if source == "raw":
         entry["raw"] = {"shape": list(shape), "dtype": "uint16", "byte_order": "little"}
     results = tmp / "results"
-    return ct_run.porosity(
-        "scan", entry, imaging or CONFIG["imaging"], CONFIG["materials"]["pellet"],
-        (4.0e-3, 216), scan, results / "images/scan.nc", results / "porosity/scan.nc",
-        results / "porosity/scan.png",
-    )
+    return _ct_porosity("scan", entry, imaging or CONFIG["imaging"], (4.0e-3, 216), scan,
+                        results, "scan")
+
+
+def _ct_porosity(sample: str, entry: dict, imaging: dict, micro: tuple, scan: Path | str,
+                 results: Path, name: str) -> xr.Dataset:
+    """The imaging_porosity rule's entry point on a sample, as its script calls it."""
+    settings = PorositySettings.from_config(sample, imaging, CONFIG["materials"]["pellet"], micro)
+    outputs = ct_run.PorosityOutputs(results / f"images/{name}.nc", results / f"porosity/{name}.nc",
+                                     results / f"porosity/{name}.png")
+    return ct_run.porosity(scan, entry, settings, outputs, ScanResources.from_mapping(imaging))
 
 
 @pytest.mark.parametrize("case", sorted(SCANS))
@@ -367,7 +375,7 @@ def test_many_clamped_blocks_are_warned(volume, tmp_path, caplog):
     with caplog.at_level(logging.WARNING, logger="imaging.ct"):
         ds = _porosity(tmp_path, "tiff", scan,
                        imaging=_imaging(**{"calibration.porosity_bounds": [0.2, 0.3]}))
-    assert ds.attrs["clamped_fraction"] > ct_run.CLAMPED_WARNING_FRACTION
+    assert ds.attrs["clamped_fraction"] > CLAMPED_WARNING_FRACTION
     assert "imaging.calibration.porosity_bounds" in ds.attrs["warnings"]
     assert any("clamped" in r.getMessage() for r in caplog.records)
 
@@ -868,9 +876,7 @@ def _gridded_scan(config: dict, work: Path) -> None:
     entry = config["samples"]["pellet"]
     micro = (TINY["micro"]["specimen_size_m"], TINY["micro"]["n_points"])
     results = work / "results"
-    ct_run.porosity("pellet", entry, CONFIG["imaging"], CONFIG["materials"]["pellet"], micro,
-                    entry["path"], results / "images/pellet.nc",
-                    results / "porosity/pellet.nc", results / "porosity/pellet.png")
+    _ct_porosity("pellet", entry, CONFIG["imaging"], micro, entry["path"], results, "pellet")
 
 
 WORKFLOWS = {

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import ast
 import copy
+import dataclasses
 import json
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,7 @@ import yaml
 from imaging.ct import run as ct_run
 from imaging.ct.io import write_tiff_stack
 from imaging.ct.phantom import pellet_phantom
+from imaging.ct.settings import PorositySettings, RevSettings, ScanResources
 from imaging.ct_keys import POROSITY_KEYS, RESOURCE_KEYS, REV_KEYS, job_settings, resource_value
 from shared.config import ConfigError, default_config
 from tests.workflow._chain import ROOT, edited_copy, snakemake, workdir
@@ -44,8 +46,9 @@ class _Recording(dict):
 
 
 def test_the_entry_points_read_the_listed_keys(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """run.porosity reads the porosity keys and the resources, run.rev the REV keys and the
-    resources, and neither reads any other imaging key: the rules' params lack nothing."""
+    """The porosity settings and the resources read the porosity keys and the resource keys,
+    the REV route the REV keys and the resources, and neither reads any other imaging key:
+    the rules' params lack nothing."""
     monkeypatch.setattr("imaging.ct.run.figures.porosity_figure", lambda *args: None)
     monkeypatch.setattr("imaging.ct.run.figures.rev_figure", lambda *args: None)
     spec = ct_run.phantom_spec(dict(CONFIG["phantom"], shape=[24, 24, 24], seed=3),
@@ -55,13 +58,16 @@ def test_the_entry_points_read_the_listed_keys(tmp_path: Path, monkeypatch: pyte
     imaging["rev"].update(n_positions=8, n_sizes=3)
     entry = {"source": "tiff", "path": str(scan), "voxel_size_m": VOXEL}
     porosity = _Recording(imaging)
-    ct_run.porosity("p", entry, porosity, CONFIG["materials"]["pellet"], (4e-3, 64), scan,
-                    tmp_path / "image.nc", tmp_path / "porosity.nc", tmp_path / "porosity.png")
+    settings = PorositySettings.from_config("p", porosity, CONFIG["materials"]["pellet"], (4e-3, 64))
+    outputs = ct_run.PorosityOutputs(tmp_path / "image.nc", tmp_path / "porosity.nc", tmp_path / "porosity.png")
+    ct_run.porosity(scan, entry, settings, outputs, ScanResources.from_mapping(porosity))
     rev = _Recording(imaging)
-    ct_run.rev("p", entry, rev, scan, tmp_path / "image.nc", tmp_path / "porosity.nc",
-               tmp_path / "rev.nc", tmp_path / "rev.png")
+    ct_run.rev(scan, entry, RevSettings(rev["rev"], rev["chords"], "p"), outputs[:2],
+               (tmp_path / "rev.nc", tmp_path / "rev.png"), ScanResources.from_mapping(rev))
     assert porosity.read == {*POROSITY_KEYS, *RESOURCE_KEYS}
     assert rev.read == {*REV_KEYS, *RESOURCE_KEYS}
+    # the REV settings hold the listed keys and the sample's name
+    assert {f.name for f in dataclasses.fields(RevSettings)} == {*REV_KEYS, "sample"}
     # every imaging key is read by one of them (the schema's section has no dead key)
     assert set(imaging) == {*POROSITY_KEYS, *REV_KEYS, *RESOURCE_KEYS}
 

@@ -10,4 +10,4 @@ from imaging.packing import run  # noqa: E402
 
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
-run.run(sm.params.section, sm.output.result)
+run.run(sm.params.section, sm.output.result, rule=sm.rule)

@@ -10,7 +10,7 @@ import dask.array as da
 import numpy as np
 import pytest
 
-from imaging.ct.run import rev_summary
+from imaging.ct.rev import rev_summary
 from imaging.ct.scan import each_slab
 
 SCRIPTS = Path(__file__).resolve().parents[3] / "workflow" / "scripts"

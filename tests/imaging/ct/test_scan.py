@@ -16,6 +16,7 @@ from imaging.ct import run as ct_run
 from imaging.ct.io import write_tiff_stack
 from imaging.ct.phantom import pellet_phantom
 from imaging.ct.scan import estimated_peak_bytes
+from imaging.ct.settings import PorositySettings, RevSettings, ScanResources
 from shared.config import default_config
 
 CONFIG = default_config()
@@ -44,11 +45,18 @@ def _stage(scan: Path, out: Path, **imaging_changes) -> tuple[xr.Dataset, xr.Dat
     imaging.update(grid_spacing_m=6e-4, **imaging_changes)
     imaging["rev"].update(n_positions=2000, n_sizes=6)
     entry = {"source": "tiff", "path": str(scan), "voxel_size_m": VOXEL}
-    porosity = ct_run.porosity("p", entry, imaging, CONFIG["materials"]["pellet"], (1.0, 8),
-                               scan, out / "image.nc", out / "porosity.nc", out / "porosity.png")
-    rev = ct_run.rev("p", entry, imaging, scan, out / "image.nc", out / "porosity.nc",
-                     out / "rev.nc", out / "rev.png")
+    resources = ScanResources.from_mapping(imaging)
+    porosity = ct_run.porosity(scan, entry, _settings(imaging),
+                               ct_run.PorosityOutputs(out / "image.nc", out / "porosity.nc",
+                                                      out / "porosity.png"), resources)
+    rev = ct_run.rev(scan, entry, RevSettings(imaging["rev"], imaging["chords"], "p"),
+                     (out / "image.nc", out / "porosity.nc"), (out / "rev.nc", out / "rev.png"),
+                     resources)
     return porosity, rev
+
+
+def _settings(imaging: dict) -> PorositySettings:
+    return PorositySettings.from_config("p", imaging, CONFIG["materials"]["pellet"], (1.0, 8))
 
 
 @pytest.fixture(scope="module")
@@ -90,9 +98,10 @@ def _traced_peak(tmp: Path, slices: int, traced: bool = True) -> tuple[int, int]
     imaging["calibration"].update(grey_air=2000.0, grey_muscovite=60000.0)
     if traced:
         tracemalloc.start()
-    ct_run.porosity("p", entry, imaging, CONFIG["materials"]["pellet"], (1.0, 8), path,
-                    tmp / f"image_{slices}.nc", tmp / f"porosity_{slices}.nc",
-                    tmp / f"porosity_{slices}.png")
+    ct_run.porosity(path, entry, _settings(imaging),
+                    ct_run.PorosityOutputs(tmp / f"image_{slices}.nc", tmp / f"porosity_{slices}.nc",
+                                           tmp / f"porosity_{slices}.png"),
+                    ScanResources.from_mapping(imaging))
     if not traced:
         return 0, size
     peak = tracemalloc.get_traced_memory()[1]

@@ -3,39 +3,22 @@ packing entries completed through the configuration schema."""
 
 from __future__ import annotations
 
-import copy
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 import pytest
-import yaml
 
 from imaging.packing import DepositionParameters, Packing, Population, deposit, sample_semi_axes
-from imaging.packing.config import check_packings
-from shared.config import DEFAULT_CONFIG_PATH, validate_config
+from imaging.packing.config import packing_settings
 
 DIAMETER = 1.0e-6
-_DEFAULT_CONFIG = yaml.safe_load(DEFAULT_CONFIG_PATH.read_text())
 
 
 def packing_section(section: Mapping[str, Any] | None = None, name: str = "tiny") -> dict[str, Any]:
-    """A packing entry as the workflow hands it to the stage: validated against the schema
-    with its defaults filled in, and checked across keys (:func:`check_packings`).
-
-    The entry replaces the packings of the default configuration, which is validated as a
-    whole, so errors read as the workflow's: ``config key 'packings.<name>.<key>': ...``.
-
-    Raises
-    ------
-    shared.config.ConfigError
-        Naming ``packings.<name>.<key>``.
-    """
-    config = copy.deepcopy(_DEFAULT_CONFIG)
-    config["packings"] = {name: dict(section or {})}
-    validate_config(config)
-    check_packings(config)
-    return config["packings"][name]
+    """A packing entry as the workflow hands it to the stage
+    (:func:`imaging.packing.config.packing_settings`)."""
+    return packing_settings(section, name)
 
 
 def small_bed(seed: int, n: int = 40, box_diameters: float = 3.0, theta_max: float = np.pi / 2,

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from imaging.packing.dataset import packing_dataset
 from imaging.packing.figures import packing_figure
-from imaging.packing.run import packing_dataset
 from tests._figures import check_figure, kept_figures  # noqa: F401
 from tests.imaging.packing.test_measures import ZONE, W, _measure, _stack
 
