@@ -39,8 +39,8 @@ REMESHES = 2
 FIRE = FireParameters(dt_start=1.0, alpha_start=0.25)
 """FIRE's constants for the relaxation: each row's mass is its own stiffness (frequency 1
 per row), so the largest time step, 1, needs no ramp from Bitzek et al.'s dt_start 0.1;
-alpha_start is FIRE 2.0's (Guenole et al. 2020). Fewer FIRE steps for the same readings
-(benchmarks/reference/macro_fire.json)."""
+alpha_start is FIRE 2.0's (Guenole et al. 2020). A third fewer FIRE steps in the default
+case (benchmarks/reference/macro_fire.json)."""
 MAX_OVERLAP_LOSS = 0.3
 """Largest fraction of a pellet's sphere that its overlaps may cut off."""
 

@@ -37,7 +37,7 @@ from shared.io import write_dataset
 from shared.provenance import file_sha256, module_sha256
 from shared.upscaling import PermeabilityTable, check_suction_coverage
 
-__all__ = ["run", "simulate"]
+__all__ = ["build_model", "case_parameters", "mock_up", "new_model", "run", "simulate"]
 
 LOG = logging.getLogger("claychain.macro")
 FloatArray = npt.NDArray[np.float64]
@@ -75,7 +75,17 @@ def case_parameters(config: Mapping[str, Any], case: str) -> tuple[MacroSettings
 
 def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) -> MacroModel:
     """The initial model of a case from the validated ``macro`` and ``materials`` sections."""
-    settings, material = case_parameters(config, case)
+    return new_model(*case_parameters(config, case), table)
+
+
+def new_model(settings: MacroSettings, material: MixtureParameters, table: PermeabilityTable) -> MacroModel:
+    """The initial model: the pellets packed in the container, the powder between them.
+
+    Raises
+    ------
+    shared.errors.ConfigError
+        If the packing leaves pellets overlapping by more than ``PACKING_TOLERANCE``.
+    """
     packing = pack_cylinder(settings.height, settings.radius, settings.pellet_radius,
                             settings.packing_fraction, np.random.default_rng(settings.seed),
                             settings.packing_sweeps, settings.pellet_radius_spread)
@@ -88,6 +98,28 @@ def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) 
     model = MacroModel.create(settings, material, table, packing)
     model.packing = packing
     return model
+
+
+def mock_up(table: PermeabilityTable, settings: MacroSettings, material: MixtureParameters) -> xr.Dataset:
+    """The mock-up hydrated from both ends until near equilibrium or a guard, in memory:
+    no file is read or written (no snapshot, no ParaView series).
+
+    Parameters
+    ----------
+    table
+        The pellet permeability table (:meth:`shared.upscaling.PermeabilityTable.from_file`
+        or built from the upscaling stage's Dataset).
+    settings, material
+        The case's settings and mixture parameters (:func:`case_parameters`).
+
+    Returns
+    -------
+    xarray.Dataset
+        The records and readings :func:`run` writes, with the ``stop_reason``.
+    """
+    ds, reason = simulate(new_model(settings, material, table))
+    ds.attrs["stop_reason"] = reason
+    return ds
 
 
 def simulate(
