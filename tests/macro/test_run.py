@@ -11,7 +11,7 @@ import xarray as xr
 from macro.laws import mixture_parameters
 from macro.model import MacroModel
 from macro.packing import Packing, pack_cylinder
-from macro.run import build_model, run
+from macro.run import build_model, case_parameters, mock_up, run
 from macro.settings import macro_settings
 from shared.io import OutputError, write_dataset
 from shared.provenance import file_sha256
@@ -44,6 +44,28 @@ def test_run_writes_the_contract(tmp_path, table_path, kept_figures):  # noqa: F
     assert 0.4 < ds.attrs["packing_fraction"] < 0.6
     assert (tmp_path / "small.png").stat().st_size > 0
     assert {"time [d]", "pressure [MPa]", "height above the lower plate [cm]"} <= check_figure(kept_figures[-1])
+
+
+def test_mock_up_in_memory_equals_what_run_writes(tmp_path, table_path, monkeypatch):
+    """The library function reads and writes no file, and its records are the file's,
+    bit for bit (the run's snapshots and output are its only additions)."""
+    config = small_config()
+    config["macro"]["numerics"]["max_steps"] = 3
+    config["macro"]["vtk_snapshots"] = 0
+    settings, material = case_parameters(config, "small")
+    table = PermeabilityTable.from_file(table_path, settings.table_condition)
+    written = tmp_path / "written"
+    written.mkdir()
+    run(config, "small", table_path, written / "small.nc")
+    monkeypatch.chdir(tmp_path)
+    before = sorted(tmp_path.rglob("*"))
+    ds = mock_up(table, settings, material)
+    assert sorted(tmp_path.rglob("*")) == before
+    on_file = xr.load_dataset(written / "small.nc")
+    assert set(ds.data_vars) == set(on_file.data_vars)
+    for name in ds.data_vars:
+        np.testing.assert_array_equal(ds[name].values, on_file[name].values, err_msg=name)
+    assert ds.attrs["stop_reason"] == on_file.attrs["stop_reason"] == "max_steps"
 
 
 def _mirrored_model(table_path):
