@@ -10,12 +10,11 @@ recorded.
 
 from __future__ import annotations
 
-import bisect
 import hashlib
 import json
 import logging
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -24,20 +23,20 @@ import numpy.typing as npt
 import xarray as xr
 
 from macro.checkpoint import load_snapshot, save_snapshot
-from macro.column_permeability import column_permeability
 from macro.laws import MixtureParameters, case_materials, mixture_parameters
 from macro.model import MacroModel
 from macro.newton import NewtonError
 from macro.packing import pack_cylinder
+from macro.records import INVARIANTS, MEASUREMENT_ROWS, PASSAGE_PRESSURE, Records
 from macro.settings import MacroSettings, macro_settings
-from macro.stopping import DAY, MONITORED, RunProgress, stop_distance
+from macro.stopping import DAY, MONITORED, RunProgress
 from macro.vtk import SnapshotSeries
 from shared.errors import ConfigError
 from shared.io import write_dataset
 from shared.provenance import file_sha256, module_sha256
 from shared.upscaling import PermeabilityTable, check_suction_coverage
 
-__all__ = ["build_model", "case_parameters", "mock_up", "new_model", "run", "simulate"]
+__all__ = ["build_model", "case_parameters", "hydration", "mock_up", "new_model", "run", "simulate"]
 
 LOG = logging.getLogger("claychain.macro")
 FloatArray = npt.NDArray[np.float64]
@@ -45,25 +44,6 @@ PACKING_TOLERANCE = 0.05
 """Largest overlap left by the packing, as a fraction of the pellet radius."""
 THIN_ABOVE = 4000
 """Records kept in memory before every other one is dropped (see ``simulate``)."""
-INVARIANTS = {
-    "water_pellets": ("kg", "water mass in the pellets"),
-    "water_powder": ("kg", "water mass in the powder of the free cells"),
-    "water_held": ("kg", "water mass in the held end cells (the boundary's reservoir)"),
-    "water_residual": ("kg", "interior water less the initial interior water and the boundary inflow (0: water conserved)"),
-    "solid_water_fraction": ("1", "solids and water of pellets and powder over the container's volume (at most 1)"),
-    "occupied_fraction": ("1", "pellets' clay volume with the powder's solids and water over the container's volume"),
-    "largest_overfill": ("1", "largest powder solid and water volume over its cell's void, less 1 (> 0: a cell holds more than its void)"),
-    "dry_density": ("kg m-3", "dry mass of pellets and powder over the container's volume"),
-    "dry_density_spread": ("kg m-3", "volume-weighted standard deviation of the dry density of pellets and powder cells (0: homogeneous)"),
-}
-"""Invariants recorded at every record (:meth:`macro.model.MacroModel.invariants`): units, long name."""
-MEASUREMENT_ROWS = ("permeability_time", "column_permeability", "passage")
-PASSAGE_PRESSURE = 5e5
-"""Pressure whose first passage by each sensor and plate is recorded at full time
-resolution (Sec. 4.8 compares the order in which the sensors rise) [Pa]."""
-"""Records of the column permeability, on their own time coordinate (neither thinned nor picked)."""
-
-
 def case_parameters(config: Mapping[str, Any], case: str) -> tuple[MacroSettings, MixtureParameters]:
     """The settings and material parameters of a case from the validated ``macro`` and
     ``materials`` sections."""
@@ -122,6 +102,22 @@ def mock_up(table: PermeabilityTable, settings: MacroSettings, material: Mixture
     return ds
 
 
+def hydration(model: MacroModel, records: Records, thin_above: int) -> Iterator[int]:
+    """The coupled steps as a generator: each step is taken, recorded (thinned past
+    ``thin_above`` records) and measured when due, then yields the quantity that sets the
+    stop distance (-1 while it is unknown); the caller decides when to stop, snapshot or
+    write. It ends at ``max_steps``."""
+    s = model.settings
+    while model.steps < s.max_steps:
+        dt = model.step(max_dt=s.max_time - model.time)
+        records.record(model, dt)
+        _, held_by = records.stop_distance(model)
+        records.thin(thin_above)
+        if records.measure_due(model):
+            records.measure(model)
+        yield held_by
+
+
 def simulate(
     model: MacroModel,
     rows: dict[str, list[Any]] | None = None,
@@ -132,100 +128,27 @@ def simulate(
     """Hydrate until near equilibrium or a guard; returns the records and the stop reason.
 
     ``model`` is :func:`build_model`'s (it carries its ``packing``), new or resumed;
-    ``rows`` are the records of a resumed run (None: a new run); ``snapshot(model, rows)``
-    is called every ``snapshot_every`` seconds of wall time, after a whole step;
-    ``series`` writes the ParaView snapshots when due and at the end. The profiles' bins
-    follow from the packing, not from the current state, so that a resumed run records
-    as the uninterrupted one. The stop distance (:func:`macro.stopping.stop_distance`) is
-    evaluated after every step and recorded. The column's permeability
+    ``rows`` are the records of a resumed run (None: a new run, :class:`macro.records.
+    Records`); ``snapshot(model, rows)`` is called every ``snapshot_every`` seconds of
+    wall time, after a whole step; ``series`` writes the ParaView snapshots when due and
+    at the end. The stop distance (:func:`macro.stopping.stop_distance`) is evaluated
+    after every step and recorded. The column's permeability
     (:func:`macro.column_permeability.column_permeability`) is measured at the start,
     when the run first passes each of ``column_permeability_times_s`` and at the end.
     """
     s: MacroSettings = model.settings
-    # bins of about one initial pellet diameter (finer bins alternate between pellets and
-    # powder): the packing's radii, not the current ones, which grow as the pellets swell
-    packing = model.packing
-    bins = max(2, int(round(s.height / (2.0 * float(packing.radii.mean())))))
-    edges = np.linspace(-0.5 * s.height, 0.5 * s.height, bins + 1)
-    new = rows is None
-    if rows is None:
-        rows = {k: [] for k in (
-            "time", "sensors", "bands", "axial_upper", "axial_lower", "suction", "saturation",
-            "swelling", "suction_profile", "pellet_suction", "unbalanced", "dt", "step",
-            "stop_distance", *INVARIANTS, *MEASUREMENT_ROWS)}
-    rows.setdefault("passage", [])  # absent from the snapshots of earlier versions
-    tolerances = np.array([s.stop_tolerance] * 2 + [s.stop_pressure_tolerance] * 3)
-
-    def record(dt: float) -> None:
-        r = model.readings
-        swell, suction = model.profiles(edges)
-        rows["time"].append(model.time)
-        rows["sensors"].append(r.sensors.copy())
-        rows["bands"].append(r.bands.copy())
-        rows["axial_upper"].append(r.axial_upper)
-        rows["axial_lower"].append(r.axial_lower)
-        rows["suction"].append(model.mean_suction())
-        rows["saturation"].append(model.mean_saturation())
-        rows["swelling"].append(swell)
-        rows["suction_profile"].append(suction)
-        rows["pellet_suction"].append(-model.pressure[: model.n_pellets].copy())
-        rows["unbalanced"].append(r.unbalanced)
-        rows["dt"].append(dt)
-        rows["step"].append(model.steps)
-        for name, value in model.invariants().items():
-            rows[name].append(value)
-        # first passage of PASSAGE_PRESSURE by the sensors, then the upper and lower plates
-        readings = np.concatenate([r.sensors, [r.axial_upper, r.axial_lower]])
-        if not rows["passage"]:
-            rows["passage"].append(np.full(readings.size, np.nan))
-        passage = rows["passage"][0]
-        passage[np.isnan(passage) & (readings >= PASSAGE_PRESSURE)] = model.time
-
-    def measure() -> None:
-        k = column_permeability(model).permeability
-        rows["permeability_time"].append(model.time)
-        rows["column_permeability"].append(k)
-        LOG.info("column permeability along the axis %.4g m2 at t = %.4g s", k, model.time)
-
-    def measure_due() -> bool:
-        """Whether the run passed a measurement time since the last measurement."""
-        times = np.asarray(s.column_permeability_times)
-        return bool(np.any((times > rows["permeability_time"][-1]) & (times <= model.time)))
-
-    def distance() -> tuple[float, int]:
-        """The stop distance over the records of the window, and the quantity setting it."""
-        times = rows["time"]
-        first = bisect.bisect_left(times, times[-1] * (1.0 - s.stop_window))
-        monitored = np.column_stack([
-            np.asarray(rows["saturation"][first:]), np.asarray(rows["sensors"][first:]).mean(axis=1),
-            rows["axial_upper"][first:], rows["axial_lower"][first:]])
-        return stop_distance(np.asarray(times[first:]), monitored, s.stop_window, tolerances)
-
-    def thin() -> None:
-        """Every other record (the first and last kept) once there are more than
-        ``THIN_ABOVE``: memory and snapshots stay bounded over long runs."""
-        if len(rows["time"]) > THIN_ABOVE:
-            for key, values in rows.items():
-                if key not in MEASUREMENT_ROWS:
-                    values[:] = values[:-1:2] + values[-1:]
-
-    if new:
-        record(0.0)
-        rows["stop_distance"].append(float("nan"))
-        measure()
+    records = Records(model, rows)
+    rows = records.rows
+    if records.new:
+        records.record(model, 0.0)
+        records.stop_distance(model)
+        records.measure(model)
     progress = RunProgress(f"macro ({model.n_pellets} pellets, {model.n_cells} cells)", LOG,
                            s.max_time, s.max_steps, s.stop_after, model.time, model.steps)
     held_by = -1
     reason = "max_steps"
     last_snapshot = time.monotonic()
-    while model.steps < s.max_steps:
-        dt = model.step(max_dt=s.max_time - model.time)
-        record(dt)
-        gap, held_by = distance()
-        rows["stop_distance"].append(gap)
-        thin()
-        if measure_due():
-            measure()
+    for held_by in hydration(model, records, THIN_ABOVE):
         if series is not None and series.due(model):
             series.write(model)
         progress.update(model.time, model.steps, rows["saturation"][-1], rows["time"], rows["stop_distance"],
@@ -233,7 +156,7 @@ def simulate(
         if model.time >= s.max_time * (1.0 - 1e-12):
             reason = "max_time"
             break
-        if model.time >= s.stop_after and gap <= 1.0:
+        if model.time >= s.stop_after and rows["stop_distance"][-1] <= 1.0:
             reason = "near_equilibrium"
             break
         if snapshot is not None and time.monotonic() - last_snapshot >= snapshot_every:
@@ -244,10 +167,10 @@ def simulate(
     if series is not None:
         series.write(model)
     if rows["permeability_time"][-1] != model.time:
-        measure()
+        records.measure(model)
     LOG.info("stopped (%s) at t = %.4g d after %d steps, stop distance %.3g%s", reason, model.time / DAY,
              model.steps, rows["stop_distance"][-1], f" ({MONITORED[held_by]})" if held_by >= 0 else "")
-    return _dataset(model, rows, edges), reason
+    return _dataset(model, rows, records.edges), reason
 
 
 def _keep(steps: npt.NDArray[np.int64], wanted: int) -> npt.NDArray[np.int64]:
