@@ -23,13 +23,21 @@ def _group(item: pytest.Item) -> str:
     return next((folder for folder in _KERNEL_FOLDERS if path.startswith(f"{folder}/")), path)
 
 
+# The files that run a whole chain once for their tests (the longest files, 100 and 35
+# seconds from a fresh clone on 2 shared cores, 2026-12-02)
+_CHAIN_FILES = ("tests/workflow/test_workflow.py", "tests/workflow/test_own_scan.py")
+
+
 def _rank(group: str) -> int:
     """Where a group runs (under ``--no-loadscope-reorder``): the kernel folders first, the
-    workflow's files (Snakemake runs, on kernels cached by then) next, the many short files
-    last, so that they fill the workers' ends instead of a long file starting last."""
+    chain files next (their Snakemake jobs find the kernels cached by then), the other
+    workflow files, then the many short files, which fill the workers' ends instead of a
+    long file starting last (the tiny chain last cost a worker 50 s alone)."""
     if group in _KERNEL_FOLDERS:
         return 0
-    return 1 if group.startswith("tests/workflow/") else 2
+    if group in _CHAIN_FILES:
+        return 1
+    return 2 if group.startswith("tests/workflow/") else 3
 
 
 @pytest.hookimpl(tryfirst=True)  # before xdist reads the groups
