@@ -302,7 +302,7 @@ def bench_measurement_workers(points: int = 150_000) -> dict:
     import numba
 
     from benchmarks.parameters import CLAY
-    from micro.permeability import checkpoint_permeabilities
+    from micro.permeability import FrozenState, checkpoint_permeabilities
     from micro.run import measurement_executor
     from shared.dem import cube_points
     from shared.fv import facet_conductance
@@ -326,8 +326,7 @@ def bench_measurement_workers(points: int = 150_000) -> dict:
             if executor is not None:
                 executor.submit(int).result()  # started before the clock
             start = time.perf_counter()
-            axes, tensor = checkpoint_permeabilities(*arguments, conductances=phases,
-                                                     executor=executor)
+            axes, tensor = checkpoint_permeabilities(FrozenState(*arguments, phases), executor=executor)
             record[f"wall_{name}_s"] = time.perf_counter() - start
         results[name] = (axes, tensor)
     for name in ("thread", "process"):

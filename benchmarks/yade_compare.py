@@ -36,7 +36,7 @@ from scipy.spatial import Delaunay
 from benchmarks.dem import bench_dem
 from benchmarks.flow import bench_flow
 from benchmarks.parameters import CLAY, DEM
-from micro.permeability import axis_permeabilities, measure_permeability
+from micro.permeability import FrozenState, axis_permeabilities, measure_permeability
 from shared.dem.points import cube_points
 from shared.fv import facet_conductance, transfer_cell_state
 from shared.mesh import Mesh, build_mesh
@@ -186,7 +186,7 @@ def _our_permeability(positions: np.ndarray) -> dict:
     }
     result = {}
     for name, water in states.items():
-        k = axis_permeabilities(mesh, water, porosity, material.initial_suction, material)
+        k = axis_permeabilities(FrozenState(mesh, water, porosity, material.initial_suction, material))
         result[name] = {
             "k_x_m2": k["water"]["x"],
             "k_water_m2": k["water"],

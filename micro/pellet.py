@@ -22,7 +22,7 @@ from micro.hydration import (
     triangulate,
     update_cracks,
 )
-from micro.permeability import checkpoint_permeabilities
+from micro.permeability import FrozenState, checkpoint_permeabilities
 from shared.dem.parameters import DEMParameters
 from shared.dem.points import cube_points
 from shared.dem.state import new_state
@@ -364,12 +364,12 @@ def measure_checkpoint(
         # goes on in place (the mesh's points are the DEM's positions): copied now
         mesh, saturation, porosity = copy.deepcopy((state.mesh, state.saturation, state.porosity))
         permeabilities = executor.submit(partial(
-            checkpoint_permeabilities, mesh, saturation, porosity, suction, material,
-            conductances=phases, sealed=mouths))
+            checkpoint_permeabilities, FrozenState(mesh, saturation, porosity, suction, material, phases),
+            sealed=mouths))
     else:
         permeabilities = checkpoint_permeabilities(
-            state.mesh, state.saturation, state.porosity, suction, material,
-            conductances=phases, sealed=mouths, executor=executor)
+            FrozenState(state.mesh, state.saturation, state.porosity, suction, material, phases),
+            sealed=mouths, executor=executor)
     volumes = state.mesh.volumes
     fabric = crack_fabric(state.cracks.normals, state.cracks.areas, state.cracks.apertures,
                           state.cracks.imbibed)

@@ -23,12 +23,13 @@ invalid arguments raise (ValueError). The rest: docs/micro.md, "micro.permeabili
 from micro.permeability.axes import axis_permeabilities, measure_permeability, measurement_pattern
 from micro.permeability.checkpoint import checkpoint_permeabilities
 from micro.permeability.principal import PrincipalPermeability, principal_permeability
-from micro.permeability.steady import AXES, PHASES
+from micro.permeability.steady import AXES, PHASES, FrozenState
 from micro.permeability.tensor import measure_permeability_tensor, permeability_tensor, tensor_pattern
 
 __all__ = [
     "AXES",
     "PHASES",
+    "FrozenState",
     "PrincipalPermeability",
     "measure_permeability",
     "measure_permeability_tensor",

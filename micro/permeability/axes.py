@@ -187,13 +187,8 @@ def measurement_pattern(mesh: Mesh, axis: int, method: Method = "wall_flux") -> 
 
 
 def axis_permeabilities(
-    mesh: Mesh,
-    saturation: FloatArray,
-    porosity: FloatArray,
-    suction: float,
-    material: ClayParameters,
+    state: steady.FrozenState,
     *,
-    conductances: Mapping[str, FloatArray] | None = None,
     method: Method = "wall_flux",
     drop_fraction: float = DROP_FRACTION,
     executor: Executor | None = None,
@@ -202,17 +197,9 @@ def axis_permeabilities(
 
     Parameters
     ----------
-    mesh, saturation, porosity
-        The frozen state: the mesh, water saturation [1] and porosity [1] per cell,
-        shape (n_cells,).
-    suction
-        Current (mean) suction of the specimen [Pa], > 0: the mean imposed pressure is
-        -suction and the drop is ``drop_fraction * suction``.
-    material
-        Clay parameters (viscosities, k_0, b_k, S_r, S_s, n).
-    conductances
-        Optional facet conductances per phase [m3/(Pa s)] (e.g. with cracks);
-        phases not given are computed with :func:`shared.fv.facet_conductance`.
+    state
+        The frozen state (:class:`micro.permeability.steady.FrozenState`); the drop is
+        ``drop_fraction * state.suction``.
     method
         ``"wall_flux"`` or ``"velocity"``.
     drop_fraction
@@ -229,8 +216,7 @@ def axis_permeabilities(
         ``{phase: {axis: permeability [m2]}}`` for phases ``water``, ``gas`` and axes
         ``x``, ``y``, ``z``.
     """
-    phases = steady.phase_conductances(mesh, saturation, porosity, suction, material, conductances)
-    return axes_result(gathered(executor, axes_calls(mesh, phases, suction, material,
+    return axes_result(gathered(executor, axes_calls(state.mesh, state.phases(), state.suction, state.material,
                                                        method, drop_fraction)))
 
 

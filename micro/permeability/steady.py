@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Mapping
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -26,6 +26,7 @@ from shared.solver import SPDSolver
 __all__ = [
     "AXES",
     "DROP_FRACTION",
+    "FrozenState",
     "INNER_FRACTION",
     "PHASES",
     "balanced",
@@ -208,6 +209,38 @@ def inner_cells(
         return inner
     log.warning("%s: no free cell in the inner region (mesh too coarse); set to NaN", label)
     return None
+
+
+class FrozenState(NamedTuple):
+    """A frozen state to measure.
+
+    Attributes
+    ----------
+    mesh
+        The specimen's mesh.
+    saturation, porosity
+        Water saturation [1] and porosity [1] per cell, shape (n_cells,).
+    suction
+        Current (mean) suction of the specimen [Pa], > 0: the mean imposed pressure is
+        -suction and the drop a fraction of it.
+    material
+        Clay parameters (viscosities, k_0, b_k, S_r, S_s, n).
+    conductances
+        Optional facet conductances per phase [m3/(Pa s)] (e.g. with cracks); phases not
+        given are computed with :func:`shared.fv.facet_conductance`.
+    """
+
+    mesh: Mesh
+    saturation: FloatArray
+    porosity: FloatArray
+    suction: float
+    material: ClayParameters
+    conductances: Mapping[str, FloatArray] | None = None
+
+    def phases(self) -> dict[str, FloatArray]:
+        """Each phase's facet conductances (:func:`phase_conductances`)."""
+        return phase_conductances(self.mesh, self.saturation, self.porosity, self.suction, self.material,
+                                  self.conductances)
 
 
 def phase_conductances(

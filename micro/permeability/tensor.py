@@ -224,13 +224,8 @@ def _dissipative(tensor: FloatArray, label: str) -> FloatArray:
 
 
 def permeability_tensor(
-    mesh: Mesh,
-    saturation: FloatArray,
-    porosity: FloatArray,
-    suction: float,
-    material: ClayParameters,
+    state: steady.FrozenState,
     *,
-    conductances: Mapping[str, FloatArray] | None = None,
     drop_fraction: float = DROP_FRACTION,
     inner_fraction: float = INNER_FRACTION,
     sealed: npt.NDArray[np.bool_] | None = None,
@@ -244,11 +239,9 @@ def permeability_tensor(
 
     Parameters
     ----------
-    mesh, saturation, porosity, suction, material, conductances
-        As for :func:`micro.permeability.axes.axis_permeabilities`: the frozen state
-        [1, 1], the suction [Pa] (the drop across the box is ``drop_fraction *
-        suction``), the clay parameters, optional facet conductances per phase
-        [m3/(Pa s)].
+    state
+        The frozen state (:class:`micro.permeability.steady.FrozenState`); the drop
+        across the box is ``drop_fraction * state.suction``.
     drop_fraction
         Pressure drop as a fraction of the suction [1].
     inner_fraction
@@ -266,8 +259,7 @@ def permeability_tensor(
         K[phase, i, j] [m2] for phases (water, gas) and i, j over (x, y, z); NaN
         entries (with a warning) where a solve failed.
     """
-    phases = steady.phase_conductances(mesh, saturation, porosity, suction, material, conductances)
-    return np.stack(gathered(executor, tensor_calls(mesh, phases, suction, material,
+    return np.stack(gathered(executor, tensor_calls(state.mesh, state.phases(), state.suction, state.material,
                                                      drop_fraction, inner_fraction, sealed)))
 
 

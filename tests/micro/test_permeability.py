@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from micro.permeability import axis_permeabilities, measure_permeability, measurement_pattern
+from micro.permeability import FrozenState, axis_permeabilities, measure_permeability, measurement_pattern
 from shared.fv import facet_conductance, facet_flux, flow_pattern, steady_pressure
 from shared.mesh import WALLS, Mesh, boundary_cell_mask, build_mesh
 from shared.solver import SPDSolver
@@ -31,7 +31,7 @@ def mesh() -> Mesh:
 def test_permeability_wall_flux_returns_input_within_two_percent(mesh: Mesh) -> None:
     saturated = np.ones(mesh.n_cells)
     porosity = np.full(mesh.n_cells, 0.3)
-    result = axis_permeabilities(mesh, saturated, porosity, 1e6, MATERIAL)
+    result = axis_permeabilities(FrozenState(mesh, saturated, porosity, 1e6, MATERIAL))
     for axis in ("x", "y", "z"):
         assert result["water"][axis] == pytest.approx(K0, rel=0.02)
         assert result["gas"][axis] == 0.0
@@ -49,7 +49,7 @@ def test_permeability_velocity_average_is_exact_on_random_points() -> None:
 def _assert_velocity_method_exact(mesh: Mesh) -> None:
     saturated = np.ones(mesh.n_cells)
     porosity = np.full(mesh.n_cells, 0.3)
-    result = axis_permeabilities(mesh, saturated, porosity, 1e6, MATERIAL, method="velocity")
+    result = axis_permeabilities(FrozenState(mesh, saturated, porosity, 1e6, MATERIAL), method="velocity")
     for axis in ("x", "y", "z"):
         assert result["water"][axis] == pytest.approx(K0, rel=1e-9)
 
@@ -83,7 +83,7 @@ def test_permeability_partial_saturation_and_porosity(mesh: Mesh) -> None:
     # S = 0.5: k_r = 0.25 for water and gas (n = 2); phi = 0.4: k_M = K0 exp(2 * 0.1).
     water = np.full(mesh.n_cells, 0.5)
     porosity = np.full(mesh.n_cells, 0.4)
-    result = axis_permeabilities(mesh, water, porosity, 5e7, MATERIAL, method="velocity")
+    result = axis_permeabilities(FrozenState(mesh, water, porosity, 5e7, MATERIAL), method="velocity")
     expected = K0 * np.exp(0.2) * 0.25
     for phase in ("water", "gas"):
         for axis in ("x", "y", "z"):
@@ -95,8 +95,7 @@ def test_permeability_uses_given_conductances(mesh: Mesh) -> None:
     porosity = np.full(mesh.n_cells, 0.3)
     doubled = 2.0 * facet_conductance(mesh, saturated, porosity, "water", MATERIAL)
     result = axis_permeabilities(
-        mesh, saturated, porosity, 1e6, MATERIAL, conductances={"water": doubled},
-        method="velocity",
+        FrozenState(mesh, saturated, porosity, 1e6, MATERIAL, {"water": doubled}), method="velocity",
     )
     assert result["water"]["y"] == pytest.approx(2.0 * K0, rel=1e-9)
 
@@ -199,7 +198,7 @@ def _measured(executor=None) -> tuple[dict, np.ndarray]:
     from micro import permeability
 
     arguments, phases, mouths = _state()
-    return permeability.checkpoint_permeabilities(*arguments, conductances=phases,
+    return permeability.checkpoint_permeabilities(permeability.FrozenState(*arguments, phases),
                                                   sealed=mouths, executor=executor)
 
 
@@ -210,9 +209,10 @@ def test_a_checkpoints_eight_solves_in_one_gather_are_the_axes_and_the_tensors()
 
     arguments, phases, mouths = _state()
     axes, tensor = _measured()
-    assert axes == permeability.axis_permeabilities(*arguments, conductances=phases)
+    state = permeability.FrozenState(*arguments, phases)
+    assert axes == permeability.axis_permeabilities(state)
     np.testing.assert_array_equal(
-        tensor, permeability.permeability_tensor(*arguments, conductances=phases, sealed=mouths))
+        tensor, permeability.permeability_tensor(state, sealed=mouths))
 
 
 @pytest.mark.parametrize("amg_unknowns", [1, 10**9])

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from micro.permeability import measure_permeability_tensor, permeability_tensor, principal_permeability
+from micro.permeability import FrozenState, measure_permeability_tensor, permeability_tensor, principal_permeability
 from micro.permeability.tensor import _dissipative
 from micro.results import tensor_variables
 from shared.fv import facet_conductance
@@ -58,8 +58,8 @@ def test_tensor_of_a_homogeneous_specimen_is_the_isotropic_input_permeability(la
         mesh = jittered_mesh(12, seed=11)
     else:
         mesh = build_mesh(np.random.default_rng(4).uniform(0.0, EDGE, (1500, 3)))
-    tensor = permeability_tensor(mesh, np.full(mesh.n_cells, 0.5), np.full(mesh.n_cells, 0.4),
-                                 5e7, MATERIAL)
+    tensor = permeability_tensor(FrozenState(mesh, np.full(mesh.n_cells, 0.5), np.full(mesh.n_cells, 0.4),
+                                             5e7, MATERIAL))
     expected = K0 * np.exp(0.2) * 0.25
     assert tensor.shape == (2, 3, 3)
     for phase in range(2):
@@ -109,8 +109,8 @@ def test_tensor_of_a_rotated_layered_specimen_is_the_rotated_analytic_tensor() -
     i, j = mesh.facet_cells.T
     water = (2.0 / (1.0 / k[i] + 1.0 / k[j]) * mesh.facet_areas
              / (material.water_viscosity * mesh.facet_lengths))
-    tensor = permeability_tensor(mesh, np.ones(mesh.n_cells), porosity, 1e6, material,
-                                 conductances={"water": water})
+    tensor = permeability_tensor(FrozenState(mesh, np.ones(mesh.n_cells), porosity, 1e6, material,
+                                             {"water": water}))
     assert np.all(tensor[1] == 0.0)  # saturated: no gas conductance
     assert np.max(np.abs(tensor[0] - analytic)) < 0.05 * along
     derived = principal_permeability(tensor[0])
