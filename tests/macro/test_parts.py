@@ -1,4 +1,4 @@
-"""The macro model's parts declare what they read, and nothing reads another's privates.
+"""The macro model's parts declare what they read of each other.
 
 Each part of :class:`macro.model.MacroModel` (a mixin) lists in ``READS`` the model's
 attributes and the other parts' methods it uses; the lists are checked against the
@@ -9,16 +9,13 @@ import ast
 import dataclasses
 import inspect
 import textwrap
-from pathlib import Path
 
 import pytest
 
-import macro
 from macro.model import MacroModel
 from macro.parts import Counters
 
 PARTS = [base for base in MacroModel.__mro__[1:] if base.__module__.startswith("macro.")]
-ROOT = Path(macro.__file__).parent
 
 
 def _self_attributes(cls: type) -> set[str]:
@@ -43,16 +40,6 @@ def test_what_a_part_reads_the_model_holds(part):
     fields = {f.name for f in dataclasses.fields(MacroModel)}
     missing = [name for name in part.READS if name not in fields and not hasattr(MacroModel, name)]
     assert not missing
-
-
-def test_no_module_of_the_model_reads_a_private_attribute_of_another_object():
-    found = []
-    for path in sorted(ROOT.glob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__") \
-                    and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
-                found.append(f"{path.name}:{node.lineno} {ast.unparse(node)}")
-    assert not found
 
 
 def test_the_counters_become_the_results_attributes_by_name():
