@@ -20,7 +20,7 @@ def test_the_api_page_runs_without_files(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # a file written anywhere would land here
     namespace: dict = {}
     blocks = _blocks(PAGE.read_text(encoding="utf-8"))
-    assert len(blocks) == 4
+    assert len(blocks) == 6
     for block in blocks:
         exec(compile(block, str(PAGE), "exec"), namespace)  # noqa: S102
     assert not any(tmp_path.iterdir())
@@ -35,3 +35,13 @@ def test_the_api_page_runs_without_files(tmp_path, monkeypatch):
     k = np.sqrt(np.prod([m["permeability"].values for m in members], axis=0))[::-1]
     np.testing.assert_allclose(table["k"].sel(condition="free").transpose("suction", "phase", "axis"),
                                k, rtol=1e-12)
+    # the chain goes on: micro at the two checkpoints it was given, the table of that one
+    # result its own k (suction ascending), and the macro column conserves its water
+    micro, mixture = namespace["micro"], namespace["mixture"]
+    np.testing.assert_array_equal(micro["suction"].values, [132e6, 60e6])
+    np.testing.assert_allclose(namespace["chained"]["k"].sel(condition="free").transpose("suction", "phase", "axis"),
+                               micro["permeability"].values[::-1], rtol=1e-12)
+    assert mixture.attrs["stop_reason"] == "max_steps" and mixture.sizes["time"] == 4
+    entered = float(mixture["water_pellets"][-1] + mixture["water_powder"][-1])
+    assert np.all(np.abs(mixture["water_residual"].values) <= 1e-12 * entered)
+
