@@ -19,7 +19,7 @@ from typing import Any
 
 from shared.errors import ConfigError
 
-__all__ = ["POROSITY_KEYS", "RESOURCE_KEYS", "REV_KEYS", "job_settings", "resource_value"]
+__all__ = ["POROSITY_KEYS", "RESOURCE_KEYS", "REV_KEYS", "job_resources", "resource_value"]
 
 POROSITY_KEYS = ("calibration", "mask", "grid_spacing_m", "min_specimen_fraction", "store_scan")
 """Keys of a sample's imaging settings that set its porosity grid (``imaging_porosity``)."""
@@ -40,13 +40,12 @@ def resource_value(value: float | str | None) -> str | None:
     return None if value is None else str(value)
 
 
-def job_settings(params: Mapping[str, Any], threads: int, resources: Mapping[str, Any]) -> dict[str, Any]:
-    """A CT job's imaging settings: its rule's params with the resources it runs with.
+def job_resources(threads: int, resources: Mapping[str, Any]) -> dict[str, Any]:
+    """A CT job's :data:`RESOURCE_KEYS` from the threads and resources it runs with (for
+    :meth:`imaging.ct.settings.ScanResources.from_mapping`).
 
     Parameters
     ----------
-    params
-        The science keys (:data:`POROSITY_KEYS` or :data:`REV_KEYS`), the rule's params.
     threads
         The job's threads (``snakemake.threads``), the ``workers``.
     resources
@@ -55,7 +54,7 @@ def job_settings(params: Mapping[str, Any], threads: int, resources: Mapping[str
         :func:`resource_value` wrote them or as ``--set-resources`` gave them.
     """
     limit = resources.get("memory_limit_gb")
-    return {**params, "workers": int(threads), "chunk_mb": _number(resources["chunk_mb"]),
+    return {"workers": int(threads), "chunk_mb": _number(resources["chunk_mb"]),
             "memory_limit_gb": None if limit is None else _number(limit),
             "dask_scheduler": resources.get("dask_scheduler")}
 

@@ -20,7 +20,7 @@ from imaging.ct import run as ct_run
 from imaging.ct.io import write_tiff_stack
 from imaging.ct.phantom import pellet_phantom
 from imaging.ct.settings import PorositySettings, RevSettings, ScanResources
-from imaging.ct_keys import POROSITY_KEYS, RESOURCE_KEYS, REV_KEYS, job_settings, resource_value
+from imaging.ct_keys import POROSITY_KEYS, RESOURCE_KEYS, REV_KEYS, job_resources, resource_value
 from shared.config import ConfigError, default_config
 from tests.workflow._chain import ROOT, edited_copy, snakemake, workdir
 
@@ -137,9 +137,8 @@ def test_a_resource_reaches_the_job_as_the_config_wrote_it(chunk_mb: float, limi
     written = {key: resource_value(value) for key, value in
                (("chunk_mb", chunk_mb), ("memory_limit_gb", limit), ("dask_scheduler", None))}
     resources = {key: value for key, value in written.items() if value is not None}  # null: unset
-    settings = job_settings({"rev": {}}, 3, resources)
-    assert settings == {"rev": {}, "workers": 3, "chunk_mb": chunk_mb, "memory_limit_gb": limit,
-                        "dask_scheduler": None}
+    settings = job_resources(3, resources)
+    assert settings == {"workers": 3, "chunk_mb": chunk_mb, "memory_limit_gb": limit, "dask_scheduler": None}
     assert type(settings["chunk_mb"]) is type(chunk_mb)
     with pytest.raises(ConfigError, match="got '0'"):
-        job_settings({}, 1, {"chunk_mb": "0"})
+        job_resources(1, {"chunk_mb": "0"})

@@ -8,12 +8,12 @@ import _logging  # noqa: E402
 
 from imaging.ct import run  # noqa: E402
 from imaging.ct.settings import RevSettings, ScanResources  # noqa: E402
-from imaging.ct_keys import job_settings  # noqa: E402
+from imaging.ct_keys import job_resources  # noqa: E402
 
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
 settings = RevSettings(sm.params.settings["rev"], sm.params.settings["chords"], sm.wildcards.sample)
 # the machine resources: the job's threads and resources (imaging/ct_keys.py), never params
-resources = ScanResources.from_mapping(job_settings(sm.params.settings, sm.threads, sm.resources))
+resources = ScanResources.from_mapping(job_resources(sm.threads, sm.resources))
 run.rev(sm.input.scan, sm.params.sample, settings, (sm.input.image, sm.input.porosity),
         (sm.output.rev, sm.output.figure), resources, rule=sm.rule)
