@@ -163,7 +163,6 @@ class Extrusion:
         time, L^2 mu m_v / k, is seconds at the cells' size), each in proportion to the
         neighbours' room. Counted in ``overflowed_cells``; conservative to round-off;
         what no neighbour can take stays (then capped in the local problem, counted)."""
-        assert self.cells.voids is not None
         n_p = self.n_pellets
         cells = slice(n_p, None)
         active = ~self.inert[cells]

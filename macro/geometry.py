@@ -80,7 +80,6 @@ class Geometry:
             # (where the points are the pellets', the relaxation left the mesh, its solid
             # angles and voids at them)
             self.remesh()
-        assert self.cells.solid_angles is not None and self.cells.voids is not None
         radii = self.vertex_radii()
         cells = slice(n_p, None)
         self.max_volume[cells] = self.cells.voids

@@ -73,7 +73,6 @@ class Mechanics:
         cells = slice(self.n_pellets, None)
         if not self.settings.powder_pressure:
             return np.zeros(self.n_cells), np.zeros(self.n_cells)
-        assert self.cells.voids is not None
         held = np.maximum(self.cells.voids, self.densest_volume(cells, with_water=False))
         suction = -self.pressure[cells]
         solid_mass = self.solid_mass()[cells]
@@ -160,7 +159,6 @@ class Mechanics:
         n_p = self.n_pellets
         young = young_modulus(-self.pressure[:n_p], self.material)
         strength = yield_force(-self.pressure[:n_p], self.material)
-        assert self.contacts.wall_plastic is not None and self.contacts.wall_shear is not None
         nu = self.material.poisson_ratio
         z_lo, z_hi = -0.5 * s.height, 0.5 * s.height
         skin = 0.2 * float(self.radii.mean())
@@ -286,7 +284,7 @@ class Mechanics:
         (with other pellets and the container) are the volume the sphere of a pellet
         loses, so that its radius keeps its clay volume (:meth:`step`).
         """
-        assert self.stress is not None and self.cells.solid_angles is not None and self.cells.pressures is not None
+        assert self.stress is not None and self.cells.pressures is not None
         n_p, s = self.n_pellets, self.settings
         radii = self.radii
         load = walls + np.bincount(pairs[:, 0], normal, minlength=n_p) \

@@ -50,7 +50,6 @@ class PressureVolume:
         its tetrahedron less Omega / (4 pi) of each pellet's clay volume, so pellets that
         take their shares leave every cell its densest state on the whole; a cell that
         one pellet squeezes more than its share hands the excess on (:meth:`overflow`)."""
-        assert self.cells.voids is not None and self.cells.solid_angles is not None
         n_p = self.n_pellets
         tet = self.mesh.tetrahedra
         # a held cell's water leaves through the boundary as it is squeezed: its solid alone counts

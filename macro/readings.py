@@ -40,7 +40,7 @@ class WallReadings:
         slivers (cells between container points only, inert) hold no powder and do not
         count: the powder around a point presses on the container there, whatever the
         slivers the triangulation puts between the points."""
-        assert self.cells.pressures is not None and self.cells.solid_angles is not None
+        assert self.cells.pressures is not None
         n_p, tet = self.n_pellets, self.mesh.tetrahedra
         weight = np.where((tet >= n_p) & ~self.inert[n_p:, None], self.cells.solid_angles, 0.0)
         total = np.bincount(tet.ravel(), (weight * self.cells.pressures[:, None]).ravel(),
@@ -94,7 +94,6 @@ class WallReadings:
         solid = self.solid_volume[:n_p].sum() + self.solid_volume[cells].sum()
         water = self.water_mass[:n_p].sum() + self.water_mass[cells].sum()
         powder = self.solid_volume[cells] + self.water_mass[cells] / rho
-        assert self.cells.voids is not None
         return {
             "water_pellets": float(self.water_mass[:n_p].sum()),
             "water_powder": float(self.water_mass[free_cells].sum()),
