@@ -27,6 +27,7 @@ from macro.laws import (
 )
 from macro.mixture import facet_angles, matching_keys
 from macro.readings import Readings
+from macro.state import ModelState
 from shared.dem import FireParameters, FireState, cylinder_contacts, detect_contacts, fire_step, yielding_hertz_mindlin
 
 FloatArray = npt.NDArray[np.float64]
@@ -45,10 +46,10 @@ MAX_OVERLAP_LOSS = 0.3
 """Largest fraction of a pellet's sphere that its overlaps may cut off."""
 
 
-class Mechanics:
+class Mechanics(ModelState):
     """Mechanics part of :class:`macro.model.MacroModel`."""
 
-    READS = ("cells", "clay_radii", "contacts", "container", "counters", "densest_volume", "inert",
+    READS: tuple[str, ...] = ("cells", "clay_radii", "contacts", "container", "counters", "densest_volume", "inert",
              "material", "mesh", "move_geometry", "n_cells", "n_pellets", "n_vertices",
              "occupied_loss", "overflow", "positions", "powder_wall_loads", "pressure", "radii",
              "reference_volume", "remesh", "retention_porosity", "settings", "solid_mass", "spins",

@@ -8,14 +8,15 @@ import numpy.typing as npt
 
 from macro.laws import confined_volume
 from macro.newton import PVProblem, solve_pressure_volume
+from macro.state import ModelState
 
 FloatArray = npt.NDArray[np.float64]
 
 
-class PressureVolume:
+class PressureVolume(ModelState):
     """Pressure-volume part of :class:`macro.model.MacroModel`."""
 
-    READS = ("cells", "counters", "held", "inert", "material", "max_volume", "mesh", "n_pellets",
+    READS: tuple[str, ...] = ("cells", "counters", "held", "inert", "material", "max_volume", "mesh", "n_pellets",
              "pressure", "reference_volume", "retention_porosity", "settings", "solid_volume",
              "stress", "volume", "water_mass")
     """What this part reads of the model's state and of its other parts."""

@@ -64,7 +64,7 @@ def _declared_dataclass(hint: Any) -> type | None:
 
 def _given_scalars(value: object) -> dict[str, Any]:
     """The plain scalar fields of a mutable dataclass (none of a frozen one)."""
-    if not dataclasses.is_dataclass(value) or type(value).__dataclass_params__.frozen:  # type: ignore[attr-defined]
+    if not dataclasses.is_dataclass(value) or type(value).__dataclass_params__.frozen:
         return {}
     return {f.name: getattr(value, f.name) for f in dataclasses.fields(value)
             if type(getattr(value, f.name)) in _PLAIN}
