@@ -3,6 +3,8 @@ suction and volume that hold a system's water under its confining stress."""
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 import numpy.typing as npt
 
@@ -61,7 +63,8 @@ class PressureVolume(ModelState):
         total = share.sum(axis=1)
         parts = room[:, None] * share / np.where(total > 0.0, total, 1.0)[:, None]
         pellet = tet < n_p
-        return np.bincount(tet[pellet], parts[pellet], minlength=n_p)
+        # weighted: floats (numpy's stub types every bincount as integers)
+        return cast(FloatArray, np.bincount(tet[pellet], parts[pellet], minlength=n_p))
 
     def solve_local(self) -> None:
         """Pressure-volume problem of every system not held (Sec. 4.3).
