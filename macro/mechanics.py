@@ -174,7 +174,8 @@ class Mechanics(ModelState):
         fire = FireState(FIRE)
         rates = np.zeros((2 * n_p, 3))
         # displacement and rotation of the last step (none before the first)
-        moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))
+        moved: FloatArray = np.zeros((n_p, 3))
+        turned: FloatArray = np.zeros((n_p, 3))
         anchor = self.positions.copy()
         k = remeshes = 0
         while True:

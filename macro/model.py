@@ -68,6 +68,8 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
     on_plate: npt.NDArray[np.bool_]
     cells: CellGeometry
     contacts: Contacts
+    packing: Packing
+    """The packing the model was built on."""
     time: float = 0.0
     steps: int = 0
     boundary_inflow: float = 0.0
@@ -81,8 +83,6 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
     initial_interior_water: float = 0.0
     occupied_loss: FloatArray | None = None
     pellet_initial_solid: FloatArray | None = None
-    packing: Packing | None = None
-    """The packing the model was built on (:func:`macro.run.build_model`)."""
 
 
     @classmethod
@@ -124,7 +124,7 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
             pressure=np.full(n_p + n_c, -s0), solid_volume=solid, reference_volume=v0,
             max_volume=v_max, held=held, inert=inert, initial_void=voids,
             container=container, on_plate=on_plate, cells=CellGeometry(omega, voids),
-            contacts=Contacts(np.zeros((n_p, 3)), np.zeros((n_p, 3, 3))),
+            contacts=Contacts(np.zeros((n_p, 3)), np.zeros((n_p, 3, 3))), packing=packing,
         )
         model.pellet_initial_solid = solid[:n_p].copy()
         model.powder_porosity = phi_powder

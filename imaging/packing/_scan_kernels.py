@@ -267,14 +267,14 @@ def scan_drop(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont, exact):
     if exact < 0.0 and scan_overlap(ca, ra, xa, cb, rb, xb, n_sp, d_cont):
         return -1.0, cb[0], cb[1], cb[2]
     _refine_contact(kind, u, v, gap, xa, face, relative, offset, down, xb, d_cont, delta)
-    k = np.argmin(gap)
-    if gap[k] < 0.0:
+    low = np.argmin(gap)
+    if gap[low] < 0.0:
         return -1.0, cb[0], cb[1], cb[2]
-    if gap[k] > max_drop:
+    if gap[low] > max_drop:
         return INFINITE_DROP, cb[0], cb[1], cb[2]
-    lx, ly, lz = _local_point(kind[k], u[k], v[k], xa[0], xa[1], xa[2], face)
+    lx, ly, lz = _local_point(kind[low], u[low], v[low], xa[0], xa[1], xa[2], face)
     px, py, pz = _to_world(ca, ra, lx, ly, lz)
-    return gap[k], px, py, pz - gap[k]
+    return gap[low], px, py, pz - gap[low]
 
 
 @njit(cache=True)
