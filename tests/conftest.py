@@ -23,7 +23,7 @@ def _group(item: pytest.Item) -> str:
     return next((folder for folder in _KERNEL_FOLDERS if path.startswith(f"{folder}/")), path)
 
 
-# The type check (mypy over the packages, 20 CPU seconds without its cache): it needs no
+# The type check (mypy over the packages, 16 to 20 CPU seconds without its cache): it needs no
 # kernel, so it runs beside the kernel folders rather than last
 _EARLY_FILES = ("tests/shared/test_types.py",)
 
