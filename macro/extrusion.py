@@ -28,6 +28,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
 from macro.laws import confined_pressure, free_volume, swelling_pressure
+from macro.state import ModelState
 from macro.transport import edge_rates, implicit_pressures, limited_fluxes
 
 __all__ = ["Extrusion", "ExtrusionSettings", "extrusion_settings", "mobility"]
@@ -82,10 +83,10 @@ def mobility(saturation: npt.ArrayLike, settings: ExtrusionSettings) -> FloatArr
     return settings.mobility * np.clip(ramp, 0.0, 1.0)
 
 
-class Extrusion:
+class Extrusion(ModelState):
     """Extrusion part of :class:`macro.model.MacroModel`."""
 
-    READS = ("boundary_inflow", "cells", "counters", "densest_volume", "held", "inert", "material",
+    READS: tuple[str, ...] = ("boundary_inflow", "cells", "counters", "densest_volume", "held", "inert", "material",
              "max_volume", "mesh", "n_pellets", "pellet_initial_solid", "powder_pressure",
              "pressure", "reference_volume", "retention_porosity", "saturations", "settings",
              "solid_mass", "solid_volume", "stress", "volume", "water_mass")

@@ -309,7 +309,7 @@ def run(
     if resumed is None:
         model, rows, earlier = build_model(config, case, table), None, 0.0
         LOG.info("case %s: %d pellets (packing fraction %.3f), %d cells (%d held, %.2g %% void inert)",
-                 case, model.n_pellets, model.packing.packing_fraction,  # type: ignore[union-attr]
+                 case, model.n_pellets, model.packing.packing_fraction,
                  model.n_cells, int(model.held.sum()), 100 * model.neglected_void_fraction())
     else:
         model, rows, earlier = resumed

@@ -18,6 +18,8 @@ of :mod:`macro.column_permeability`, are solved by :class:`shared.solver.SPDSolv
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
@@ -208,7 +210,7 @@ def limited_fluxes(pairs: IntArray, conductance: FloatArray, pressure: FloatArra
 
 def edge_rates(pairs: IntArray, flux: FloatArray, n_systems: int) -> FloatArray:
     """(n,) net inflow of every system from the fluxes into ``pairs[:, 0]``."""
-    return np.bincount(pairs[:, 0], flux, minlength=n_systems) - np.bincount(pairs[:, 1], flux, minlength=n_systems)
+    return cast(FloatArray, np.bincount(pairs[:, 0], flux, n_systems) - np.bincount(pairs[:, 1], flux, n_systems))
 
 
 def limited_rates(pairs: IntArray, conductance: FloatArray, pressure: FloatArray, water: FloatArray,

@@ -92,7 +92,7 @@ def retention_parameters(
 
 
 def van_genuchten_saturation(
-    suction: npt.ArrayLike, zeta: npt.ArrayLike, exponent: npt.ArrayLike
+    suction: npt.ArrayLike, zeta: float | FloatArray, exponent: float | FloatArray
 ) -> FloatArray:
     """S = [1 + (s / zeta)^(1 / (1 - lambda))]^(-lambda) (Eqs. 3.15, 4.24), unclamped, no
     range check (a solver may probe outside the physical range); s <= 0 gives 1.
@@ -109,7 +109,7 @@ def van_genuchten_saturation(
 
 
 def van_genuchten_suction(
-    saturation: npt.ArrayLike, zeta: npt.ArrayLike, exponent: npt.ArrayLike
+    saturation: npt.ArrayLike, zeta: float | FloatArray, exponent: float | FloatArray
 ) -> FloatArray:
     """The inverse, s = zeta (S^(-1/lambda) - 1)^(1 - lambda) [Pa], no range check.
 
