@@ -38,7 +38,14 @@ IntArray = npt.NDArray[np.int64]
 PELLET_KEEPS = 0.5
 """Fraction of its initial solid below which a pellet gives no more clay."""
 OVERFLOW_PASSES = 4
-"""Rounds of each of :meth:`Extrusion.overflow`'s spills (what a cell received may spill on)."""
+"""Rounds of :meth:`Extrusion.overflow`'s spills to the face neighbours (what a cell
+received may spill on)."""
+ROUTED_PASSES = 16
+"""Rounds of its spills to the nearest cells with room, each filling them (the nearest
+may have only a sliver of room: the next round goes further)."""
+ROUTED_ROOM = 1e-6
+"""Room, relative to its void, below which a cell is passed over by the routed spills
+(round-off leaves slivers of 1e-14 of a void that would take a round each)."""
 OVERFLOW_MARGIN = 1e-4
 """Contents left below the void after an overflow, relative to it (the local problem
 needs room: V_s + m_w / rho < V_max)."""
@@ -176,8 +183,8 @@ class Extrusion(ModelState):
         active = ~self.inert[cells]
         void = self.cells.voids / (1.0 + OVERFLOW_MARGIN)
         with self._held_water_booked():
-            for route in (False, True):
-                for _ in range(OVERFLOW_PASSES):
+            for route, passes in ((False, OVERFLOW_PASSES), (True, ROUTED_PASSES)):
+                for _ in range(passes):
                     if not self._overflow_pass(cells, active, void, route):
                         break
         held = self.held[cells]
@@ -194,18 +201,18 @@ class Extrusion(ModelState):
         room = np.where(active, np.maximum(void - filled, 0.0), 0.0)
         excess = np.where(active, solid - void, 0.0)
         moved = self._spill(excess / solid, room, filled, ("solid_volume", "water_mass", "reference_volume", "volume"),
-                            self._targets(room, active, route))
+                            self._targets(room, void, active, route))
         wet = self.densest_volume(cells)
         air = np.where(active, np.maximum(void - wet, 0.0), 0.0)
         squeezed = np.where(active & ~held, (wet - void) / np.maximum(wet - self.solid_volume[cells], 1e-300), 0.0)
         moved += self._spill(squeezed, air, self.water_mass[cells] / self.settings.density, ("water_mass",),
-                             self._targets(air, active, route))
+                             self._targets(air, void, active, route))
         return moved
 
-    def _targets(self, room: FloatArray, active: npt.NDArray[np.bool_], route: bool) -> IntArray:
+    def _targets(self, room: FloatArray, void: FloatArray, active: npt.NDArray[np.bool_], route: bool) -> IntArray:
         """(n_c, k) the cells each cell gives to (-1: none): its face neighbours, or
-        (``route``) the nearest active cell with ``room`` [m3] in face-to-face steps
-        through active cells."""
+        (``route``) the nearest active cell with ``room`` [m3] of at least
+        ``ROUTED_ROOM`` of its ``void`` [m3], in face-to-face steps through active cells."""
         neighbours = self.mesh.neighbours
         if not route:
             return neighbours
@@ -213,7 +220,7 @@ class Extrusion(ModelState):
         b = neighbours.ravel()
         keep = (b >= 0) & active[a] & active[np.maximum(b, 0)]
         graph = sp.csr_matrix((np.ones(np.count_nonzero(keep)), (a[keep], b[keep])), shape=(room.size,) * 2)
-        sources = np.flatnonzero(room > 0.0)
+        sources = np.flatnonzero(room > ROUTED_ROOM * void)
         if sources.size == 0:
             return np.full((room.size, 1), -1)
         nearest = dijkstra(graph, directed=False, indices=sources, unweighted=True, min_only=True,
@@ -232,26 +239,29 @@ class Extrusion(ModelState):
                targets_of: IntArray) -> int:
         """Move ``fraction`` (n_c,) of the named quantities of each cell (those with a
         positive fraction) to its ``targets_of`` (n_c, k; -1: none) in proportion to their
-        ``room`` [m3] (n_c,), at most the targets' room; ``freed`` (n_c,) is the volume the
-        whole of the quantities takes [m3] (the clay's densest volume, or the water's
-        own); returns the number of cells that gave."""
+        ``room`` [m3] (n_c,); a target asked by several cells takes at most its room,
+        each served in proportion. ``freed`` (n_c,) is the volume the whole of the
+        quantities takes [m3] (the clay's densest volume, or the water's own); returns
+        the number of cells that gave."""
         n_p = self.n_pellets
         giving = np.flatnonzero(fraction > 0.0)
         if giving.size == 0:
             return 0
         targets = targets_of[giving]
-        room_of = np.where(targets >= 0, np.append(room, 0.0)[targets], 0.0)
+        hit = targets >= 0
+        room_of = np.where(hit, room[targets], 0.0)
         capacity = room_of.sum(axis=1)
         wanted = fraction[giving] * freed[giving]
-        share = np.where(wanted > 0.0, np.minimum(wanted, capacity) / np.where(wanted > 0.0, wanted, 1.0), 0.0)
-        given_fraction = np.minimum(fraction[giving] * share, 1.0)
-        weights = room_of / np.where(capacity > 0.0, capacity, 1.0)[:, None]
-        hit = targets >= 0
+        asked = room_of * np.where(capacity > 0.0, np.minimum(wanted / np.where(capacity > 0.0, capacity, 1.0), 1.0),
+                                   0.0)[:, None]
+        total = np.bincount(targets[hit], asked[hit], minlength=room.size)
+        served = np.where(total > room, room / np.where(total > 0.0, total, 1.0), 1.0)
+        share = np.where(hit, asked * served[targets], 0.0) / freed[giving][:, None]
         for name in names:
             values = getattr(self, name)
-            given = values[n_p + giving] * given_fraction
-            values[n_p + giving] -= given
-            np.add.at(values, n_p + targets[hit], (given[:, None] * weights)[hit])
-        count = int(np.count_nonzero(given_fraction > 0.0))
+            given = values[n_p + giving][:, None] * share
+            values[n_p + giving] -= given.sum(axis=1)
+            np.add.at(values, n_p + targets[hit], given[hit])
+        count = int(np.count_nonzero(share.sum(axis=1) > 0.0))
         self.counters.overflowed_cell_steps += count
         return count

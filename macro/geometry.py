@@ -41,7 +41,7 @@ class Geometry(ModelState):
     READS: tuple[str, ...] = ("boundary_inflow", "cells", "container", "counters", "held", "hold_boundary", "inert",
              "initial_void", "interior_water", "material", "max_volume", "mesh", "on_plate",
              "positions", "powder_porosity", "pressure", "radii", "reference_volume", "settings",
-             "solid_volume", "steps", "stress", "volume", "water_mass")
+             "solid_volume", "stress", "volume", "water_mass")
     """What this part reads of the model's state and of its other parts."""
 
     @property
@@ -74,12 +74,11 @@ class Geometry(ModelState):
                                np.zeros(self.container.shape[0])])
 
     def update_geometry(self) -> None:
+        """The cells at the pellets' current positions (moved, or a new mesh where an
+        active cell has inverted; the relaxation leaves the mesh at them when it can),
+        the cells' largest volumes (their voids) and the exchanges."""
         n_p = self.n_pellets
-        if self.steps == 0:
-            self.cells.voids = cell_voids(self.mesh, self.clay_radii(), self.cells.solid_angles, VOID_FLOOR)
-        elif not np.array_equal(self.mesh.points, self.vertex_positions()) and not self.move_geometry():
-            # (where the points are the pellets', the relaxation left the mesh, its solid
-            # angles and voids at them)
+        if not np.array_equal(self.mesh.points, self.vertex_positions()) and not self.move_geometry():
             self.remesh()
         radii = self.vertex_radii()
         cells = slice(n_p, None)

@@ -11,6 +11,8 @@ the container's readings (:mod:`macro.readings`). Each part is a mixin of
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -142,39 +144,47 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
 
 
     def step(self, max_dt: float = float("inf")) -> float:
-        """Advance one coupled step; returns the time step used [s]."""
-        clock = time.perf_counter()
-        if self.steps > 0:
+        """Advance one coupled step; returns the time step used [s].
+
+        Transport, extrusion and overflow, the local problems, then the relaxation under
+        the new radii. The step ends at the pellets' new positions: their cells'
+        geometry (a remesh where a cell inverted), the held cells at the boundary, and
+        every cell within its void (the relaxation's motion squeezes cells; the squeezed
+        water moves, the readings stay the balanced state's, whose push took squeezed
+        cells as drained), so that a record's state is consistent with its geometry.
+        """
+        with self._phase("transport"):
+            conductance = self.conductances()
+            if self.settings.transport_scheme == "implicit":
+                dt = self.implicit_transport(conductance, max_dt)
+            else:
+                dt = min(self.time_step(conductance), self.saturation_limited_step(conductance), max_dt)
+                self.transport(dt, conductance)
+        with self._phase("extrusion"):
+            if self.settings.extrusion.enabled:
+                self.extrude(dt)
+                self.overflow()
+        with self._phase("newton"):
+            self.solve_local()
+        with self._phase("dem"):
+            n_p = self.n_pellets
+            assert self.occupied_loss is not None
+            self.radii = np.cbrt(3.0 * self.volume[:n_p] / (4.0 * np.pi * (1.0 - self.occupied_loss)))
+            self.latest_readings = self.relax(self.settings.dem_substeps)
+        with self._phase("remesh"):
             self.update_geometry()
             self.hold_boundary()
-        now = time.perf_counter()
-        self.counters.phase_seconds["remesh"] += now - clock
-        clock = now
-        conductance = self.conductances()
-        if self.settings.transport_scheme == "implicit":
-            dt = self.implicit_transport(conductance, max_dt)
-        else:
-            dt = min(self.time_step(conductance), self.saturation_limited_step(conductance), max_dt)
-            self.transport(dt, conductance)
-        now = time.perf_counter()
-        self.counters.phase_seconds["transport"] += now - clock
-        clock = now
-        if self.settings.extrusion.enabled:
-            self.extrude(dt)
-            self.overflow()
-        now = time.perf_counter()
-        self.counters.phase_seconds["extrusion"] += now - clock
-        clock = now
-        self.solve_local()
-        now = time.perf_counter()
-        self.counters.phase_seconds["newton"] += now - clock
-        clock = now
-        n_p = self.n_pellets
-        assert self.occupied_loss is not None
-        self.radii = np.cbrt(3.0 * self.volume[:n_p] / (4.0 * np.pi * (1.0 - self.occupied_loss)))
-        self.latest_readings = self.relax(self.settings.dem_substeps)
-        self.counters.phase_seconds["dem"] += time.perf_counter() - clock
+        with self._phase("extrusion"):
+            if self.settings.extrusion.enabled:
+                self.overflow()
         self.time += dt
         self.steps += 1
         return dt
+
+    @contextmanager
+    def _phase(self, name: str) -> Iterator[None]:
+        """Add the block's wall time to ``phase_seconds[name]``."""
+        clock = time.perf_counter()
+        yield
+        self.counters.phase_seconds[name] += time.perf_counter() - clock
 
