@@ -139,9 +139,10 @@ def van_genuchten_suction_slope(
         Retention pressure zeta [Pa] and exponent lambda [1], broadcastable.
     """
     sat = np.asarray(saturation, dtype=np.float64)
+    lam = np.asarray(exponent, dtype=np.float64)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        base = np.maximum(sat ** (-1.0 / exponent) - 1.0, 1e-300)
-        return zeta * (1.0 - exponent) / exponent * base ** (-exponent) * sat ** (-1.0 / exponent - 1.0)
+        base = np.maximum(sat ** (-1.0 / lam) - 1.0, 1e-300)
+        return np.asarray(zeta, dtype=np.float64) * (1.0 - lam) / lam * base ** (-lam) * sat ** (-1.0 / lam - 1.0)
 
 
 def saturation(
