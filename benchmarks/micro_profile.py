@@ -303,7 +303,7 @@ def bench_measurement_workers(points: int = 150_000) -> dict:
 
     from benchmarks.parameters import CLAY
     from micro.permeability import FrozenState, checkpoint_permeabilities
-    from micro.run import measurement_executor
+    from micro.pool import measurement_executor
     from shared.dem import cube_points
     from shared.fv import facet_conductance
     from shared.mesh import build_mesh
