@@ -58,7 +58,7 @@ def _uninterrupted(config: dict, case: str, table: Path, output: Path) -> tuple[
     MacroModel._remesh = counted  # type: ignore[method-assign]
     macro.run.save_snapshot = lambda *args: None
     try:
-        macro.run.run(config, case, table, output)
+        macro.run.run(config, case, table, macro.run.CaseOutputs(output))
     finally:
         MacroModel._remesh, macro.run.save_snapshot = remesh, save  # type: ignore[method-assign]
     return xr.load_dataset(output), steps
@@ -182,7 +182,7 @@ def main() -> None:
     MacroModel.step = killed  # type: ignore[method-assign]
     macro.run.save_snapshot = at_the_kill
     settings = json.loads(Path(config).read_text())
-    macro.run.run(settings, sorted(settings["macro"]["cases"])[0], table, output)
+    macro.run.run(settings, sorted(settings["macro"]["cases"])[0], table, macro.run.CaseOutputs(output))
 
 
 

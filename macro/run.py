@@ -1,6 +1,6 @@
 """Entry point of the macro stage: one mock-up case -> ``results/macro/<case>.nc`` + figure.
 
-``run(config, case, table_path, output_path, figure_path)`` packs the pellets, builds the
+``run(config, case, table_path, CaseOutputs(result, figure))`` packs the pellets, builds the
 mixture on the Delaunay mesh of their centres, hydrates it from both ends and records the
 wall readings (docs/design.md §2). It stops near equilibrium (:mod:`macro.stopping`: the
 saturations and the wall pressures have levelled off relative to their current levels)
@@ -10,13 +10,11 @@ recorded.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import logging
-import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Iterator, Mapping
+from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -31,12 +29,12 @@ from macro.records import INVARIANTS, MEASUREMENT_ROWS, PASSAGE_PRESSURE, Record
 from macro.settings import MacroSettings, macro_settings
 from macro.stopping import DAY, MONITORED, RunProgress
 from macro.vtk import SnapshotSeries
+from shared.checkpointer import Checkpointer, run_digest
 from shared.errors import ConfigError
-from shared.io import write_dataset
-from shared.provenance import file_sha256, module_sha256
+from shared.io import write_outputs
 from shared.upscaling import PermeabilityTable, check_suction_coverage
 
-__all__ = ["build_model", "case_parameters", "hydration", "mock_up", "new_model", "run", "simulate"]
+__all__ = ["CaseOutputs", "build_model", "case_parameters", "hydration", "mock_up", "new_model", "run", "simulate"]
 
 LOG = logging.getLogger("claychain.macro")
 FloatArray = npt.NDArray[np.float64]
@@ -44,6 +42,15 @@ PACKING_TOLERANCE = 0.05
 """Largest overlap left by the packing, as a fraction of the pellet radius."""
 THIN_ABOVE = 4000
 """Records kept in memory before every other one is dropped (see ``simulate``)."""
+
+
+class CaseOutputs(NamedTuple):
+    """The files of :func:`run`: ``results/macro/<case>.nc`` and its PNG (None: no figure)."""
+
+    result: str | Path
+    figure: str | Path | None = None
+
+
 def case_parameters(config: Mapping[str, Any], case: str) -> tuple[MacroSettings, MixtureParameters]:
     """The settings and material parameters of a case from the validated ``macro`` and
     ``materials`` sections."""
@@ -121,17 +128,16 @@ def hydration(model: MacroModel, records: Records, thin_above: int) -> Iterator[
 def simulate(
     model: MacroModel,
     rows: dict[str, list[Any]] | None = None,
-    snapshot: Callable[[MacroModel, dict[str, list[Any]]], None] | None = None,
-    snapshot_every: float = float("inf"),
+    checkpointer: Checkpointer | None = None,
     series: SnapshotSeries | None = None,
 ) -> tuple[xr.Dataset, str]:
     """Hydrate until near equilibrium or a guard; returns the records and the stop reason.
 
     ``model`` is :func:`build_model`'s (it carries its ``packing``), new or resumed;
     ``rows`` are the records of a resumed run (None: a new run, :class:`macro.records.
-    Records`); ``snapshot(model, rows)`` is called every ``snapshot_every`` seconds of
-    wall time, after a whole step; ``series`` writes the ParaView snapshots when due and
-    at the end. The stop distance (:func:`macro.stopping.stop_distance`) is evaluated
+    Records`); ``checkpointer`` saves the model and the records after a whole step when
+    its interval of wall time has passed (None: never); ``series`` writes the ParaView
+    snapshots when due and at the end. The stop distance (:func:`macro.stopping.stop_distance`) is evaluated
     after every step and recorded. The column's permeability
     (:func:`macro.column_permeability.column_permeability`) is measured at the start,
     when the run first passes each of ``column_permeability_times_s`` and at the end.
@@ -147,7 +153,8 @@ def simulate(
                            s.max_time, s.max_steps, s.stop_after, model.time, model.steps)
     held_by = -1
     reason = "max_steps"
-    last_snapshot = time.monotonic()
+    if checkpointer is not None:
+        checkpointer.restart_cadence()
     for held_by in hydration(model, records, THIN_ABOVE):
         if series is not None and series.due(model):
             series.write(model)
@@ -159,9 +166,8 @@ def simulate(
         if model.time >= s.stop_after and rows["stop_distance"][-1] <= 1.0:
             reason = "near_equilibrium"
             break
-        if snapshot is not None and time.monotonic() - last_snapshot >= snapshot_every:
-            snapshot(model, rows)
-            last_snapshot = time.monotonic()
+        if checkpointer is not None and checkpointer.due():
+            save_snapshot(checkpointer, model, rows)
     progress.update(model.time, model.steps, rows["saturation"][-1], rows["time"], rows["stop_distance"],
                     held_by, force=True)
     if series is not None:
@@ -259,11 +265,11 @@ def run(
     config: Mapping[str, Any],
     case: str,
     table_path: str | Path,
-    output_path: str | Path,
-    figure_path: str | Path | None = None,
+    outputs: CaseOutputs,
+    *,
     rule: str | None = None,
 ) -> xr.Dataset:
-    """Run one macro case and write ``output_path`` (and the figure).
+    """Run one macro case and write its netCDF result (and the figure).
 
     Parameters
     ----------
@@ -274,8 +280,9 @@ def run(
         Name in ``macro.cases``.
     table_path
         ``results/upscaling/pellet_permeability.nc``; its path and sha256 are recorded.
-    output_path, figure_path
-        The netCDF result and the PNG figure (None: no figure).
+    outputs
+        The netCDF result and the PNG figure (None: no figure); the snapshot is
+        ``.<case>.snapshot.npz`` beside the netCDF.
     rule
         Snakemake rule name for the provenance.
 
@@ -292,60 +299,68 @@ def run(
     macro.newton.NewtonError
         Naming a local system without a solution.
     """
-    start = time.monotonic()
     settings, material = case_parameters(config, case)
     table = PermeabilityTable.from_file(table_path, settings.table_condition)
     check_suction_coverage(table, settings.boundary_suction, material.initial_suction, str(table_path),
                            "macro.boundary_suction_pa to materials.mixture_pellet.initial_suction_pa")
     section = {"macro": config["macro"], "case": case,
                "materials": case_materials(config["materials"], config["macro"]["cases"][case])}
-    # the code too (this module and what it imports, as the netCDF's code_sha256): a
-    # snapshot of other code would resume as a mixture of two models
-    digest = hashlib.sha256((json.dumps(section, sort_keys=True, default=str) + file_sha256(table_path)
-                             + module_sha256(__file__)).encode()).hexdigest()
-    output_path = Path(output_path)
-    snapshot_path = output_path.with_name(f".{output_path.stem}.snapshot.npz")
-    resumed = load_snapshot(snapshot_path, digest, settings, material, table)
-    if resumed is None:
-        model, rows, earlier = build_model(config, case, table), None, 0.0
-        LOG.info("case %s: %d pellets (packing fraction %.3f), %d cells (%d held, %.2g %% void inert)",
-                 case, model.n_pellets, model.packing.packing_fraction,  # type: ignore[union-attr]
-                 model.n_cells, int(model.held.sum()), 100 * model.neglected_void_fraction())
-    else:
-        model, rows, earlier = resumed
-        LOG.info("case %s: resumed from %s at step %d (t = %.4g s)", case, snapshot_path,
-                 model.steps, model.time)
-
-    def snapshot(current: MacroModel, records: dict[str, list[Any]]) -> None:
-        save_snapshot(snapshot_path, digest, current, records, earlier + time.monotonic() - start)
-
+    result = Path(outputs.result)
+    # the code too (this module and what it imports, as the netCDF's code_sha256), and the
+    # table: a snapshot of other code would resume as a mixture of two models
+    checkpointer = Checkpointer(result.with_name(f".{result.stem}.snapshot.npz"),
+                                run_digest(section, __file__, [table_path]), settings.snapshot_interval, LOG)
+    model, rows = _resumed_or_new(checkpointer, case, settings, material, table)
     series = None
     if settings.vtk_snapshots > 0:
-        series = SnapshotSeries(output_path.with_name(f"{output_path.stem}_vtk"), output_path.stem,
-                                settings.vtk_snapshots, settings.max_time, resumed is not None)
+        series = SnapshotSeries(result.with_name(f"{result.stem}_vtk"), result.stem, settings.vtk_snapshots,
+                                settings.max_time, checkpointer.resumed)
         series.entries = [e for e in series.entries if e[0] <= model.time]
     try:
-        ds, reason = simulate(model, rows, snapshot, settings.snapshot_interval, series)
+        ds, reason = simulate(model, rows, checkpointer, series)
     except NewtonError as error:
-        kept = f"; the last snapshot ({snapshot_path}) is kept" if snapshot_path.is_file() else ""
+        kept = f"; the last snapshot ({checkpointer.path}) is kept" if checkpointer.path.is_file() else ""
         raise NewtonError(f"macro case {case} at step {model.steps} (t = {model.time:.6g} s): "
                           f"{error}{kept}") from error
-    if model.table.clamped:
-        low, high = model.table.suction_range
+    _warn_clamped(model.table, case)
+    ds.attrs.update(stop_reason=reason, runtime_s=checkpointer.wall_time(), resumed=int(checkpointer.resumed))
+    write_outputs(ds, result, stage="macro", title=f"claychain macro mock-up {case}", config=section,
+                  seed=settings.seed, inputs=[table_path], rule=rule, wildcards={"case": case},
+                  references="Caulk (2022) thesis Chap. 4 and Appendix .1",
+                  figure=None if outputs.figure is None else (outputs.figure, partial(_case_figure, ds)))
+    checkpointer.finish()
+    return ds
+
+
+def _resumed_or_new(checkpointer: Checkpointer, case: str, settings: MacroSettings, material: MixtureParameters,
+                    table: PermeabilityTable) -> tuple[MacroModel, dict[str, list[Any]] | None]:
+    """The model and records of the checkpointer's snapshot if it holds this case's, else a
+    new model (:func:`new_model`) and no records."""
+    resumed = load_snapshot(checkpointer, settings, material, table)
+    if resumed is not None:
+        model, rows = resumed
+        LOG.info("case %s: resumed from %s at step %d (t = %.4g s)", case, checkpointer.path,
+                 model.steps, model.time)
+        return model, rows
+    model = new_model(settings, material, table)
+    LOG.info("case %s: %d pellets (packing fraction %.3f), %d cells (%d held, %.2g %% void inert)",
+             case, model.n_pellets, model.packing.packing_fraction,  # type: ignore[union-attr]
+             model.n_cells, int(model.held.sum()), 100 * model.neglected_void_fraction())
+    return model, None
+
+
+def _warn_clamped(table: PermeabilityTable, case: str) -> None:
+    """One warning line when look-ups fell outside the table's suctions (clamped)."""
+    if table.clamped:
+        low, high = table.suction_range
         LOG.warning("case %s: %d of %d table look-ups (%.2g %%) fell outside the table's suctions "
                     "[%.3g, %.3g] Pa and were clamped to them (attribute table_clamped_lookups)", case,
-                    model.table.clamped, model.table.looked_up,
-                    100.0 * model.table.clamped / model.table.looked_up, low, high)
-    ds.attrs["stop_reason"] = reason
-    ds.attrs["runtime_s"] = earlier + time.monotonic() - start
-    ds.attrs["resumed"] = int(resumed is not None)
-    write_dataset(ds, output_path, stage="macro", title=f"claychain macro mock-up {case}",
-                  config=section, seed=settings.seed, inputs=[table_path], rule=rule,
-                  wildcards={"case": case},
-                  references="Caulk (2022) thesis Chap. 4 and Appendix .1")
-    snapshot_path.unlink(missing_ok=True)
-    if figure_path is not None:
-        from macro.figures import case_figure
+                    table.clamped, table.looked_up, 100.0 * table.clamped / table.looked_up, low, high)
 
-        case_figure(ds, figure_path)
-    return ds
+
+def _case_figure(ds: xr.Dataset, path: str | Path) -> Path:
+    """The case's figure (:func:`macro.figures.case_figure`), imported when drawn: a run
+    without a figure loads no matplotlib."""
+    from macro.figures import case_figure
+
+    return case_figure(ds, path)

@@ -63,7 +63,7 @@ def test_the_run_records_the_cases_own_values(table_path, tmp_path):
     case's materials, merged over the top-level ones."""
     config = _two_cases()
     config["macro"]["numerics"]["max_steps"] = 2
-    macro_run.run(config, "own", table_path, tmp_path / "own.nc")
+    macro_run.run(config, "own", table_path, macro_run.CaseOutputs(tmp_path / "own.nc"))
     recorded = json.loads(read_dataset(tmp_path / "own.nc").attrs["config_json"])
     pellet = recorded["materials"]["mixture_pellet"]
     assert pellet["swelling_beta_per_pa"] == 3.0e-8 and pellet["poisson_ratio"] == 0.3
