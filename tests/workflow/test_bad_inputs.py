@@ -33,7 +33,7 @@ from imaging.ct import run as ct_run
 from imaging.ct.io import ImageError, write_tiff_stack
 from imaging.ct.phantom import pellet_phantom
 from imaging.ct.porosity import CLAMPED_WARNING_FRACTION
-from imaging.ct.settings import PorositySettings, ScanResources
+from imaging.ct.settings import ScanResources
 from imaging.packing.config import check_packings
 from micro import case as micro_case
 from micro import run as micro_run
@@ -245,10 +245,11 @@ def _porosity(tmp: Path, source: str, scan: Path, *, imaging: dict | None = None
 def _ct_porosity(sample: str, entry: dict, imaging: dict, micro: tuple, scan: Path | str,
                  results: Path, name: str) -> xr.Dataset:
     """The imaging_porosity rule's entry point on a sample, as its script calls it."""
-    settings = PorositySettings.from_config(sample, imaging, CONFIG["materials"]["pellet"], micro)
+    config = {"sample": entry, "imaging": imaging, "material": CONFIG["materials"]["pellet"],
+              "micro_spacing": micro}
     outputs = ct_run.PorosityOutputs(results / f"images/{name}.nc", results / f"porosity/{name}.nc",
                                      results / f"porosity/{name}.png")
-    return ct_run.porosity(scan, entry, settings, outputs, ScanResources.from_mapping(imaging))
+    return ct_run.porosity(config, sample, scan, outputs, resources=ScanResources.from_mapping(imaging))
 
 
 @pytest.mark.parametrize("case", sorted(SCANS))
