@@ -7,6 +7,7 @@ import json
 
 import pytest
 
+import macro.mock_up
 import macro.run as macro_run
 from macro.laws import case_materials, mixture_parameters
 from shared.config import ConfigError, load_schema, validate_config
@@ -49,7 +50,7 @@ def test_the_model_is_built_from_the_cases_own_values(table_path, monkeypatch):
         seen.update(materials)
         raise Built
 
-    monkeypatch.setattr(macro_run, "mixture_parameters", spy)
+    monkeypatch.setattr(macro.mock_up, "mixture_parameters", spy)
     config = _two_cases()
     with pytest.raises(Built):
         macro_run.build_model(config, "own", PermeabilityTable.from_file(table_path, "free"))

@@ -49,11 +49,12 @@ def _kill_at(monkeypatch, step):
 
 CHILD = """\
 import json, os, signal, sys
+import macro.mock_up
 import macro.run
 from macro.model import MacroModel
 
 config, table, output, kill_at, thin_above = sys.argv[1:]
-macro.run.THIN_ABOVE = int(thin_above)
+macro.mock_up.THIN_ABOVE = int(thin_above)
 step = MacroModel.step
 
 
@@ -120,7 +121,7 @@ def test_a_run_killed_three_times_resumes_to_the_uninterrupted_result(table_path
     # a packing that remeshes early and often (steps 5, 8 and 18); with most seeds this
     # loose column remeshes once or never in 36 steps
     config["macro"]["seed"] = 14
-    monkeypatch.setattr("macro.run.THIN_ABOVE", THIN_ABOVE)
+    monkeypatch.setattr("macro.mock_up.THIN_ABOVE", THIN_ABOVE)
     whole, remeshed = _remesh_steps(monkeypatch, table_path, config, tmp_path / "whole.nc")
     assert remeshed and remeshed[0] + 6 < steps, remeshed
     kills = (remeshed[0] // 2, remeshed[0] + 2, (remeshed[0] + 2 + steps) // 2)

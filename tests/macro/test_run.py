@@ -284,16 +284,17 @@ def test_jammed_packing_is_refused_naming_the_keys(table_path, tmp_path):
 def test_records_are_thinned_and_picked_at_equal_step_spacing(table_path, tmp_path, monkeypatch):
     """Past THIN_ABOVE records in memory every other one is dropped; the written records
     are the nearest to equally spaced steps, first and last included."""
-    import macro.run as macro_run
+    import macro.mock_up
+    import macro.records
 
-    monkeypatch.setattr(macro_run, "THIN_ABOVE", 10)
+    monkeypatch.setattr(macro.mock_up, "THIN_ABOVE", 10)
     config = small_config()
     config["macro"]["numerics"].update(max_steps=40, stop_tolerance=0.0, records=5)
     ds = run(config, "small", table_path, CaseOutputs(tmp_path / "small.nc"))
     assert 3 <= ds.sizes["time"] <= 5  # nearest records may coincide once thinned
     assert ds.attrs["steps"] == 40 and ds["time"].values[0] == 0.0
     assert ds["time_step"].values[-1] > 0.0
-    keep = macro_run._keep(np.array([0, 4, 8, 16, 24, 32, 33, 34, 35, 36, 40]), 5)
+    keep = macro.records._keep(np.array([0, 4, 8, 16, 24, 32, 33, 34, 35, 36, 40]), 5)
     np.testing.assert_array_equal(keep, [0, 2, 4, 5, 10])  # steps 0, 8, 16/24 -> 24, 32, 40
 
 
