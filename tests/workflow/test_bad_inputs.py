@@ -569,7 +569,7 @@ def test_a_table_in_mpa_is_refused_naming_it_and_both_ranges(tmp_path):
     table = _macro_table(tmp_path, SUCTION / 1e6)
     with pytest.raises(InputError, match=r"table\.nc: its suctions \[0\.1, 200\] Pa miss the case's "
                                          r"range \[1e\+06, 1\.32e\+08\] Pa \(macro\.boundary_suction_pa"):
-        macro_run.run(_macro_config(), "small", table, tmp_path / "out.nc")
+        macro_run.run(_macro_config(), "small", table, macro_run.CaseOutputs(tmp_path / "out.nc"))
     assert not (tmp_path / "out.nc").exists()
 
 
@@ -578,7 +578,7 @@ def test_a_table_missing_less_than_a_decade_is_clamped_and_the_count_logged(tmp_
 
     table = _macro_table(tmp_path, np.geomspace(5e6, 1.0e8, 12))
     with caplog.at_level(logging.WARNING, logger="claychain.macro"):
-        ds = macro_run.run(_macro_config(), "small", table, tmp_path / "out.nc")
+        ds = macro_run.run(_macro_config(), "small", table, macro_run.CaseOutputs(tmp_path / "out.nc"))
     clamped, looked_up = ds.attrs["table_clamped_lookups"], ds.attrs["table_lookups"]
     assert 0 < clamped <= looked_up
     [line] = [r.getMessage() for r in caplog.records if "clamped" in r.getMessage()]
