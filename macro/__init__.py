@@ -2,7 +2,8 @@
 pellet permeability table of the upscaling stage.
 
 Entry point: :func:`macro.run.run` (``config, case, table_path, CaseOutputs(result, figure)``),
-around the library function :func:`macro.mock_up.mock_up`. Modules, among others (``__all__`` lists them all): ``laws`` (constitutive laws),
+around the library function :func:`macro.mock_up.mock_up`.
+Modules, among others (``__all__`` lists them all): ``laws`` (constitutive laws),
 ``packing`` (random packing in the cylinder by overlap-energy minimisation), ``field``
 (powder heterogeneity), ``mixture`` (systems and exchanges on the Delaunay mesh),
 ``transport`` (mass update), ``newton`` (local pressure-volume solve), ``model`` (the

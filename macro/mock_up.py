@@ -92,7 +92,7 @@ def mock_up(table: PermeabilityTable, settings: MacroSettings, material: Mixture
     Returns
     -------
     xarray.Dataset
-        The records and readings :func:`run` writes, with the ``stop_reason``.
+        The records and readings :func:`macro.run.run` writes, with the ``stop_reason``.
     """
     ds, reason = simulate(new_model(settings, material, table))
     ds.attrs["stop_reason"] = reason

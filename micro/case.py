@@ -164,9 +164,9 @@ def checkpoints_reached(
 
     Each checkpoint is measured on a mesh rebuilt from the moved points (not the
     per-step update_mesh, which rounds differently; a restart file keeps it). With
-    ``executor`` (:func:`micro.pool.measurement_executor`), the worker solves the permeabilities
-    while the next checkpoint hydrates, unless it still measures the one before (it
-    lags) or a save is overdue: both processes then share this one's solves. The last
+    ``executor`` (:func:`micro.pool.measurement_executor`), the worker solves the
+    permeabilities while the next checkpoint hydrates, unless it still measures the one
+    before (it lags) or a save is overdue: both processes then share this one's solves. The last
     record joins ``hydration.records`` when the generator ends.
 
     Parameters
