@@ -12,7 +12,7 @@ from numba import njit, prange
 
 
 @njit(cache=True)
-def overlap_energy(positions, radii, pairs, cylinder_radius, z_low, z_high, gradient):  # type: ignore[no-untyped-def]
+def overlap_energy(positions, radii, pairs, cylinder_radius, z_low, z_high, gradient):
     """Harmonic overlap energy of spheres in a closed cylinder (axis z), its gradient.
 
     E = sum over the listed pairs of (r_i + r_j - d_ij)^2 / 2, plus (rho_i + r_i - R)^2 / 2
@@ -83,13 +83,13 @@ def overlap_energy(positions, radii, pairs, cylinder_radius, z_low, z_high, grad
 
 
 @njit(cache=True)
-def _squared(p, q):  # type: ignore[no-untyped-def]
+def _squared(p, q):
     """|q - p|^2."""
     return (q[0] - p[0]) ** 2 + (q[1] - p[1]) ** 2 + (q[2] - p[2]) ** 2
 
 
 @njit(cache=True)
-def _solid_angle(triple, la, lb, lc, ab, ac, bc):  # type: ignore[no-untyped-def]
+def _solid_angle(triple, la, lb, lc, ab, ac, bc):
     """Solid angle at a tetrahedron's vertex [sr] (Van Oosterom-Strackee) from six times
     its volume, the lengths of its edges to the other three vertices a, b, c and the
     squared lengths of the edges between those."""
@@ -100,7 +100,7 @@ def _solid_angle(triple, la, lb, lc, ab, ac, bc):  # type: ignore[no-untyped-def
 
 
 @njit(cache=True)
-def _corner_angle(opposite, left, right):  # type: ignore[no-untyped-def]
+def _corner_angle(opposite, left, right):
     """Interior angle of a triangle [rad] from the squared lengths of its sides: the one
     opposite the corner and the two that meet there."""
     cos = (left + right - opposite) / (2.0 * np.sqrt(left * right))
@@ -108,7 +108,7 @@ def _corner_angle(opposite, left, right):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, parallel=True)
-def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sphere_radii, n_pellets,  # type: ignore[no-untyped-def]
+def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sphere_radii, n_pellets,
                 solid_mass, densest, free, candidate, bound, scale, alpha, void_floor):
     """The powder's push on the pellets at the mesh's current points, in one pass.
 

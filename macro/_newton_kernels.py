@@ -26,7 +26,7 @@ GRID = 512
 
 
 @njit(cache=True)
-def _retention(suction, porosity, law):  # type: ignore[no-untyped-def]
+def _retention(suction, porosity, law):
     """S(s, phi) [1] (Eqs. 4.24-4.26)."""
     shift = law[4] - porosity
     zeta = law[0] * np.exp(law[2] * shift)
@@ -37,7 +37,7 @@ def _retention(suction, porosity, law):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _inverse_retention(saturation, porosity, law):  # type: ignore[no-untyped-def]
+def _inverse_retention(saturation, porosity, law):
     """s(S, phi) = zeta (S^(-1/lambda) - 1)^(1 - lambda) [Pa] (Eq. 4.24)."""
     shift = law[4] - porosity
     zeta = law[0] * np.exp(law[2] * shift)
@@ -46,7 +46,7 @@ def _inverse_retention(saturation, porosity, law):  # type: ignore[no-untyped-de
 
 
 @njit(cache=True)
-def _target(suction, v0, stress, solid_mass, fixed, law):  # type: ignore[no-untyped-def]
+def _target(suction, v0, stress, solid_mass, fixed, law):
     """Swelling volume under the confining stress [m3] (:func:`macro.laws.confined_volume`):
     the free swelling V_f = V_0 (1 + eps(s)) (Eq. 4.28) while the stress is below the
     swelling pressure S_ret(s) p'_vc(m_s / V_f), else the volume where it meets it."""
@@ -62,12 +62,12 @@ def _target(suction, v0, stress, solid_mass, fixed, law):  # type: ignore[no-unt
 
 
 @njit(cache=True)
-def _porosity(volume, solid, fixed):  # type: ignore[no-untyped-def]
+def _porosity(volume, solid, fixed):
     return fixed if fixed == fixed else 1.0 - solid / volume
 
 
 @njit(cache=True)
-def _residuals(v, s, mu, m, vs, v0, st, ms, vmax, fixed, rho, smax, law):  # type: ignore[no-untyped-def]
+def _residuals(v, s, mu, m, vs, v0, st, ms, vmax, fixed, rho, smax, law):
     """(f1, f2, feasible) of Eqs. 4.39-4.40 with barrier weight mu (see macro.newton)."""
     if not (vs < v < vmax and 0.0 < s < smax):
         return 0.0, 0.0, False
@@ -84,7 +84,7 @@ def _residuals(v, s, mu, m, vs, v0, st, ms, vmax, fixed, rho, smax, law):  # typ
 
 
 @njit(cache=True)
-def _admissible(v, s, m, vs, v0, st, ms, vmax, fixed, rho, smax, tol, law, suction_bounds):  # type: ignore[no-untyped-def]
+def _admissible(v, s, m, vs, v0, st, ms, vmax, fixed, rho, smax, tol, law, suction_bounds):
     """Whether (V, s) solves the problem: both equations, or one with its bound active.
 
     The suction bounds (drier than the curve allows at s_max, saturated) are accepted
@@ -102,7 +102,7 @@ def _admissible(v, s, m, vs, v0, st, ms, vmax, fixed, rho, smax, tol, law, sucti
 
 
 @njit(cache=True)
-def _newton(m, vs, v0, st, ms, vmax, fixed, rho, smax, v, s, tol, max_iter, mu0, decay, relax0, h, law):  # type: ignore[no-untyped-def]
+def _newton(m, vs, v0, st, ms, vmax, fixed, rho, smax, v, s, tol, max_iter, mu0, decay, relax0, h, law):
     """Barrier Newton-Raphson of one system from (v, s); returns (v, s, iterations)."""
     low = vs + m / rho
     mu = mu0
@@ -149,21 +149,21 @@ def _newton(m, vs, v0, st, ms, vmax, fixed, rho, smax, v, s, tol, max_iter, mu0,
 
 
 @njit(cache=True)
-def _clipped_volume(s, m, vs, v0, st, ms, vmax, fixed, rho, law):  # type: ignore[no-untyped-def]
+def _clipped_volume(s, m, vs, v0, st, ms, vmax, fixed, rho, law):
     """V(s): the swelling target within [saturated volume, V_max] (complementarity)."""
     low = vs + m / rho
     return min(max(_target(s, v0, st, ms, fixed, law), low * (1.0 + 1e-12)), vmax * (1.0 - 1e-12))
 
 
 @njit(cache=True)
-def _gap(s, m, vs, v0, st, ms, vmax, fixed, rho, law):  # type: ignore[no-untyped-def]
+def _gap(s, m, vs, v0, st, ms, vmax, fixed, rho, law):
     """g(s) = S(V(s)) - S_ret(s, phi(V(s))): p eliminated, V on its constraints."""
     v = _clipped_volume(s, m, vs, v0, st, ms, vmax, fixed, rho, law)
     return min(m / (rho * (v - vs)), 1.0) - _retention(s, _porosity(v, vs, fixed), law)
 
 
 @njit(cache=True)
-def _bracketed(m, vs, v0, st, ms, vmax, fixed, rho, smax, previous, law):  # type: ignore[no-untyped-def]
+def _bracketed(m, vs, v0, st, ms, vmax, fixed, rho, smax, previous, law):
     """Root of g: with a fixed retention porosity g is monotone and bisected over the
     whole log-suction range; otherwise the sign change on a log-suction grid nearest the
     previous suction (roots with V inside its bounds first) is bisected. Without a root,
@@ -200,7 +200,7 @@ def _bracketed(m, vs, v0, st, ms, vmax, fixed, rho, smax, previous, law):  # typ
 
 
 @njit(cache=True)
-def _bisected(a, b, m, vs, v0, st, ms, vmax, fixed, rho, law):  # type: ignore[no-untyped-def]
+def _bisected(a, b, m, vs, v0, st, ms, vmax, fixed, rho, law):
     """(V, s) at the sign change of g in log-suction [a, b]; the end of the interval
     that g approaches zero from when it does not change sign (a suction bound)."""
     ga = _gap(np.exp(a), m, vs, v0, st, ms, vmax, fixed, rho, law)
@@ -222,7 +222,7 @@ def _bisected(a, b, m, vs, v0, st, ms, vmax, fixed, rho, law):  # type: ignore[n
 
 @njit(cache=True)
 def solve_systems(water, solid, v0, stress, msolid, vmax, fixed, previous_volume, previous_suction,
-                  rho, smax, tol, max_iter, mu0, decay, relax0, h, law):  # type: ignore[no-untyped-def]
+                  rho, smax, tol, max_iter, mu0, decay, relax0, h, law):
     """Volume [m3], suction [Pa], iterations and status of every system.
 
     Newton starts from Eqs. 4.47-4.48: the suction of the new water at the previous

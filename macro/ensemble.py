@@ -159,7 +159,7 @@ def plot_ensemble(ds: xr.Dataset, title: str = "") -> Figure:
     """Mean line and band against time (days, log axis) of each sensor (one colour each),
     of the axial pressures and of the mean saturations; each panel's legend below it."""
     fig, grid = new_figure(1, 3, width=4.4, height=4.0)
-    axes = grid[0]  # type: ignore[index]
+    axes = grid[0]
     days = ds["time"].values / 86400.0
     low, high = (100.0 * float(q) for q in ds["quantile"].values)
 

@@ -24,17 +24,21 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+import scipy.sparse as sp
+from scipy.sparse.csgraph import dijkstra
 
 from macro.laws import confined_pressure, free_volume, swelling_pressure
+from macro.state import ModelState
 from macro.transport import edge_rates, implicit_pressures, limited_fluxes
 
 __all__ = ["Extrusion", "ExtrusionSettings", "extrusion_settings", "mobility"]
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 PELLET_KEEPS = 0.5
 """Fraction of its initial solid below which a pellet gives no more clay."""
 OVERFLOW_PASSES = 4
-"""Rounds of :meth:`Extrusion.overflow` (what a neighbour received may spill on)."""
+"""Rounds of each of :meth:`Extrusion.overflow`'s spills (what a cell received may spill on)."""
 OVERFLOW_MARGIN = 1e-4
 """Contents left below the void after an overflow, relative to it (the local problem
 needs room: V_s + m_w / rho < V_max)."""
@@ -79,10 +83,10 @@ def mobility(saturation: npt.ArrayLike, settings: ExtrusionSettings) -> FloatArr
     return settings.mobility * np.clip(ramp, 0.0, 1.0)
 
 
-class Extrusion:
+class Extrusion(ModelState):
     """Extrusion part of :class:`macro.model.MacroModel`."""
 
-    READS = ("boundary_inflow", "cells", "counters", "densest_volume", "held", "inert", "material",
+    READS: tuple[str, ...] = ("boundary_inflow", "cells", "counters", "densest_volume", "held", "inert", "material",
              "max_volume", "mesh", "n_pellets", "pellet_initial_solid", "powder_pressure",
              "pressure", "reference_volume", "retention_porosity", "saturations", "settings",
              "solid_mass", "solid_volume", "stress", "volume", "water_mass")
@@ -153,37 +157,68 @@ class Extrusion:
         self.counters.extruded_volume_m3 += float(np.abs(moved).sum())
 
     def overflow(self) -> None:
-        """Hand what no longer fits in a squeezed cell to its face neighbours.
+        """Hand what no longer fits in a squeezed cell to cells with room.
 
         The pellets' motion and the clay received by extrusion can leave a cell's void
         below its contents. Its clay beyond the powder's densest state (solid at the
         smallest porosity: solid, water, V_0 and volume at the cell's own ratios) goes to
-        the neighbours with room; then water beyond its pore space goes to the
-        neighbours with air (a saturated cell squeezed drains at once: its consolidation
-        time, L^2 mu m_v / k, is seconds at the cells' size), each in proportion to the
-        neighbours' room. Counted in ``overflowed_cells``; conservative to round-off;
-        what no neighbour can take stays (then capped in the local problem, counted)."""
+        the cells with room; then water beyond its pore space goes to the cells with air
+        (a saturated cell squeezed drains at once: its consolidation time, L^2 mu m_v / k,
+        is seconds at the cells' size). First to the face neighbours, in proportion to
+        their room; what they cannot take, to the nearest active cells with room (in
+        face-to-face steps: the squeezed clay extrudes through the full cells between).
+        A held cell's water beyond its pore space leaves through the boundary (the held
+        cells are the water supply's side). Counted in ``overflowed_cells``; conservative
+        to round-off; what no cell can take stays (then capped in the local problem,
+        counted)."""
         n_p = self.n_pellets
         cells = slice(n_p, None)
         active = ~self.inert[cells]
         void = self.cells.voids / (1.0 + OVERFLOW_MARGIN)
         with self._held_water_booked():
-            self._overflow_passes(cells, active, void)
+            for route in (False, True):
+                for _ in range(OVERFLOW_PASSES):
+                    if not self._overflow_pass(cells, active, void, route):
+                        break
+        held = self.held[cells]
+        pore = self.settings.density * np.maximum(void - self.solid_volume[cells], 0.0)
+        self.water_mass[cells] = np.where(held, np.minimum(self.water_mass[cells], pore), self.water_mass[cells])
 
-    def _overflow_passes(self, cells: slice, active: npt.NDArray[np.bool_], void: FloatArray) -> None:
-        """Up to ``OVERFLOW_PASSES`` passes of :meth:`overflow`'s two spills."""
-        for _ in range(OVERFLOW_PASSES):
-            densest = self.densest_volume(cells, with_water=False)
-            room = np.where(active, np.maximum(void - self.densest_volume(cells), 0.0), 0.0)
-            excess = np.where(active, densest - void, 0.0)
-            moved = self._spill(excess / densest, room, self.densest_volume(cells),
-                                ("solid_volume", "water_mass", "reference_volume", "volume"))
-            wet = self.densest_volume(cells)
-            air = np.where(active, np.maximum(void - wet, 0.0), 0.0)
-            moved += self._spill(np.where(active, (wet - void) / np.maximum(wet - self.solid_volume[cells], 1e-300),
-                                          0.0), air, self.water_mass[cells] / self.settings.density, ("water_mass",))
-            if not moved:
-                break
+    def _overflow_pass(self, cells: slice, active: npt.NDArray[np.bool_], void: FloatArray, route: bool) -> int:
+        """One pass of :meth:`overflow`'s two spills, to the face neighbours or (``route``)
+        to the nearest cells with room; returns the number of cells that gave."""
+        held = self.held[cells]
+        solid = self.densest_volume(cells, with_water=False)
+        # a held cell's water drains through the boundary: its solid alone takes room
+        filled = np.where(held, solid, self.densest_volume(cells))
+        room = np.where(active, np.maximum(void - filled, 0.0), 0.0)
+        excess = np.where(active, solid - void, 0.0)
+        moved = self._spill(excess / solid, room, filled, ("solid_volume", "water_mass", "reference_volume", "volume"),
+                            self._targets(room, active, route))
+        wet = self.densest_volume(cells)
+        air = np.where(active, np.maximum(void - wet, 0.0), 0.0)
+        squeezed = np.where(active & ~held, (wet - void) / np.maximum(wet - self.solid_volume[cells], 1e-300), 0.0)
+        moved += self._spill(squeezed, air, self.water_mass[cells] / self.settings.density, ("water_mass",),
+                             self._targets(air, active, route))
+        return moved
+
+    def _targets(self, room: FloatArray, active: npt.NDArray[np.bool_], route: bool) -> IntArray:
+        """(n_c, k) the cells each cell gives to (-1: none): its face neighbours, or
+        (``route``) the nearest active cell with ``room`` [m3] in face-to-face steps
+        through active cells."""
+        neighbours = self.mesh.neighbours
+        if not route:
+            return neighbours
+        a = np.repeat(np.arange(neighbours.shape[0]), neighbours.shape[1])
+        b = neighbours.ravel()
+        keep = (b >= 0) & active[a] & active[np.maximum(b, 0)]
+        graph = sp.csr_matrix((np.ones(np.count_nonzero(keep)), (a[keep], b[keep])), shape=(room.size,) * 2)
+        sources = np.flatnonzero(room > 0.0)
+        if sources.size == 0:
+            return np.full((room.size, 1), -1)
+        nearest = dijkstra(graph, directed=False, indices=sources, unweighted=True, min_only=True,
+                           return_predecessors=True)[2]
+        return np.where(nearest >= 0, nearest, -1)[:, None]
 
     @contextmanager
     def _held_water_booked(self) -> Iterator[None]:
@@ -193,17 +228,18 @@ class Extrusion:
         yield
         self.boundary_inflow += float(before - self.water_mass[self.held].sum())
 
-    def _spill(self, fraction: FloatArray, room: FloatArray, freed: FloatArray, names: tuple[str, ...]) -> int:
+    def _spill(self, fraction: FloatArray, room: FloatArray, freed: FloatArray, names: tuple[str, ...],
+               targets_of: IntArray) -> int:
         """Move ``fraction`` (n_c,) of the named quantities of each cell (those with a
-        positive fraction) to its face neighbours in proportion to their ``room`` [m3]
-        (n_c,), at most the neighbours' room; ``freed`` (n_c,) is the volume the whole of
-        the quantities takes [m3] (the clay's densest volume, or the water's own); returns
-        the number of cells that gave."""
+        positive fraction) to its ``targets_of`` (n_c, k; -1: none) in proportion to their
+        ``room`` [m3] (n_c,), at most the targets' room; ``freed`` (n_c,) is the volume the
+        whole of the quantities takes [m3] (the clay's densest volume, or the water's
+        own); returns the number of cells that gave."""
         n_p = self.n_pellets
         giving = np.flatnonzero(fraction > 0.0)
         if giving.size == 0:
             return 0
-        targets = self.mesh.neighbours[giving]
+        targets = targets_of[giving]
         room_of = np.where(targets >= 0, np.append(room, 0.0)[targets], 0.0)
         capacity = room_of.sum(axis=1)
         wanted = fraction[giving] * freed[giving]

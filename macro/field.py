@@ -45,7 +45,7 @@ def cell_porosity(
     low, high = (float(v) for v in powder["porosity_clamp"])
     n = centroids.shape[0]
     if mode == "homogeneous":
-        values = np.full(n, mean)
+        values: FloatArray = np.full(n, mean)
     elif mode == "weibull":
         shape = float(powder["weibull_shape"])
         values = mean / gamma(1.0 + 1.0 / shape) * rng.weibull(shape, n)

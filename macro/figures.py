@@ -24,7 +24,7 @@ def case_figure(ds: xr.Dataset, path: str | Path) -> Path:
     case = Path(path).stem
     fig.suptitle(f"macro case {case}: {int(ds.attrs.get('n_pellets', 0))} pellets, "
                  f"{ds.attrs.get('powder_heterogeneity', '?')} powder", fontsize="medium")
-    ax = axes[0, 0]  # type: ignore[index]
+    ax = axes[0, 0]
     days = ds["time"].values / 86400.0
     for name, z in zip(ds["sensor"].values, ds["sensor_height"].values, strict=True):
         ax.plot(days, ds["sensor_pressure"].sel(sensor=name).values / 1e6, label=f"{name} ({1e3 * z:.0f} mm)")
@@ -34,12 +34,12 @@ def case_figure(ds: xr.Dataset, path: str | Path) -> Path:
     ax.set_ylabel("pressure [MPa]")
     outside_legend(ax)
     ax.set_title("wall pressures")
-    _permeability_panel(axes[0, 1], ds)  # type: ignore[index]
+    _permeability_panel(axes[0, 1], ds)
     z = ds["z"].values * 100
     # the start, then times a hundredth, a tenth, a third of the run and its end
     wanted = np.array([0.0, 0.01, 0.1, 1.0 / 3.0, 1.0]) * days[-1]
     picks = np.unique(np.abs(days[None, :] - wanted[:, None]).argmin(axis=1))
-    suction_ax, swelling_ax = axes[1, 0], axes[1, 1]  # type: ignore[index]
+    suction_ax, swelling_ax = axes[1, 0], axes[1, 1]
     for i in picks:
         label = f"{plain_number(days[i])} d"
         suction_ax.plot(z, ds["suction_profile"].values[i] / 1e6, label=label)
@@ -73,7 +73,7 @@ def comparison_figure(cases: dict[str, xr.Dataset], path: str | Path) -> Path:
     mean pellet suction against time."""
     fig, grid = new_figure(1, 3, width=4.2, height=3.4)
     fig.suptitle(f"macro cases {', '.join(sorted(cases))}", fontsize="medium")
-    axes = grid[0]  # type: ignore[index]
+    axes = grid[0]
     for name, ds in sorted(cases.items()):
         days = ds["time"].values / 86400.0
         label = f"{name} ({ds.attrs.get('powder_heterogeneity', '?')}" + (

@@ -19,6 +19,7 @@ from macro.mixture import (
     solid_angles,
 )
 from macro.settings import MacroSettings
+from macro.state import ModelState
 from shared.delaunay import qhull_delaunay
 from shared.mesh import Mesh, mesh_from_tetrahedra
 
@@ -34,10 +35,10 @@ MIN_AREA_FRACTION = 1e-2
 """Smallest powder path through a cell-cell triangle covered by pellets, fraction of it."""
 
 
-class Geometry:
+class Geometry(ModelState):
     """Mesh part of :class:`macro.model.MacroModel`: vertices, voids, moves and remeshes."""
 
-    READS = ("boundary_inflow", "cells", "container", "counters", "held", "hold_boundary", "inert",
+    READS: tuple[str, ...] = ("boundary_inflow", "cells", "container", "counters", "held", "hold_boundary", "inert",
              "initial_void", "interior_water", "material", "max_volume", "mesh", "on_plate",
              "positions", "powder_porosity", "pressure", "radii", "reference_volume", "settings",
              "solid_volume", "steps", "stress", "volume", "water_mass")

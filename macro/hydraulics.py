@@ -8,6 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from macro.laws import free_volume, powder_permeability, saturation, suction_derivative
+from macro.state import ModelState
 from macro.transport import (
     conductances,
     harmonic_mean,
@@ -25,10 +26,10 @@ IMPLICIT_LOSS = 0.99
 """Largest fraction of its water a system may lose in one implicit step (positivity)."""
 
 
-class Hydraulics:
+class Hydraulics(ModelState):
     """Transport part of :class:`macro.model.MacroModel`."""
 
-    READS = ("boundary_inflow", "cells", "counters", "densest_volume", "held", "inert", "material",
+    READS: tuple[str, ...] = ("boundary_inflow", "cells", "counters", "densest_volume", "held", "inert", "material",
              "max_volume", "mesh", "n_pellets", "pellet_frames", "positions", "pressure",
              "reference_volume", "settings", "solid_volume", "swelling_volume", "table",
              "trial_time_step", "volume", "water_mass")

@@ -2,8 +2,14 @@
 
 Units are SI and per Pa: suction s = -p > 0 [Pa], alpha and beta [1/Pa].
 
+The mixture's material is one clay (:class:`MixtureParameters`, a
+:class:`shared.materials.ClayLaws`): its retention, permeability and swelling are the
+laws of :mod:`shared.retention`, :mod:`shared.permeability` and :mod:`shared.swelling`,
+which the micro pellet's clay takes too; this module adds what only the mixture has.
+
 - Retention (Eqs. 4.24-4.26, docs/design.md §3): S(s) = [1 + (s/zeta)^(1/(1-lambda))]^(-lambda),
-  zeta and lambda exponential in the porosity, and its inverse s(S).
+  zeta and lambda exponential in the porosity, and its inverse s(S), unclamped and
+  without range checks (the local problems' Newton iterations probe beyond them).
 - Powder permeability (Eqs. 4.16-4.19): k = k_0 exp(b_k (phi - phi_0)) k_r(S).
 - Swelling (Eq. 4.28, sign of docs/design.md §3): eps(s) = (beta/alpha)
   [exp(-alpha s) - exp(-alpha s_0)].
@@ -24,9 +30,15 @@ import numpy as np
 import numpy.typing as npt
 
 from shared.errors import ConfigError
-from shared.permeability import porosity_permeability
-from shared.retention import van_genuchten_saturation, van_genuchten_suction
-from shared.swelling import swelling_strain as shared_swelling_strain
+from shared.materials import ClayLaws, law_parameters
+from shared.permeability import intrinsic_permeability, relative_permeability
+from shared.retention import (
+    van_genuchten_parameters,
+    van_genuchten_saturation,
+    van_genuchten_suction,
+    van_genuchten_suction_slope,
+)
+from shared.swelling import volumetric_strain
 
 __all__ = [
     "MixtureParameters",
@@ -52,21 +64,14 @@ MIXTURE_MATERIALS = ("mixture_pellet", "mixture_powder")
 
 
 @dataclass(frozen=True)
-class MixtureParameters:
-    """Material parameters of the mixture (Tables 4.1-4.2 and the macro section).
+class MixtureParameters(ClayLaws):
+    """Material parameters of the mixture (Tables 4.1-4.2 and the macro section): the
+    clay's laws (:class:`shared.materials.ClayLaws`: the retention and permeability of
+    Table 4.2, ``materials.mixture_powder``; the swelling alpha, beta and s_0 of Table
+    4.1, ``materials.mixture_pellet``, per Pa) and the mixture's own.
 
     Attributes
     ----------
-    zeta0, lambda0, retention_a, retention_b, reference_porosity
-        Retention: zeta_0 [Pa], lambda_0 [1], a, b [1], phi_0 [1] (Table 4.2).
-    saturated_saturation, residual_saturation, kr_exponent
-        S_s, S_r, n of Eq. 4.17 [1].
-    k0, permeability_b
-        k_0 [m2] and b_k [1] of Eq. 4.19.
-    alpha, beta
-        Swelling alpha, beta [1/Pa] (Table 4.1, per Pa).
-    initial_suction
-        s_0 [Pa].
     poisson_ratio
         nu [1].
     friction
@@ -81,19 +86,6 @@ class MixtureParameters:
         Eq. 4.31: beta_v [Pa], alpha_v [m3/kg].
     """
 
-    zeta0: float
-    lambda0: float
-    retention_a: float
-    retention_b: float
-    reference_porosity: float
-    saturated_saturation: float
-    residual_saturation: float
-    kr_exponent: float
-    k0: float
-    permeability_b: float
-    alpha: float
-    beta: float
-    initial_suction: float
     poisson_ratio: float
     friction: float
     young_bounds: tuple[float, float]
@@ -130,20 +122,10 @@ def mixture_parameters(materials: Mapping[str, Any], powder: Mapping[str, Any]) 
     low, high = (float(v) for v in pellet["young_modulus_bounds_pa"])
     if not low <= high:
         raise ConfigError("materials.mixture_pellet.young_modulus_bounds_pa must be [min, max]")
+    # the laws' keys are those of materials.pellet: the retention's and permeability's in
+    # the powder's section, the swelling's and s_0 in the pellets' (no key in both)
     return MixtureParameters(
-        zeta0=float(mix["retention_pressure_reference_pa"]),
-        lambda0=float(mix["retention_exponent_reference"]),
-        retention_a=float(mix["retention_pressure_porosity_factor"]),
-        retention_b=float(mix["retention_exponent_porosity_factor"]),
-        reference_porosity=float(mix["reference_porosity"]),
-        saturated_saturation=float(mix["saturated_saturation"]),
-        residual_saturation=float(mix["residual_saturation"]),
-        kr_exponent=float(mix["relative_permeability_exponent"]),
-        k0=float(mix["intrinsic_permeability_reference_m2"]),
-        permeability_b=float(mix["permeability_porosity_factor"]),
-        alpha=float(pellet["swelling_alpha_per_pa"]),
-        beta=float(pellet["swelling_beta_per_pa"]),
-        initial_suction=float(pellet["initial_suction_pa"]),
+        **law_parameters({**pellet, **mix}),
         poisson_ratio=float(pellet["poisson_ratio"]),
         friction=float(np.tan(np.radians(pellet["friction_angle_deg"]))),
         young_bounds=(low, high),
@@ -154,52 +136,39 @@ def mixture_parameters(materials: Mapping[str, Any], powder: Mapping[str, Any]) 
     )
 
 
-def retention_parameters(porosity: npt.ArrayLike, m: MixtureParameters) -> tuple[FloatArray, FloatArray]:
-    """zeta(phi) [Pa] and lambda(phi) [1] (Eqs. 4.25-4.26); no range check (Newton probes)."""
-    shift = m.reference_porosity - np.asarray(porosity, dtype=np.float64)
-    return m.zeta0 * np.exp(m.retention_a * shift), m.lambda0 * np.exp(m.retention_b * shift)
-
-
 def saturation(suction: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
     """Water saturation S(s, phi) [1] (Eq. 4.24 inverted, docs/design.md §3); 1 for s <= 0."""
-    return van_genuchten_saturation(suction, *retention_parameters(porosity, m))
+    return van_genuchten_saturation(suction, *van_genuchten_parameters(porosity, m))
 
 
 def suction(sat: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
     """Suction s(S, phi) [Pa] (Eq. 4.24): zeta (S^(-1/lambda) - 1)^(1 - lambda); NaN outside (0, 1]."""
     sat = np.asarray(sat, dtype=np.float64)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        value = van_genuchten_suction(sat, *retention_parameters(porosity, m))
+        value = van_genuchten_suction(sat, *van_genuchten_parameters(porosity, m))
     return np.where((sat > 0.0) & (sat <= 1.0), value, np.nan)
 
 
 def suction_derivative(sat: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
     """|ds/dS| = |dp/dS| [Pa] at fixed porosity (closed form), for the stable step Eq. 4.58."""
-    sat = np.asarray(sat, dtype=np.float64)
-    zeta, lam = retention_parameters(porosity, m)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        base = np.maximum(sat ** (-1.0 / lam) - 1.0, 1e-300)
-        return zeta * (1.0 - lam) / lam * base ** (-lam) * sat ** (-1.0 / lam - 1.0)
+    return van_genuchten_suction_slope(sat, *van_genuchten_parameters(porosity, m))
 
 
 def powder_permeability(sat: npt.ArrayLike, porosity: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
     """Powder water permeability k = k_M k_rM [m2] (Eqs. 4.16-4.19)."""
-    sat = np.asarray(sat, dtype=np.float64)
-    effective = (sat - m.residual_saturation) / (m.saturated_saturation - m.residual_saturation)
-    kr = np.clip(effective, 0.0, 1.0) ** m.kr_exponent
-    return porosity_permeability(porosity, m.k0, m.permeability_b, m.reference_porosity) * kr
+    return intrinsic_permeability(porosity, m) * relative_permeability(sat, "water", m)
 
 
 def swelling_strain(suction: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
     """Volumetric swelling strain eps(s) [1] (Eq. 4.28, sign of docs/design.md §3)."""
-    return shared_swelling_strain(suction, m.alpha, m.beta, m.initial_suction)
+    return volumetric_strain(suction, m)
 
 
 def young_modulus(suction: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
     """Pellet Young's modulus E(s) = 3 (1 - 2 nu) exp(alpha s) / beta [Pa] (Eq. 4.3), capped."""
     s = np.asarray(suction, dtype=np.float64)
     with np.errstate(over="ignore"):
-        e = 3.0 * (1.0 - 2.0 * m.poisson_ratio) * np.exp(m.alpha * s) / m.beta
+        e = 3.0 * (1.0 - 2.0 * m.poisson_ratio) * np.exp(m.swelling_alpha * s) / m.swelling_beta
     return np.clip(e, *m.young_bounds)
 
 
@@ -219,7 +188,7 @@ def yield_force(suction: npt.ArrayLike, m: MixtureParameters) -> FloatArray:
     if not np.isfinite(m.yield_area):
         return np.full(s.shape, np.inf)
     with np.errstate(over="ignore"):
-        return 3.0 * (1.0 - 2.0 * m.poisson_ratio) * m.yield_area * np.exp(m.alpha * s) / m.beta
+        return 3.0 * (1.0 - 2.0 * m.poisson_ratio) * m.yield_area * np.exp(m.swelling_alpha * s) / m.swelling_beta
 
 
 def yield_pressure(suction: npt.ArrayLike, radius: npt.ArrayLike, m: MixtureParameters) -> FloatArray:

@@ -27,6 +27,7 @@ from macro.laws import (
 )
 from macro.mixture import facet_angles, matching_keys
 from macro.readings import Readings
+from macro.state import ModelState
 from shared.dem import FireParameters, FireState, cylinder_contacts, detect_contacts, fire_step, yielding_hertz_mindlin
 
 FloatArray = npt.NDArray[np.float64]
@@ -45,10 +46,10 @@ MAX_OVERLAP_LOSS = 0.3
 """Largest fraction of a pellet's sphere that its overlaps may cut off."""
 
 
-class Mechanics:
+class Mechanics(ModelState):
     """Mechanics part of :class:`macro.model.MacroModel`."""
 
-    READS = ("cells", "clay_radii", "contacts", "container", "counters", "densest_volume", "inert",
+    READS: tuple[str, ...] = ("cells", "clay_radii", "contacts", "container", "counters", "densest_volume", "inert",
              "material", "mesh", "move_geometry", "n_cells", "n_pellets", "n_vertices",
              "occupied_loss", "overflow", "positions", "powder_wall_loads", "pressure", "radii",
              "reference_volume", "remesh", "retention_porosity", "settings", "solid_mass", "spins",
@@ -173,7 +174,8 @@ class Mechanics:
         fire = FireState(FIRE)
         rates = np.zeros((2 * n_p, 3))
         # displacement and rotation of the last step (none before the first)
-        moved, turned = np.zeros((n_p, 3)), np.zeros((n_p, 3))
+        moved: FloatArray = np.zeros((n_p, 3))
+        turned: FloatArray = np.zeros((n_p, 3))
         anchor = self.positions.copy()
         k = remeshes = 0
         while True:

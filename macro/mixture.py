@@ -108,8 +108,8 @@ def exchanges(mesh: Mesh, radii: FloatArray, n_pellets: int, omega: FloatArray, 
     pp_area = np.pi * a2[touching]
     pp_length = d[touching]
     # pellet-cell
-    cells = np.repeat(np.arange(mesh.n_cells), 4)
-    verts = tet.ravel()
+    cells: IntArray = np.repeat(np.arange(mesh.n_cells), 4)
+    verts: IntArray = tet.ravel()
     pellet = verts < n_p
     cells, verts = cells[pellet], verts[pellet]
     pc_area = (omega * radii[tet] ** 2).ravel()[pellet]
@@ -183,7 +183,7 @@ def container_points(height: float, radius: float, spacing: float,
 def end_cells(mesh: Mesh, on_plate: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
     """(n_c,) cells with a vertex on a plate: the hydrated ends of Appendix .1
     (cellBndCondIsDirichlet on z- and z+)."""
-    return on_plate[mesh.tetrahedra].any(axis=1)
+    return np.any(on_plate[mesh.tetrahedra], axis=1)
 
 
 def moved_mesh(mesh: Mesh, points: FloatArray) -> tuple[Mesh, npt.NDArray[np.bool_]]:

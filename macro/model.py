@@ -66,12 +66,14 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
     initial_void: FloatArray
     container: FloatArray
     on_plate: npt.NDArray[np.bool_]
+    cells: CellGeometry
+    contacts: Contacts
+    packing: Packing
+    """The packing the model was built on."""
     time: float = 0.0
     steps: int = 0
     boundary_inflow: float = 0.0
     counters: Counters = field(default_factory=Counters)
-    cells: CellGeometry | None = None
-    contacts: Contacts | None = None
     latest_readings: Readings | None = None
     trial_time_step: float = 0.0
     spins: FloatArray | None = None
@@ -81,8 +83,6 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
     initial_interior_water: float = 0.0
     occupied_loss: FloatArray | None = None
     pellet_initial_solid: FloatArray | None = None
-    packing: Packing | None = None
-    """The packing the model was built on (:func:`macro.run.build_model`)."""
 
 
     @classmethod
@@ -123,10 +123,9 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
             radii=packing.radii.copy(), water_mass=water, volume=v0.copy(),
             pressure=np.full(n_p + n_c, -s0), solid_volume=solid, reference_volume=v0,
             max_volume=v_max, held=held, inert=inert, initial_void=voids,
-            container=container, on_plate=on_plate,
+            container=container, on_plate=on_plate, cells=CellGeometry(omega, voids),
+            contacts=Contacts(np.zeros((n_p, 3)), np.zeros((n_p, 3, 3))), packing=packing,
         )
-        model.cells = CellGeometry(omega, voids)
-        model.contacts = Contacts(np.zeros((n_p, 3)), np.zeros((n_p, 3, 3)))
         model.pellet_initial_solid = solid[:n_p].copy()
         model.powder_porosity = phi_powder
         model.stress = np.zeros(n_p + n_c)

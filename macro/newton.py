@@ -140,8 +140,10 @@ def solve_pressure_volume(
         previous_suction = np.clip(np.nan_to_num(estimate, nan=0.5 * pb.max_suction),
                                    1e-6 * pb.max_suction, pb.max_suction)
     m = material
-    law = np.array([m.zeta0, m.lambda0, m.retention_a, m.retention_b, m.reference_porosity,
-                    m.alpha, m.beta, m.initial_suction, m.beta_v, m.alpha_v])
+    law = np.array([m.retention_pressure_reference, m.retention_exponent_reference,
+                    m.retention_pressure_porosity_factor, m.retention_exponent_porosity_factor,
+                    m.reference_porosity, m.swelling_alpha, m.swelling_beta, m.initial_suction,
+                    m.beta_v, m.alpha_v])
     n = previous_volume.size
     stress = np.zeros(n) if pb.stress is None else pb.stress
     solid_mass = np.zeros(n) if pb.solid_mass is None else pb.solid_mass

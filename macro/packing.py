@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import minimize
+from scipy.optimize import OptimizeResult, minimize
 from threadpoolctl import threadpool_limits
 
 from macro import _kernels
@@ -177,9 +177,9 @@ def _descend(positions: FloatArray, radii: FloatArray, container: _Container,
         energy, _, gradient = container.energy(flat.reshape(-1, 3), radii, pairs)
         return energy, gradient.ravel()
 
-    def stop_when_stale(intermediate_result: object) -> None:
+    def stop_when_stale(intermediate_result: OptimizeResult) -> None:
         nonlocal stale
-        moved = intermediate_result.x.reshape(-1, 3) - start  # type: ignore[attr-defined]
+        moved = intermediate_result.x.reshape(-1, 3) - start
         if float(np.einsum("ij,ij->i", moved, moved).max()) > (0.5 * SKIN) ** 2:
             stale = True
             raise StopIteration

@@ -3,19 +3,22 @@ suction and volume that hold a system's water under its confining stress."""
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 import numpy.typing as npt
 
 from macro.laws import confined_volume
 from macro.newton import PVProblem, solve_pressure_volume
+from macro.state import ModelState
 
 FloatArray = npt.NDArray[np.float64]
 
 
-class PressureVolume:
+class PressureVolume(ModelState):
     """Pressure-volume part of :class:`macro.model.MacroModel`."""
 
-    READS = ("cells", "counters", "held", "inert", "material", "max_volume", "mesh", "n_pellets",
+    READS: tuple[str, ...] = ("cells", "counters", "held", "inert", "material", "max_volume", "mesh", "n_pellets",
              "pressure", "reference_volume", "retention_porosity", "settings", "solid_volume",
              "stress", "volume", "water_mass")
     """What this part reads of the model's state and of its other parts."""
@@ -60,7 +63,8 @@ class PressureVolume:
         total = share.sum(axis=1)
         parts = room[:, None] * share / np.where(total > 0.0, total, 1.0)[:, None]
         pellet = tet < n_p
-        return np.bincount(tet[pellet], parts[pellet], minlength=n_p)
+        # weighted: floats (numpy's stub types every bincount as integers)
+        return cast(FloatArray, np.bincount(tet[pellet], parts[pellet], minlength=n_p))
 
     def solve_local(self) -> None:
         """Pressure-volume problem of every system not held (Sec. 4.3).

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from macro.state import ModelState
+
 FloatArray = npt.NDArray[np.float64]
 
 
@@ -25,10 +27,10 @@ class Readings:
 
 
 
-class WallReadings:
+class WallReadings(ModelState):
     """Readings part of :class:`macro.model.MacroModel`."""
 
-    READS = ("boundary_inflow", "cells", "held", "inert", "initial_interior_water", "initial_void",
+    READS: tuple[str, ...] = ("boundary_inflow", "cells", "held", "inert", "initial_interior_water", "initial_void",
              "latest_readings", "material", "mesh", "n_pellets", "n_vertices", "positions",
              "pressure", "reference_volume", "saturations", "settings", "solid_mass",
              "solid_volume", "volume", "water_mass")

@@ -63,9 +63,8 @@ class Records:
 
     def __init__(self, model: MacroModel, rows: dict[str, list[Any]] | None = None) -> None:
         s = model.settings
-        assert model.packing is not None
         bins = max(2, int(round(s.height / (2.0 * float(model.packing.radii.mean())))))
-        self.edges: FloatArray = np.linspace(-0.5 * s.height, 0.5 * s.height, bins + 1)
+        self.edges: FloatArray = np.linspace(-0.5 * s.height, 0.5 * s.height, bins + 1, dtype=np.float64)
         self.new = rows is None
         self.rows: dict[str, list[Any]] = {key: [] for key in ("permeability_time", "column_permeability")} \
             if rows is None else rows

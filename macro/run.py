@@ -124,7 +124,7 @@ def _resumed_or_new(checkpointer: Checkpointer, case: str, settings: MacroSettin
         return model, rows
     model = new_model(settings, material, table)
     LOG.info("case %s: %d pellets (packing fraction %.3f), %d cells (%d held, %.2g %% void inert)",
-             case, model.n_pellets, model.packing.packing_fraction,  # type: ignore[union-attr]
+             case, model.n_pellets, model.packing.packing_fraction,
              model.n_cells, int(model.held.sum()), 100 * model.neglected_void_fraction())
     return model, None
 

@@ -11,27 +11,34 @@ cell-cell exchanges the powder law at the two cells' mean state. Held systems
 Stable explicit step (Eq. 4.58, dp/dS in the denominator: our reading):
 dt = chi min_i 2 / (alpha_i |dp/dS|_i), alpha_i = sum_j G_ij / (rho n_i V_i). The
 implicit step (our addition) takes the fluxes at the end-of-step pressures,
-linearised through each system's capacity dm/dp. In full: docs/macro.md, "macro.transport".
+linearised through each system's capacity dm/dp; its linear system, and the steady one
+of :mod:`macro.column_permeability`, are solved by :class:`shared.solver.SPDSolver`
+(:func:`network_pressures`). In full: docs/macro.md, "macro.transport".
 """
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
-from sksparse.cholmod import cholesky
+
+from shared.solver import SPDSolver
 
 __all__ = ["conductances", "edge_rates", "harmonic_mean", "implicit_pressures", "limited_fluxes", "limited_rates",
-           "mass_rates", "stable_time_step"]
+           "mass_rates", "network_matrix", "network_pressures", "stable_time_step"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 CG_TOLERANCE = 1e-10
-"""Relative residual of the implicit step's CG solve."""
+"""Row-wise backward error of the implicit step's solve (:class:`shared.solver.SPDSolver`'s
+``residual_tolerance``): each system's mass imbalance within this fraction of its
+diagonal times the largest pressure."""
 CG_ITERATIONS = 500
-"""CG iterations before the implicit step falls back to a CHOLMOD factorisation."""
+"""Jacobi-preconditioned CG iterations before the implicit step falls back to a CHOLMOD
+factorisation."""
 
 
 def harmonic_mean(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -86,6 +93,69 @@ def stable_time_step(
     return float(chi * 2.0 / largest)
 
 
+def network_matrix(pairs: IntArray, conductance: FloatArray, storage: FloatArray,
+                   free: npt.NDArray[np.bool_]) -> tuple[sp.csc_matrix, IntArray]:
+    """The system of the ``free`` systems, diag(S) + L_ff, L the network's Laplacian.
+
+    Parameters
+    ----------
+    pairs, conductance
+        (m, 2) exchanges and their conductances G [kg/(Pa s)].
+    storage
+        (n,) storage coefficient S of each system [kg/(Pa s)] (0 for a steady problem).
+    free
+        (n,) systems whose pressure is unknown.
+
+    Returns
+    -------
+    lower : scipy.sparse.csc_matrix
+        Lower triangle of the matrix (diagonal first in each column, rows sorted), what
+        :meth:`shared.solver.SPDSolver.solve` takes.
+    unknown : ndarray of int64
+        The system of each unknown.
+    """
+    unknown = np.flatnonzero(free)
+    m = unknown.size
+    index = np.full(free.size, -1, dtype=np.int64)
+    index[unknown] = np.arange(m)
+    a, b = index[pairs[:, 0]], index[pairs[:, 1]]
+    diagonal = (storage[unknown] + np.bincount(a[a >= 0], conductance[a >= 0], minlength=m)
+                + np.bincount(b[b >= 0], conductance[b >= 0], minlength=m))
+    both = (a >= 0) & (b >= 0)
+    rows = np.concatenate([np.arange(m), np.maximum(a[both], b[both])])
+    columns = np.concatenate([np.arange(m), np.minimum(a[both], b[both])])
+    lower = sp.csc_matrix((np.concatenate([diagonal, -conductance[both]]), (rows, columns)), shape=(m, m))
+    lower.sort_indices()
+    return lower, unknown
+
+
+def network_pressures(pairs: IntArray, conductance: FloatArray, storage: FloatArray, start: FloatArray,
+                      free: npt.NDArray[np.bool_], solver: SPDSolver, whole: bool) -> FloatArray:
+    """Pressures p = start + d [Pa], the ``free`` systems' d solving
+    (diag(S) + L_ff) d = sum_j G_ij (start_j - start_i), the others keeping ``start``:
+    S (p - start) = sum_j G_ij (p_j - p_i) on the free systems.
+
+    Parameters
+    ----------
+    pairs, conductance, storage, free
+        As for :func:`network_matrix`.
+    start
+        (n,) pressures the increment d starts from [Pa]; the held values on the systems
+        that are not free.
+    solver
+        Solves the system.
+    whole
+        The solver's tolerance applies to the system of the whole pressure p (a time
+        step, whose increment is small next to p); otherwise to d's own (a steady
+        solve, whose fluxes are differences of d).
+    """
+    lower, unknown = network_matrix(pairs, conductance, storage, free)
+    rhs = mass_rates(pairs, conductance, start, start.size)[unknown]
+    out = start.copy()
+    out[unknown] += solver.solve(lower, rhs, offset=start[unknown] if whole else None)
+    return out
+
+
 def implicit_pressures(
     pairs: IntArray, conductance: FloatArray, pressure: FloatArray, capacity: FloatArray,
     dt: float, free: npt.NDArray[np.bool_],
@@ -94,9 +164,13 @@ def implicit_pressures(
 
     C_i (p_i' - p_i) / dt = sum_j G_ij (p_j' - p_i') over the ``free`` systems, the
     others keeping their pressure (held: Dirichlet): the SPD system
-    (C/dt + L) p' = C/dt p + G_boundary p_boundary, solved by Jacobi-preconditioned CG
-    (scipy) to a relative residual of ``CG_TOLERANCE``, by CHOLMOD where CG does not
-    converge.
+    (C/dt + L) p' = C/dt p + G_boundary p_boundary, solved for p' - p
+    (:func:`network_pressures`) by CG preconditioned by its diagonal to a row-wise
+    backward error of ``CG_TOLERANCE``, by a CHOLMOD factor where CG does not converge
+    within ``CG_ITERATIONS`` (:class:`shared.solver.SPDSolver`, ``method="jacobi"``):
+    the storage term C/dt weighs on the diagonal, so CG converges in tens of
+    iterations where a factorisation of ten thousand systems costs 10-20 times more.
+    Nothing is kept from one solve to the next: the answer is a function of the system.
 
     Parameters
     ----------
@@ -111,34 +185,8 @@ def implicit_pressures(
     free
         (n,) systems whose pressure is unknown.
     """
-    n = pressure.size
-    index = np.full(n, -1, dtype=np.int64)
-    unknown = np.flatnonzero(free)
-    index[unknown] = np.arange(unknown.size)
-    a, b = index[pairs[:, 0]], index[pairs[:, 1]]
-    diagonal = capacity[unknown] / dt
-    rhs = diagonal * pressure[unknown]
-    np.add.at(diagonal, a[a >= 0], conductance[a >= 0])
-    np.add.at(diagonal, b[b >= 0], conductance[b >= 0])
-    # exchanges with a fixed system move its pressure to the right-hand side
-    np.add.at(rhs, a[(a >= 0) & (b < 0)], (conductance * pressure[pairs[:, 1]])[(a >= 0) & (b < 0)])
-    np.add.at(rhs, b[(b >= 0) & (a < 0)], (conductance * pressure[pairs[:, 0]])[(b >= 0) & (a < 0)])
-    both = (a >= 0) & (b >= 0)
-    m = unknown.size
-    rows = np.concatenate([np.arange(m), a[both], b[both]])
-    cols = np.concatenate([np.arange(m), b[both], a[both]])
-    values = np.concatenate([diagonal, -conductance[both], -conductance[both]])
-    matrix = sp.csr_matrix((values, (rows, cols)), shape=(m, m))
-    out = pressure.copy()
-    # Jacobi-preconditioned CG from the current pressures: the storage term C/dt weighs
-    # on the diagonal, so it converges in tens of iterations where a factorisation of a
-    # few thousand cells costs 30x more; CHOLMOD when it does not
-    solution, info = spla.cg(matrix, rhs, x0=pressure[unknown], rtol=CG_TOLERANCE, maxiter=CG_ITERATIONS,
-                             M=sp.diags(1.0 / matrix.diagonal()))
-    if info != 0:
-        solution = cholesky(matrix.tocsc(), mode="simplicial")(rhs)
-    out[unknown] = solution
-    return out
+    solver = SPDSolver(residual_tolerance=CG_TOLERANCE, method="jacobi", jacobi_max_iterations=CG_ITERATIONS)
+    return network_pressures(pairs, conductance, capacity / dt, pressure, free, solver, whole=True)
 
 
 def limited_fluxes(pairs: IntArray, conductance: FloatArray, pressure: FloatArray, amount: FloatArray,
@@ -162,7 +210,7 @@ def limited_fluxes(pairs: IntArray, conductance: FloatArray, pressure: FloatArra
 
 def edge_rates(pairs: IntArray, flux: FloatArray, n_systems: int) -> FloatArray:
     """(n,) net inflow of every system from the fluxes into ``pairs[:, 0]``."""
-    return np.bincount(pairs[:, 0], flux, minlength=n_systems) - np.bincount(pairs[:, 1], flux, minlength=n_systems)
+    return cast(FloatArray, np.bincount(pairs[:, 0], flux, n_systems) - np.bincount(pairs[:, 1], flux, n_systems))
 
 
 def limited_rates(pairs: IntArray, conductance: FloatArray, pressure: FloatArray, water: FloatArray,

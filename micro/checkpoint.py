@@ -94,7 +94,7 @@ def load_checkpoint(
     needed = ([f"dem_{k}" for k in _DEM_ARRAYS] + [f"contacts_{k}" for k in _CONTACT_ARRAYS]
               + [f"pattern_{k}" for k in _PATTERN_ARRAYS] + [f"mesh_{f.name}" for f in fields(Mesh)])
 
-    def restore(meta: dict[str, Any], data: dict[str, np.ndarray]) -> tuple[
+    def restore(meta: dict[str, Any], data: dict[str, Any]) -> tuple[
             PelletState, FlowSystem, list[dict[str, Any]], float, BalanceProgress | None]:
         missing = sorted(set(needed) - set(data))
         if missing or "solver" not in meta:

@@ -163,9 +163,10 @@ def scale_realizations(config: Mapping[str, Any]) -> list[Realization]:
         points = max(scale["min_points"], int(round(count * fraction)))
         for index, pick in enumerate(picks):
             shift = lattice[np.array(np.unravel_index(pick, (per_axis,) * 3))]
+            x, y, z = centre + shift
             realizations.append(Realization(
                 name=f"f{label}_r{index:02d}", domain_fraction=fraction, edge_length=sub_edge,
-                n_points=points, offset=tuple(float(v) for v in centre + shift),
+                n_points=points, offset=(float(x), float(y), float(z)),
             ))
     return realizations
 

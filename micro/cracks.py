@@ -15,6 +15,7 @@ reverse with the water viscosity. Readings and details: docs/micro.md, "micro.cr
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import numpy.typing as npt
@@ -239,7 +240,7 @@ def crack_network(
     suctions = np.bincount(crack, weights=facet_suction, minlength=n_cracks) / np.maximum(
         patches_per_crack, 1
     )
-    areas = np.bincount(crack, weights=patch_areas, minlength=n_cracks)
+    areas = cast(FloatArray, np.bincount(crack, weights=patch_areas, minlength=n_cracks))  # weighted: floats
     entry = material.surface_tension / w
     return CrackNetwork(
         bonds=index,

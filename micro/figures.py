@@ -11,7 +11,7 @@ import numpy as np
 import xarray as xr
 from matplotlib.axes import Axes
 from matplotlib.cm import ScalarMappable
-from matplotlib.colors import Normalize
+from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.ticker import MaxNLocator
 
 from shared.figures import new_figure, outside_legend, save_figure
@@ -22,7 +22,7 @@ _AXIS_STYLE = {"x": "-", "y": "--", "z": ":"}
 _PHASE_COLOUR = {"water": "tab:blue", "gas": "tab:red"}
 
 
-def _permeability_panel(ax, ds: xr.Dataset, abscissa: str, label: str = "") -> None:  # type: ignore[no-untyped-def]
+def _permeability_panel(ax: Axes, ds: xr.Dataset, abscissa: str, label: str = "") -> None:
     x = ds[abscissa].values
     for phase in ("water", "gas"):
         for axis in ("x", "y", "z"):
@@ -92,7 +92,9 @@ def comparison_figure(cases: Mapping[str, xr.Dataset], path: str | Path) -> Path
     fig, axes = new_figure(1, 2, width=5.0)
     fig.suptitle(f"micro cases {', '.join(cases)}", fontsize="medium")
     # tab20 keeps up to twenty cases (default + convergence + scale presets) apart
-    colours = plt.get_cmap("tab10" if len(cases) <= 10 else "tab20").colors
+    palette = plt.get_cmap("tab10" if len(cases) <= 10 else "tab20")
+    assert isinstance(palette, ListedColormap)  # a qualitative map: a list of colours
+    colours = np.asarray(palette.colors)
     for ax, phase in zip(axes[0], ("water", "gas"), strict=False):
         for index, (name, ds) in enumerate(cases.items()):
             k = ds["permeability"].sel(phase=phase).mean("axis").values
@@ -127,7 +129,7 @@ def convergence_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 4) -> P
     levels = np.unique(np.linspace(0, ds.sizes["suction"] - 1, n_levels).round().astype(int))
     colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.9, levels.size))
     k = ds["permeability"].where(ds["permeability"] > 0)
-    geomean = np.exp(np.log(k).mean("axis"))
+    geomean = np.exp(xr.ufuncs.log(k).mean("axis"))
     change = ds["permeability_relative_change"].max("axis")
     top = (("saturation [-]", ds["saturation"], ds["saturation_relative_change"], False),
            ("volumetric strain eps_v [-]", ds["eps_v"], ds["eps_v_relative_change"], False),
@@ -179,7 +181,8 @@ def scale_figure(ds: xr.Dataset, path: str | Path, n_levels: int = 5) -> Path:
     path
         Target PNG.
     """
-    panels = (("permeability_geomean", {"phase": "water"}, "water permeability [m2]", True),
+    panels: tuple[tuple[str, dict[str, str], str, bool], ...] = (
+              ("permeability_geomean", {"phase": "water"}, "water permeability [m2]", True),
               ("permeability_geomean", {"phase": "gas"}, "gas permeability [m2]", True),
               ("crack_volume_fraction", {}, "crack volume fraction [-]", False),
               ("eps_v", {}, "volumetric strain [-]", False),

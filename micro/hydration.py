@@ -18,6 +18,7 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -56,6 +57,7 @@ from shared.mesh import (
     mesh_from_tetrahedra,
     update_mesh,
 )
+from shared.permeability import Phase
 from shared.progress import ConvergenceProgress, PhaseClock
 from shared.retention import saturation as retention_saturation
 from shared.solver import AMG_UNKNOWNS, SolverError, SPDSolver
@@ -274,7 +276,7 @@ def relax(
     cap = loaded_time_step(dem, np.maximum(np.abs(external_forces), np.abs(start)), parameters)
     time_step = min(stable_time_step(dem, parameters, walls), cap)
     unbalanced = float("inf")
-    attached = np.ones(dem.n_points, dtype=bool)
+    attached: npt.NDArray[np.bool_] = np.ones(dem.n_points, dtype=bool)
     body = attached
     progress = ConvergenceProgress(settings.unbalanced_force_tolerance,
                                    "relaxation: unbalanced force ratio", log)
@@ -416,14 +418,14 @@ class FlowSystem:
         """
         if dirichlet is None:
             dirichlet = boundary_cell_mask(mesh, WALLS)
-        choice = {} if settings is None else {"method": settings.solver,
+        choice: dict[str, Any] = {} if settings is None else {"method": settings.solver,
                                               "amg_unknowns": settings.amg_unknowns}
         solver = SPDSolver(amg_strength=FLOW_AMG_STRENGTH, **choice)
         return cls(dirichlet, solver_pattern(mesh, dirichlet, solver), solver)
 
 
 def conductances(
-    state: PelletState, phase: str, material: ClayParameters, cracks: bool
+    state: PelletState, phase: Phase, material: ClayParameters, cracks: bool
 ) -> FloatArray:
     """Facet conductances of a phase, with the crack model's changes when enabled."""
     base = facet_conductance(state.mesh, state.saturation, state.porosity, phase, material)
@@ -626,6 +628,7 @@ def advance_to_balance(
     for _ in range(settings.final_relaxations if hydraulic else 0):
         if unbalanced < settings.unbalanced_force_tolerance:
             break
+        assert state.hydraulic_forces is not None  # the flow steps computed them
         with clock.phase("relaxation"):
             taken, unbalanced = relax(state.dem, state.walls, state.hydraulic_forces,
                                       settings, parameters)

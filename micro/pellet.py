@@ -6,6 +6,7 @@ import copy
 from concurrent.futures import Executor, Future
 from dataclasses import dataclass
 from functools import partial
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -23,6 +24,7 @@ from micro.hydration import (
     update_cracks,
 )
 from micro.permeability import FrozenState, checkpoint_permeabilities
+from micro.permeability.steady import PHASES
 from shared.dem.parameters import DEMParameters
 from shared.dem.points import cube_points
 from shared.dem.state import new_state
@@ -69,7 +71,7 @@ class SpecimenSpec:
 
     edge_length: float = 7e-3
     n_points: int = 1500
-    layout: str = "grid"
+    layout: Literal["grid", "random"] = "grid"
     jitter: float = 0.1
     confinement: float = 0.0
     rotations: bool = False
@@ -137,7 +139,7 @@ def centred_grid(
     for axis_index, axis in enumerate(porosity.dims):
         coordinate = porosity[axis].values
         counts = finite.sum(axis=tuple(i for i in range(3) if i != axis_index))
-        centre = float((coordinate * counts).sum() / counts.sum()) + offset["xyz".index(axis)]
+        centre = float((coordinate * counts).sum() / counts.sum()) + offset["xyz".index(str(axis))]
         shifted[axis] = coordinate - (centre - 0.5 * edge_length)
     moved = porosity.assign_coords(shifted)
     crop = {}
@@ -317,7 +319,7 @@ class CheckpointMeasurement:
         permeabilities = self.permeabilities
         return not isinstance(permeabilities, Future) or permeabilities.done()
 
-    def result(self) -> dict[str, object]:
+    def result(self) -> dict[str, Any]:
         """The whole record (waits for the worker)."""
         done = self.permeabilities
         axes, tensor = done.result() if isinstance(done, Future) else done
@@ -353,7 +355,7 @@ def measure_checkpoint(
         and the porosity histogram.
     """
     update_cracks(state, material)
-    phases = {phase: conductances(state, phase, material, cracks) for phase in ("water", "gas")}
+    phases = {phase: conductances(state, phase, material, cracks) for phase in PHASES}
     # the tensor's wall layers leave the crack mouths free (no boundary short circuit)
     mouths = np.zeros(state.mesh.n_cells, dtype=bool)
     if cracks and state.cracks is not None:
@@ -371,6 +373,7 @@ def measure_checkpoint(
             FrozenState(state.mesh, state.saturation, state.porosity, suction, material, phases),
             sealed=mouths, executor=executor)
     volumes = state.mesh.volumes
+    assert state.cracks is not None  # update_cracks built the network
     fabric = crack_fabric(state.cracks.normals, state.cracks.areas, state.cracks.apertures,
                           state.cracks.imbibed)
     histogram, _ = np.histogram(state.porosity, bins=POROSITY_BINS, weights=volumes)

@@ -90,7 +90,7 @@ def snapshot_mesh(state: PelletState, cracks: bool = True) -> meshio.Mesh:
     }
     cell_data["crack_aperture_m"] = [np.full(n_cells, np.nan)]
     cell_data["crack_imbibed"] = [np.full(n_cells, -1, dtype=np.int8)]
-    if n_lines:
+    if network is not None and n_lines:
         cells.append(("line", np.ascontiguousarray(network.pairs, dtype=np.int64)))
         for name in cell_fields:
             cell_data[name].append(np.full(n_lines, np.nan))

@@ -15,10 +15,12 @@ not import numba: the workflow's configuration helpers stay light.
 
 import os
 import sys
+from typing import Any
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 if not {"NUMBA_THREADING_LAYER", "NUMBA_THREADING_LAYER_PRIORITY"} & set(os.environ):
     os.environ["NUMBA_THREADING_LAYER_PRIORITY"] = "omp workqueue tbb"
     if "numba.core.config" in sys.modules:  # numba came first: set its loaded value too
-        sys.modules["numba.core.config"].THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
+        numba_config: Any = sys.modules["numba.core.config"]  # a module of untyped attributes
+        numba_config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]

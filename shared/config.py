@@ -10,13 +10,14 @@ schema's checks refuse NaN and infinities wherever a number is expected (JSON sc
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Mapping, MutableMapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, MutableMapping
 from pathlib import Path
 from typing import Any
 
 import jsonschema
 import yaml
 from jsonschema.exceptions import ValidationError
+from jsonschema.protocols import Validator
 
 from shared.errors import ConfigError
 from shared.runs import RESULTS, STAGE_FOLDERS, drop_removed_entries
@@ -44,20 +45,22 @@ DEFAULT_CONFIG_PATH = _ROOT / "config" / "config.yaml"
 Check = Callable[[Mapping[str, Any]], None]
 
 
-def _with_defaults(validator_class: type) -> type:
+def _with_defaults(validator_class: type[Validator]) -> type[Validator]:
     """Extend a validator so that it fills in the schema's defaults as it validates, and
     refuses NaN and infinities where the schema expects a number."""
     validate_properties = validator_class.VALIDATORS["properties"]
     validate_type = validator_class.VALIDATORS["type"]
 
-    def finite_type(validator, types, instance, schema):  # type: ignore[no-untyped-def]
+    def finite_type(validator: Validator, types: str | list[str], instance: object,
+                    schema: Mapping[str, Any]) -> Iterator[ValidationError]:
         numeric = {"number", "integer"} & set([types] if isinstance(types, str) else types)
         if numeric and isinstance(instance, float) and not math.isfinite(instance):
             yield ValidationError(f"{instance} is not a finite number (NaN and infinities are refused)")
             return
         yield from validate_type(validator, types, instance, schema)
 
-    def set_defaults(validator, properties, instance, schema):  # type: ignore[no-untyped-def]
+    def set_defaults(validator: Validator, properties: Mapping[str, Any], instance: object,
+                     schema: Mapping[str, Any]) -> Iterator[ValidationError]:
         if isinstance(instance, MutableMapping):
             for name, subschema in properties.items():
                 if "default" in subschema and name not in instance:
@@ -87,7 +90,9 @@ def load_schema(path: str | Path = SCHEMA_PATH) -> dict[str, Any]:
 def _key_path(error: jsonschema.ValidationError, prefix: str = "") -> str:
     path = ".".join([prefix] * bool(prefix) + [str(p) for p in error.absolute_path])
     if error.validator == "additionalProperties":
-        extra = sorted(set(error.instance) - set(error.schema.get("properties", {})))
+        instance, schema = error.instance, error.schema
+        assert isinstance(instance, Mapping) and isinstance(schema, Mapping)  # the keyword checks objects only
+        extra = sorted(set(instance) - set(schema.get("properties", {})))
         path = ".".join(filter(None, [path, extra[0] if extra else ""]))
         return f"unknown config key '{path}'"
     return f"config key '{path or '<root>'}'"
@@ -302,7 +307,7 @@ class _DuplicateKey(Exception):
     """A key given twice in one YAML mapping: the key and both lines."""
 
 
-class _UniqueKeyLoader(_LOADER):  # type: ignore[misc, valid-type]
+class _UniqueKeyLoader(_LOADER):  # type: ignore[misc, valid-type]  # libyaml's loader where built, else PyYAML's
     """The safe loader, refusing a key given twice in one mapping (PyYAML keeps the last)."""
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -10,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
+from matplotlib.axis import Axis  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.legend import Legend  # noqa: E402
 from matplotlib.ticker import (  # noqa: E402
@@ -24,8 +26,9 @@ from shared.io import atomic_write  # noqa: E402
 __all__ = ["new_figure", "save_figure", "log_ticks", "outside_legend", "plain_number"]
 
 
-def new_figure(n_rows: int, n_cols: int, width: float = 4.0, height: float = 3.4) -> tuple[Figure, object]:
-    """A figure with a grid of axes, each ``width`` x ``height`` inches."""
+def new_figure(n_rows: int, n_cols: int, width: float = 4.0, height: float = 3.4) -> tuple[Figure, np.ndarray]:
+    """A figure with a grid of axes, each ``width`` x ``height`` inches (an (n_rows,
+    n_cols) array of :class:`~matplotlib.axes.Axes`)."""
     return plt.subplots(
         n_rows, n_cols, figsize=(width * n_cols, height * n_rows), squeeze=False, layout="constrained"
     )
@@ -42,7 +45,7 @@ def plain_number(value: float) -> str:
     return f"{value:.2g}"
 
 
-def _log_axis(axis: object, low: float, high: float) -> None:
+def _log_axis(axis: Axis, low: float, high: float) -> None:
     """At least three labelled major ticks: at the decades when three are in view, else
     at 1, 2 and 5 (then 1, 2, 3 and 5) per decade when that gives three, else at every
     integer multiple (and
@@ -70,18 +73,18 @@ def _log_axis(axis: object, low: float, high: float) -> None:
         inside = candidates[(candidates >= below) & (candidates <= above[0])]
         top = above[0] if inside.size >= 3 else above[1]
         limits = (below, top)
-        if axis.axis_name == "x":  # type: ignore[attr-defined]
-            axis.axes.set_xlim(*(limits[::-1] if axis.axes.xaxis_inverted() else limits))  # type: ignore[attr-defined]
+        if axis is axis.axes.xaxis:
+            axis.axes.set_xlim(*(limits[::-1] if axis.axes.xaxis_inverted() else limits))
         else:
-            axis.axes.set_ylim(*(limits[::-1] if axis.axes.yaxis_inverted() else limits))  # type: ignore[attr-defined]
-    axis.set_major_locator(LogLocator(base=10.0, subs=subs, numticks=60))  # type: ignore[attr-defined]
-    if not isinstance(axis.get_major_formatter(), FuncFormatter):  # type: ignore[attr-defined]
+            axis.axes.set_ylim(*(limits[::-1] if axis.axes.yaxis_inverted() else limits))
+    axis.set_major_locator(LogLocator(base=10.0, subs=subs, numticks=60))
+    if not isinstance(axis.get_major_formatter(), FuncFormatter):
         if low >= 1e-3 and high < 1e6:
-            axis.set_major_formatter(FuncFormatter(lambda value, _: plain_number(value)))  # type: ignore[attr-defined]
+            axis.set_major_formatter(FuncFormatter(lambda value, _: plain_number(value)))
         else:
-            axis.set_major_formatter(LogFormatterSciNotation(  # type: ignore[attr-defined]
+            axis.set_major_formatter(LogFormatterSciNotation(
                 labelOnlyBase=False, minor_thresholds=(np.inf, np.inf)))  # every major tick labelled
-    axis.set_minor_formatter(NullFormatter())  # type: ignore[attr-defined]
+    axis.set_minor_formatter(NullFormatter())
 
 
 def log_ticks(fig: Figure) -> Figure:
@@ -106,7 +109,7 @@ def log_ticks(fig: Figure) -> Figure:
     return fig
 
 
-def outside_legend(ax: Axes, **kwargs: object) -> Legend:
+def outside_legend(ax: Axes, **kwargs: Any) -> Legend:
     """A legend to the right of ``ax``, outside the data (constrained layout makes room).
 
     Parameters
@@ -121,10 +124,10 @@ def outside_legend(ax: Axes, **kwargs: object) -> Legend:
     Legend
         The legend.
     """
-    options: dict[str, object] = {"loc": "upper left", "bbox_to_anchor": (1.02, 1.0),
+    options: dict[str, Any] = {"loc": "upper left", "bbox_to_anchor": (1.02, 1.0),
                                   "borderaxespad": 0.0, "fontsize": "x-small"}
     options.update(kwargs)
-    return ax.legend(**options)  # type: ignore[arg-type]
+    return ax.legend(**options)
 
 
 def save_figure(fig: Figure, path: str | Path, dpi: int = 110) -> Path:

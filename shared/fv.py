@@ -312,7 +312,7 @@ def facet_divergence(mesh: Mesh, conductance: FloatArray, pressure: FloatArray) 
     )
 
 
-def facet_flux(mesh: Mesh, conductance: FloatArray, pressure: FloatArray) -> FloatArray:
+def facet_flux(mesh: Mesh, conductance: FloatArray, pressure: npt.NDArray[np.floating]) -> npt.NDArray[np.floating]:
     """Flux from cell i to cell j of each facet, g_ij (p_i - p_j) [m3/s], shape (n_facets,)."""
     i, j = mesh.facet_cells[:, 0], mesh.facet_cells[:, 1]
     return conductance * (pressure[i] - pressure[j])
@@ -505,7 +505,7 @@ def water_volume(
     mesh: Mesh,
     porosity: FloatArray,
     saturation: FloatArray,
-    cells: npt.ArrayLike | None = None,
+    cells: npt.NDArray[np.integer] | npt.NDArray[np.bool_] | None = None,
 ) -> float:
     """Water volume sum n_i V_i S_i [m3] (times the water density gives the mass).
 

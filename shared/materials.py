@@ -4,22 +4,30 @@ The values live in the ``materials`` section of the configuration (schema defaul
 Table 3.1 of Caulk (2022) for the pellet clay); :func:`clay_parameters` turns that
 section into the one object the constitutive laws take. Field names spell out the
 thesis's symbols; the configuration keys carry the units.
+
+:class:`ClayLaws` holds what the laws of :mod:`shared.retention`, :mod:`shared.permeability`
+and :mod:`shared.swelling` read, and every stage's clay is one: the micro pellet's
+:class:`ClayParameters` adds the fluids and the cracks, the macro mixture's
+(:class:`macro.laws.MixtureParameters`) the pellets' contacts and the powder's
+consolidation line.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 from shared.errors import ConfigError
 
-__all__ = ["ClayParameters", "clay_parameters", "CLAY_CONFIG_KEYS"]
+__all__ = ["ClayLaws", "ClayParameters", "clay_parameters", "law_parameters", "CLAY_CONFIG_KEYS",
+           "CLAY_LAW_KEYS"]
 
 
 @dataclass(frozen=True)
-class ClayParameters:
-    """Constitutive parameters of the clay (retention, permeability, swelling).
+class ClayLaws:
+    """Parameters of the clay's constitutive laws: retention, intrinsic and relative
+    permeability, swelling.
 
     Attributes
     ----------
@@ -44,14 +52,6 @@ class ClayParameters:
         k_0, intrinsic permeability at the reference porosity [m2].
     permeability_porosity_factor
         b_k in k_M = k_0 exp(b_k (phi - phi_0)) [1].
-    water_viscosity
-        Dynamic viscosity of water [Pa s].
-    gas_viscosity
-        Dynamic viscosity of the gas phase [Pa s].
-    surface_tension
-        Gas-water surface tension gamma [N/m].
-    crack_roughness_factor
-        eta, fraction of a gas-filled crack's facet area still conducting water [1].
     swelling_beta
         beta of the swelling law eps_v = (beta/alpha)[exp(-alpha s) - exp(-alpha s0)]
         [1/Pa].
@@ -71,10 +71,6 @@ class ClayParameters:
     relative_permeability_exponent: float
     intrinsic_permeability_reference: float
     permeability_porosity_factor: float
-    water_viscosity: float
-    gas_viscosity: float
-    surface_tension: float
-    crack_roughness_factor: float
     swelling_beta: float
     swelling_alpha: float
     initial_suction: float
@@ -89,17 +85,40 @@ class ClayParameters:
             raise ConfigError("retention_exponent_reference (lambda_0) must lie in (0, 1)")
         if not 0.0 < self.reference_porosity < 1.0:
             raise ConfigError("reference_porosity (phi_0) must lie in (0, 1)")
-        positive = (
-            "retention_pressure_reference",
-            "intrinsic_permeability_reference",
-            "water_viscosity",
-            "gas_viscosity",
-            "surface_tension",
-            "swelling_alpha",
-        )
-        for name in positive:
+        self._check_positive("retention_pressure_reference", "intrinsic_permeability_reference",
+                             "swelling_alpha")
+
+    def _check_positive(self, *names: str) -> None:
+        for name in names:
             if not getattr(self, name) > 0.0:
                 raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
+
+
+@dataclass(frozen=True)
+class ClayParameters(ClayLaws):
+    """Constitutive parameters of the micro model's clay: the laws' (:class:`ClayLaws`),
+    the fluids' and the cracks'.
+
+    Attributes
+    ----------
+    water_viscosity
+        Dynamic viscosity of water [Pa s].
+    gas_viscosity
+        Dynamic viscosity of the gas phase [Pa s].
+    surface_tension
+        Gas-water surface tension gamma [N/m].
+    crack_roughness_factor
+        eta, fraction of a gas-filled crack's facet area still conducting water [1].
+    """
+
+    water_viscosity: float
+    gas_viscosity: float
+    surface_tension: float
+    crack_roughness_factor: float
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self._check_positive("water_viscosity", "gas_viscosity", "surface_tension")
 
 
 CLAY_CONFIG_KEYS: dict[str, str] = {
@@ -123,6 +142,11 @@ CLAY_CONFIG_KEYS: dict[str, str] = {
 }
 """Field of :class:`ClayParameters` -> key of the configuration's ``materials.pellet``."""
 
+CLAY_LAW_KEYS: dict[str, str] = {field.name: CLAY_CONFIG_KEYS[field.name] for field in fields(ClayLaws)}
+"""Field of :class:`ClayLaws` -> key of a configuration section (the same keys in
+``materials.pellet`` and in the mixture's ``materials.mixture_powder`` and
+``materials.mixture_pellet``)."""
+
 
 def clay_parameters(section: Mapping[str, Any]) -> ClayParameters:
     """The clay parameters of a validated ``materials.pellet`` configuration section.
@@ -136,3 +160,9 @@ def clay_parameters(section: Mapping[str, Any]) -> ClayParameters:
     return ClayParameters(
         **{field: float(section[key]) for field, key in CLAY_CONFIG_KEYS.items()}
     )
+
+
+def law_parameters(section: Mapping[str, Any]) -> dict[str, float]:
+    """The :class:`ClayLaws` fields of a validated configuration section that holds their
+    keys (:data:`CLAY_LAW_KEYS`), as floats, to build a stage's material with."""
+    return {field: float(section[key]) for field, key in CLAY_LAW_KEYS.items()}

@@ -317,9 +317,10 @@ def mesh_from_tetrahedra(
         tetrahedra[negative] = tetrahedra[negative][:, [0, 1, 3, 2]]
         neighbours[negative] = neighbours[negative][:, [0, 1, 3, 2]]
         signed = np.abs(signed)
+    facet_cells, facet_vertices, hull_cells, hull_vertices = _facet_topology(tetrahedra, neighbours)
     return _mesh_geometry(
         points, tetrahedra, neighbours, _checked_volumes(signed, degenerate_volume_ratio),
-        centroids, circumcentres, *_facet_topology(tetrahedra, neighbours),
+        centroids, circumcentres, facet_cells, facet_vertices, hull_cells, hull_vertices,
         min_dual_length_ratio,
     )
 

@@ -13,7 +13,7 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from shared.materials import ClayParameters
+from shared.materials import ClayLaws, ClayParameters
 
 __all__ = [
     "Phase",
@@ -29,7 +29,7 @@ Phase = Literal["water", "gas"]
 
 
 def effective_saturation(
-    saturation: npt.ArrayLike, material: ClayParameters
+    saturation: npt.ArrayLike, material: ClayLaws
 ) -> FloatArray:
     """Effective water saturation Se = (S - S_r)/(S_s - S_r), clamped to [0, 1].
 
@@ -53,7 +53,7 @@ def effective_saturation(
 def relative_permeability(
     saturation: npt.ArrayLike,
     phase: Phase,
-    material: ClayParameters,
+    material: ClayLaws,
 ) -> FloatArray:
     """Relative permeability k_r = Se^n (water) or (1 - Se)^n (gas), in [0, 1].
 
@@ -80,7 +80,7 @@ def relative_permeability(
 
 
 def intrinsic_permeability(
-    porosity: npt.ArrayLike, material: ClayParameters
+    porosity: npt.ArrayLike, material: ClayLaws
 ) -> FloatArray:
     """Intrinsic permeability k_M = k_0 exp(b_k (phi - phi_0)) (thesis Eq. 3.18).
 

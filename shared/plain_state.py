@@ -29,9 +29,9 @@ import copy
 import dataclasses
 import types
 import typing
-from collections.abc import Collection, Mapping
+from collections.abc import Callable, Collection, Mapping
 from functools import cache
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -41,14 +41,20 @@ __all__ = ["Decoder", "Encoder"]
 
 _PLAIN = (bool, int, float, str, type(None))
 
+T = TypeVar("T")
 
-@cache
-def _hints(cls: type) -> dict[str, Any]:
+
+def _type_hints(cls: type) -> dict[str, Any]:
     """The resolved type annotations of a class and its bases (empty if none resolve)."""
     try:
         return typing.get_type_hints(cls)
     except (NameError, TypeError):
         return {}
+
+
+# typed as a function of a class: to mypy, functools.cache takes Hashable arguments, and
+# a type[X] is not one
+_hints: Callable[[type], dict[str, Any]] = cache(_type_hints)
 
 
 def _declared_dataclass(hint: Any) -> type | None:
@@ -64,7 +70,7 @@ def _declared_dataclass(hint: Any) -> type | None:
 
 def _given_scalars(value: object) -> dict[str, Any]:
     """The plain scalar fields of a mutable dataclass (none of a frozen one)."""
-    if not dataclasses.is_dataclass(value) or type(value).__dataclass_params__.frozen:  # type: ignore[attr-defined]
+    if not dataclasses.is_dataclass(value) or type(value).__dataclass_params__.frozen:  # type: ignore[union-attr]  # typeshed's DataclassInstance lacks __dataclass_params__
         return {}
     return {f.name: getattr(value, f.name) for f in dataclasses.fields(value)
             if type(getattr(value, f.name)) in _PLAIN}
@@ -198,7 +204,7 @@ class Decoder:
             return self.build(cls, node["object"], where)
         raise SnapshotError(f"{where}: unexpected entry {str(node)[:60]!r}")
 
-    def build(self, cls: type, attributes: Mapping[str, Any], where: str) -> Any:
+    def build(self, cls: type[T], attributes: Mapping[str, Any], where: str) -> T:
         """An instance of ``cls`` (without calling its ``__init__``) with these attributes."""
         obj = cls.__new__(cls)
         hints = _hints(cls)

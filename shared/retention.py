@@ -10,7 +10,8 @@ saturated state. :func:`saturation` clamps to [S_r, S_s] (Yade's SrM/SsM); the
 derivative :func:`saturation_derivative` is that of the clamped curve (zero where the
 clamp is active), so that the explicit update S += dS/dp dp of the flow step and the
 storage term of the implicit system stay consistent. :func:`suction` inverts the
-unclamped curve.
+unclamped curve. The ``van_genuchten_*`` forms take zeta and lambda and check no range,
+for a solver that probes outside the physical one (the macro model's local problems).
 """
 
 from __future__ import annotations
@@ -18,11 +19,13 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from shared.materials import ClayParameters
+from shared.materials import ClayLaws
 
 __all__ = [
     "van_genuchten_saturation",
     "van_genuchten_suction",
+    "van_genuchten_suction_slope",
+    "van_genuchten_parameters",
     "retention_parameters",
     "saturation",
     "suction",
@@ -32,8 +35,31 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 
 
+def van_genuchten_parameters(
+    porosity: npt.ArrayLike, material: ClayLaws
+) -> tuple[FloatArray, FloatArray]:
+    """zeta(phi) [Pa] and lambda(phi) [1] (thesis Eqs. 3.26-3.27, 4.25-4.26), no range
+    check: :func:`retention_parameters` checked.
+
+    Parameters
+    ----------
+    porosity
+        Porosity phi [1], any shape.
+    material
+        Clay parameters (zeta_0 [Pa], lambda_0, a, b, phi_0).
+    """
+    shift = material.reference_porosity - np.asarray(porosity, dtype=np.float64)
+    zeta = material.retention_pressure_reference * np.exp(
+        material.retention_pressure_porosity_factor * shift
+    )
+    exponent = material.retention_exponent_reference * np.exp(
+        material.retention_exponent_porosity_factor * shift
+    )
+    return zeta, exponent
+
+
 def retention_parameters(
-    porosity: npt.ArrayLike, material: ClayParameters
+    porosity: npt.ArrayLike, material: ClayLaws
 ) -> tuple[FloatArray, FloatArray]:
     """Van Genuchten parameters zeta(phi) and lambda(phi) (thesis Eqs. 3.26-3.27).
 
@@ -59,20 +85,14 @@ def retention_parameters(
     porosity = np.asarray(porosity, dtype=np.float64)
     if not np.all((porosity > 0.0) & (porosity < 1.0)):
         raise ValueError("porosity must lie in (0, 1) (NaN not allowed)")
-    shift = material.reference_porosity - porosity
-    zeta = material.retention_pressure_reference * np.exp(
-        material.retention_pressure_porosity_factor * shift
-    )
-    exponent = material.retention_exponent_reference * np.exp(
-        material.retention_exponent_porosity_factor * shift
-    )
+    zeta, exponent = van_genuchten_parameters(porosity, material)
     if np.any(exponent >= 1.0):
         raise ValueError("lambda(porosity) reached 1: retention curve undefined")
     return zeta, exponent
 
 
 def van_genuchten_saturation(
-    suction: npt.ArrayLike, zeta: npt.ArrayLike, exponent: npt.ArrayLike
+    suction: npt.ArrayLike, zeta: float | FloatArray, exponent: float | FloatArray
 ) -> FloatArray:
     """S = [1 + (s / zeta)^(1 / (1 - lambda))]^(-lambda) (Eqs. 3.15, 4.24), unclamped, no
     range check (a solver may probe outside the physical range); s <= 0 gives 1.
@@ -89,7 +109,7 @@ def van_genuchten_saturation(
 
 
 def van_genuchten_suction(
-    saturation: npt.ArrayLike, zeta: npt.ArrayLike, exponent: npt.ArrayLike
+    saturation: npt.ArrayLike, zeta: float | FloatArray, exponent: float | FloatArray
 ) -> FloatArray:
     """The inverse, s = zeta (S^(-1/lambda) - 1)^(1 - lambda) [Pa], no range check.
 
@@ -104,10 +124,30 @@ def van_genuchten_suction(
     return zeta * excess ** (1.0 - exponent)
 
 
+def van_genuchten_suction_slope(
+    saturation: npt.ArrayLike, zeta: npt.ArrayLike, exponent: npt.ArrayLike
+) -> FloatArray:
+    """|ds/dS| = zeta (1 - lambda) / lambda (S^(-1/lambda) - 1)^(-lambda) S^(-1/lambda - 1)
+    [Pa], the slope of :func:`van_genuchten_suction` at fixed zeta and lambda, no range
+    check (S^(-1/lambda) - 1 floored at 1e-300: a finite slope at S = 1).
+
+    Parameters
+    ----------
+    saturation
+        Water saturation S [1].
+    zeta, exponent
+        Retention pressure zeta [Pa] and exponent lambda [1], broadcastable.
+    """
+    sat = np.asarray(saturation, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        base = np.maximum(sat ** (-1.0 / exponent) - 1.0, 1e-300)
+        return zeta * (1.0 - exponent) / exponent * base ** (-exponent) * sat ** (-1.0 / exponent - 1.0)
+
+
 def saturation(
     suction: npt.ArrayLike,
     porosity: npt.ArrayLike,
-    material: ClayParameters,
+    material: ClayLaws,
 ) -> FloatArray:
     """Water saturation of the retention curve, clamped to [S_r, S_s].
 
@@ -134,7 +174,7 @@ def saturation(
 def suction(
     saturation: npt.ArrayLike,
     porosity: npt.ArrayLike,
-    material: ClayParameters,
+    material: ClayLaws,
 ) -> FloatArray:
     """Suction of the (unclamped) retention curve for a given saturation.
 
@@ -166,7 +206,7 @@ def suction(
 def saturation_derivative(
     suction: npt.ArrayLike,
     porosity: npt.ArrayLike,
-    material: ClayParameters,
+    material: ClayLaws,
 ) -> FloatArray:
     """Closed-form derivative dS_w/dp of the clamped curve w.r.t. water pressure.
 

@@ -70,7 +70,7 @@ def write_snapshot(path: Path, digest: str, meta: Mapping[str, Any], arrays: Map
     """
     text = json.dumps(meta)
     header = {"format": FORMAT, "digest": digest, "sha256": content_sha256(text, arrays)}
-    members = {"header": np.array(json.dumps(header)), "meta": np.array(text), **arrays}
+    members: dict[str, Any] = {"header": np.array(json.dumps(header)), "meta": np.array(text), **arrays}
     atomic_write(path, lambda tmp: np.savez(tmp, **members))
 
 

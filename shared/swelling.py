@@ -11,7 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from shared.errors import ConfigError
-from shared.materials import ClayParameters
+from shared.materials import ClayLaws
 
 __all__ = ["swelling_strain", "volumetric_strain", "swollen_radius"]
 
@@ -37,7 +37,7 @@ def swelling_strain(
 
 
 def volumetric_strain(
-    suction: npt.ArrayLike, material: ClayParameters
+    suction: npt.ArrayLike, material: ClayLaws
 ) -> FloatArray:
     """Volumetric swelling strain eps_v relative to the state at ``initial_suction``.
 

@@ -23,17 +23,21 @@ def _group(item: pytest.Item) -> str:
     return next((folder for folder in _KERNEL_FOLDERS if path.startswith(f"{folder}/")), path)
 
 
+# The type check (mypy over the packages, 16 to 20 CPU seconds without its cache): it needs no
+# kernel, so it runs beside the kernel folders rather than last
+_EARLY_FILES = ("tests/shared/test_types.py",)
+
 # The files that run a whole chain once for their tests (the longest files, 100 and 35
 # seconds from a fresh clone on 2 shared cores, 2026-12-02)
 _CHAIN_FILES = ("tests/workflow/test_workflow.py", "tests/workflow/test_own_scan.py")
 
 
 def _rank(group: str) -> int:
-    """Where a group runs (under ``--no-loadscope-reorder``): the kernel folders first, the
-    chain files next (their Snakemake jobs find the kernels cached by then), the other
+    """Where a group runs (under ``--no-loadscope-reorder``): the kernel folders and the
+    type check first, the chain files next (their Snakemake jobs find the kernels cached by then), the other
     workflow files, then the many short files, which fill the workers' ends instead of a
     long file starting last (the tiny chain last cost a worker 50 s alone)."""
-    if group in _KERNEL_FOLDERS:
+    if group in _KERNEL_FOLDERS or group in _EARLY_FILES:
         return 0
     if group in _CHAIN_FILES:
         return 1

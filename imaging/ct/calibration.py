@@ -192,11 +192,11 @@ def grey_to_density(
     Float32 input stays float32 (memory of large volumes); anything else gives float64.
     """
     grey = np.asarray(grey)
-    dtype = np.float32 if grey.dtype == np.float32 else np.float64
+    dtype: type[np.floating] = np.float32 if grey.dtype == np.float32 else np.float64
     slope = (calibration.muscovite_density - calibration.air_density) / (
         calibration.grey_muscovite - calibration.grey_air
     )
-    density = grey.astype(dtype, copy=True)
+    density: npt.NDArray[np.floating] = grey.astype(dtype, copy=True)
     density -= dtype(calibration.grey_air)
     density *= dtype(slope)
     density += dtype(calibration.air_density)

@@ -102,7 +102,7 @@ def block_sums(
 def block_grid(
     density_sum: npt.NDArray[np.float64],
     counts: npt.NDArray[np.float64],
-    shape: tuple[int, int, int],
+    shape: tuple[int, ...],
     calibration: Calibration,
     block: int,
     voxel_size: float,
@@ -120,7 +120,7 @@ def block_grid(
         density = np.where(fraction >= min_specimen_fraction, density_sum / counts, np.nan)
     return BlockGrid(
         density=density,
-        porosity=density_to_porosity(density, calibration),
+        porosity=density_to_porosity(density, calibration).astype(np.float64, copy=False),
         specimen_fraction=fraction,
         z=_block_centres(nz, block, voxel_size),
         y=_block_centres(ny, block, voxel_size),

@@ -86,6 +86,7 @@ def _slabs(read: Any, n_slices: int, shape: tuple[int, int], dtype: np.dtype,
 
 def _read_block(read: Any, block_info: dict | None = None) -> np.ndarray:
     """The slab of a :func:`_slabs` chunk."""
+    assert block_info is not None  # dask passes it to a function that names it
     (z0, z1), _, _ = block_info[None]["array-location"]
     return read(z0, z1 - z0)
 
@@ -353,8 +354,9 @@ def open_raw(
         raise ImageError(
             f"{path}: {actual} bytes, but shape {list(shape)} of {dtype} needs {expected}"
         )
-    return _slabs(partial(_raw_slices, path, file_dtype, tuple(shape[1:])), shape[0],
-                  tuple(shape[1:]), np.dtype(dtype), chunk_bytes)
+    slice_shape = (shape[1], shape[2])
+    return _slabs(partial(_raw_slices, path, file_dtype, slice_shape), shape[0], slice_shape,
+                  np.dtype(dtype), chunk_bytes)
 
 
 def _raw_slices(path: Path, file_dtype: np.dtype, shape: tuple[int, int], z0: int,
@@ -441,7 +443,7 @@ def open_volume(
     raise ImageError(f"{path}: unknown image source {source!r}")
 
 
-def in_slabs(volume: Any, chunk_bytes: int = DEFAULT_CHUNK_BYTES, source: str = "scan") -> Any:
+def in_slabs(volume: Any, chunk_bytes: int = DEFAULT_CHUNK_BYTES, source: str | Path = "scan") -> Any:
     """A greyscale volume held in memory (or a dask array) as a dask array chunked, like
     :func:`open_volume`'s, in slabs of whole slices of about ``chunk_bytes``.
 

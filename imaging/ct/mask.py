@@ -200,7 +200,8 @@ def inscribed_box(mask: Any) -> tuple[slice, slice, slice]:
     low, high = 0, int(min(min(centre), min(np.array(mask.shape) - centre - 1)))
 
     def cube(half: int) -> tuple[slice, slice, slice]:
-        return tuple(slice(c - half, c + half + 1) for c in centre)  # type: ignore[return-value]
+        z, y, x = (slice(c - half, c + half + 1) for c in centre)
+        return z, y, x
 
     if not bool(value(mask[tuple(centre)])):
         raise InputError("the specimen's centroid lies outside it: no inscribed cube")

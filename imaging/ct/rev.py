@@ -115,6 +115,7 @@ def scan_rev(scan: Any, image: xr.Dataset, porosity: xr.Dataset, settings: RevSe
     calibrated, result = rev_analyses(voxel_porosity, voxel_size,
                                       np.random.default_rng(rev_settings["seed"]),
                                       binary=pore, **windows)
+    assert result is not None  # the binary image's analysis, given the binary image
     chords = chord_lengths(pore, voxel_size, chords_settings["include_edges"], workers=workers)
     ds = rev_dataset(result, calibrated, chords, voxel_size)
     ds.attrs.update(analysed_cube_edge=voxel_porosity.shape[0] * voxel_size,

@@ -138,6 +138,7 @@ class MaskRule:
         if self.mode == "threshold":
             mask = slice_masks(grey, self.level).view(bool)
         elif self.mode == "cylinder":
+            assert self.disc is not None  # a cylinder's mask has its disc
             mask = np.broadcast_to(self.disc, grey.shape).copy()
         else:
             mask = np.ones(grey.shape, dtype=bool)

@@ -109,7 +109,7 @@ class WindowSums:
     field sums agree with a single slab to rounding.
     """
 
-    def __init__(self, starts: npt.NDArray[np.int64], edges: npt.NDArray[np.int64]) -> None:
+    def __init__(self, starts: npt.NDArray[np.integer], edges: npt.NDArray[np.integer]) -> None:
         self.starts, self.edges = starts.astype(np.int32), edges.astype(np.int32)
         self.order = np.argsort(starts[:, 0], kind="stable")
         self.sorted_z0 = starts[self.order, 0]
@@ -175,8 +175,8 @@ class WindowSums:
 def window_sums(
     field: Any,
     pore: Any | None,
-    starts: npt.NDArray[np.int64],
-    edges: npt.NDArray[np.int64],
+    starts: npt.NDArray[np.integer],
+    edges: npt.NDArray[np.integer],
     chunk_slices: int | None = None,
     workers: int = 1,
 ) -> WindowSums:

@@ -37,13 +37,13 @@ _NONE = 1 << 20
 
 
 @njit(cache=True)
-def scan_spacing(a, b, n_sp):  # type: ignore[no-untyped-def]
+def scan_spacing(a, b, n_sp):
     """delta_1 [m]: the spacing that puts n_sp grid points on the basal ellipse."""
     return np.sqrt(np.pi * a * b / n_sp)
 
 
 @njit(cache=True)
-def _local_point(kind, u, v, a, b, c, face):  # type: ignore[no-untyped-def]
+def _local_point(kind, u, v, a, b, c, face):
     """A scan point in the particle frame: basal (kind 0: x = u, y = v on the face at
     z = face c) or edge (kind 1: angle u, height v)."""
     if kind == 0:
@@ -52,14 +52,14 @@ def _local_point(kind, u, v, a, b, c, face):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _to_world(center, rot, x, y, z):  # type: ignore[no-untyped-def]
+def _to_world(center, rot, x, y, z):
     return (center[0] + rot[0, 0] * x + rot[0, 1] * y + rot[0, 2] * z,
             center[1] + rot[1, 0] * x + rot[1, 1] * y + rot[1, 2] * z,
             center[2] + rot[2, 0] * x + rot[2, 1] * y + rot[2, 2] * z)
 
 
 @njit(cache=True)
-def _to_local(center, rot, px, py, pz):  # type: ignore[no-untyped-def]
+def _to_local(center, rot, px, py, pz):
     dx, dy, dz = px - center[0], py - center[1], pz - center[2]
     return (rot[0, 0] * dx + rot[1, 0] * dy + rot[2, 0] * dz,
             rot[0, 1] * dx + rot[1, 1] * dy + rot[2, 1] * dz,
@@ -67,7 +67,7 @@ def _to_local(center, rot, px, py, pz):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _grid(a, b, c, n_sp, face, with_edge):  # type: ignore[no-untyped-def]
+def _grid(a, b, c, n_sp, face, with_edge):
     """Scan points (kind, u, v) of one basal face (and the edge) at delta_1, their
     coordinates (x, y, z) in the particle frame [m], and delta_1 [m]."""
     delta = scan_spacing(a, b, n_sp)
@@ -112,7 +112,7 @@ def _grid(a, b, c, n_sp, face, with_edge):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _ray_interval(ox, oy, oz, dx, dy, dz, xb):  # type: ignore[no-untyped-def]
+def _ray_interval(ox, oy, oz, dx, dy, dz, xb):
     """Interval (t_in, t_out) of the ray o + t d (B's frame) inside B, or (inf, inf)."""
     lo, hi = -np.inf, np.inf
     # slab |z| <= h / 2
@@ -140,7 +140,7 @@ def _ray_interval(ox, oy, oz, dx, dy, dz, xb):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _pair_frame(ca, ra, cb, rb):  # type: ignore[no-untyped-def]
+def _pair_frame(ca, ra, cb, rb):
     """A's frame in B's: (R, o) with x_B = o + R x_A, and the downward vertical in B's frame."""
     relative = rb.T @ ra
     offset = np.empty(3)
@@ -152,7 +152,7 @@ def _pair_frame(ca, ra, cb, rb):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _gap(x, y, z, relative, offset, down, xb):  # type: ignore[no-untyped-def]
+def _gap(x, y, z, relative, offset, down, xb):
     """delta_z of a scan point of A (A's frame, [m]) over B [m]: -inf inside B, inf when B
     is not below."""
     ox = offset[0] + relative[0, 0] * x + relative[0, 1] * y + relative[0, 2] * z
@@ -165,13 +165,13 @@ def _gap(x, y, z, relative, offset, down, xb):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _inside_basal(kind, u, v, a, b):  # type: ignore[no-untyped-def]
+def _inside_basal(kind, u, v, a, b):
     return kind == 1 or (u / a) ** 2 + (v / b) ** 2 <= 1.0
 
 
 @njit(cache=True)
 def _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine, span_u, span_v,
-            seen_u, seen_v):  # type: ignore[no-untyped-def]
+            seen_u, seen_v):
     """Move point k to the least gap among offsets (-span..span) x fine on (u, v), in
     place, skipping the offsets of a window already searched around the point at
     offsets (seen_u, seen_v) from here (none of them is lower than the point); the
@@ -205,7 +205,7 @@ def _window(k, kind, u, v, gap, xa, face, relative, offset, down, xb, fine, span
 
 
 @njit(cache=True)
-def _refine_contact(kind, u, v, gap, xa, face, relative, offset, down, xb, d_cont, delta):  # type: ignore[no-untyped-def]
+def _refine_contact(kind, u, v, gap, xa, face, relative, offset, down, xb, d_cont, delta):
     """The /10 sequence on the points within delta_n of the lowest (in place): x and y
     sweeps on each, then the whole (u, v) window on the lowest."""
     # int64, not literal constants: each distinct literal would compile _window anew
@@ -237,7 +237,7 @@ def _refine_contact(kind, u, v, gap, xa, face, relative, offset, down, xb, d_con
 
 
 @njit(cache=True)
-def scan_drop(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont, exact):  # type: ignore[no-untyped-def]
+def scan_drop(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont, exact):
     """Vertical gap of the settling particle A above B by the contact scan.
 
     ``exact`` is the exact vertical gap of A above B [m]
@@ -267,25 +267,25 @@ def scan_drop(ca, ra, xa, cb, rb, xb, max_drop, n_sp, d_cont, exact):  # type: i
     if exact < 0.0 and scan_overlap(ca, ra, xa, cb, rb, xb, n_sp, d_cont):
         return -1.0, cb[0], cb[1], cb[2]
     _refine_contact(kind, u, v, gap, xa, face, relative, offset, down, xb, d_cont, delta)
-    k = np.argmin(gap)
-    if gap[k] < 0.0:
+    low = np.argmin(gap)
+    if gap[low] < 0.0:
         return -1.0, cb[0], cb[1], cb[2]
-    if gap[k] > max_drop:
+    if gap[low] > max_drop:
         return INFINITE_DROP, cb[0], cb[1], cb[2]
-    lx, ly, lz = _local_point(kind[k], u[k], v[k], xa[0], xa[1], xa[2], face)
+    lx, ly, lz = _local_point(kind[low], u[low], v[low], xa[0], xa[1], xa[2], face)
     px, py, pz = _to_world(ca, ra, lx, ly, lz)
-    return gap[k], px, py, pz - gap[k]
+    return gap[low], px, py, pz - gap[low]
 
 
 @njit(cache=True)
-def _outside(lx, ly, lz, xa):  # type: ignore[no-untyped-def]
+def _outside(lx, ly, lz, xa):
     """How far a point (A's frame) is outside A: <= 0 inside (a scaled level set) [m]."""
     radial = (np.sqrt((lx / xa[0]) ** 2 + (ly / xa[1]) ** 2) - 1.0) * min(xa[0], xa[1])
     return max(radial, abs(lz) - xa[2])
 
 
 @njit(cache=True)
-def _apart_along_normals(ca, ra, xa, cb, rb, xb):  # type: ignore[no-untyped-def]
+def _apart_along_normals(ca, ra, xa, cb, rb, xb):
     """True if the normal of A or of B separates the two particles."""
     for own_c, own_r, own_x, other_c, other_r, other_x in ((ca, ra, xa, cb, rb, xb), (cb, rb, xb, ca, ra, xa)):
         nx, ny, nz = own_r[0, 2], own_r[1, 2], own_r[2, 2]
@@ -298,7 +298,7 @@ def _apart_along_normals(ca, ra, xa, cb, rb, xb):  # type: ignore[no-untyped-def
 
 
 @njit(cache=True)
-def scan_overlap(ca, ra, xa, cb, rb, xb, n_sp, d_cont):  # type: ignore[no-untyped-def]
+def scan_overlap(ca, ra, xa, cb, rb, xb, n_sp, d_cont):
     """The inverse scan: True if a scan point of B's basal faces lies inside A.
 
     Particles separated along the normal of either one have no point of one inside the

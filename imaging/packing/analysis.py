@@ -67,7 +67,7 @@ def profile_edges(top: float, bin_width: float) -> npt.NDArray[np.float64]:
     n = max(int(np.ceil(top / bin_width)), 1)
     if n * bin_width <= top:
         n += 1
-    return np.arange(n + 1) * bin_width
+    return np.arange(n + 1, dtype=np.float64) * bin_width
 
 
 def porosity_profile(

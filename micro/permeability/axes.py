@@ -26,7 +26,7 @@ from micro.pool import gathered
 from shared.fv import FlowPattern
 from shared.materials import ClayParameters
 from shared.mesh import WALLS, Mesh, boundary_cell_mask
-from shared.permeability import phase_viscosity
+from shared.permeability import Phase, phase_viscosity
 from shared.solver import SPDSolver
 
 __all__ = ["axes_calls", "axes_result", "axis_permeabilities", "measure_permeability",
@@ -221,7 +221,7 @@ def axis_permeabilities(
 
 
 def axes_calls(
-    mesh: Mesh, phases: Mapping[str, FloatArray], suction: float, material: ClayParameters,
+    mesh: Mesh, phases: Mapping[Phase, FloatArray], suction: float, material: ClayParameters,
     method: Method, drop_fraction: float,
 ) -> list[Callable[[], float]]:
     """The six solves of :func:`axis_permeabilities`, by axis then phase."""

@@ -235,9 +235,9 @@ class FrozenState(NamedTuple):
     porosity: FloatArray
     suction: float
     material: ClayParameters
-    conductances: Mapping[str, FloatArray] | None = None
+    conductances: Mapping[Phase, FloatArray] | None = None
 
-    def phases(self) -> dict[str, FloatArray]:
+    def phases(self) -> dict[Phase, FloatArray]:
         """Each phase's facet conductances (:func:`phase_conductances`)."""
         return phase_conductances(self.mesh, self.saturation, self.porosity, self.suction, self.material,
                                   self.conductances)
@@ -245,8 +245,8 @@ class FrozenState(NamedTuple):
 
 def phase_conductances(
     mesh: Mesh, saturation: FloatArray, porosity: FloatArray, suction: float,
-    material: ClayParameters, conductances: Mapping[str, FloatArray] | None,
-) -> dict[str, FloatArray]:
+    material: ClayParameters, conductances: Mapping[Phase, FloatArray] | None,
+) -> dict[Phase, FloatArray]:
     """Each phase's facet conductances: the given ones, the others computed.
 
     Raises

@@ -21,7 +21,7 @@ from micro.pool import gathered
 from shared.fv import FlowPattern
 from shared.materials import ClayParameters
 from shared.mesh import WALLS, Mesh, boundary_cell_mask
-from shared.permeability import phase_viscosity
+from shared.permeability import Phase, phase_viscosity
 from shared.solver import SolverError, SPDSolver
 
 __all__ = ["measure_permeability_tensor", "permeability_tensor", "tensor_calls", "tensor_pattern"]
@@ -264,7 +264,7 @@ def permeability_tensor(
 
 
 def tensor_calls(
-    mesh: Mesh, phases: Mapping[str, FloatArray], suction: float, material: ClayParameters,
+    mesh: Mesh, phases: Mapping[Phase, FloatArray], suction: float, material: ClayParameters,
     drop_fraction: float, inner_fraction: float, sealed: npt.NDArray[np.bool_] | None,
 ) -> list[Callable[[], FloatArray]]:
     """The two tensor measurements of :func:`permeability_tensor`, water then gas."""

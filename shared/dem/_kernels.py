@@ -250,7 +250,7 @@ def hertz_mindlin(positions, velocities, spins, radii, reference_radii, pairs,
 
 
 @njit(cache=True)
-def contact_velocity(velocities, spins, i, j, nx, ny, nz, arm_i, arm_j):  # type: ignore[no-untyped-def]
+def contact_velocity(velocities, spins, i, j, nx, ny, nz, arm_i, arm_j):
     """Velocity of i's contact point relative to j's (Eq. 3.6): v + omega x branch, the
     branches ``arm_i`` n from i and -``arm_j`` n from j."""
     wx = arm_i * spins[i, 0] + arm_j * spins[j, 0]
@@ -263,7 +263,7 @@ def contact_velocity(velocities, spins, i, j, nx, ny, nz, arm_i, arm_j):  # type
 
 
 @njit(cache=True)
-def apply_contact(forces, torques, i, j, fn, nx, ny, nz, sx, sy, sz, arm_i, arm_j):  # type: ignore[no-untyped-def]
+def apply_contact(forces, torques, i, j, fn, nx, ny, nz, sx, sy, sz, arm_i, arm_j):
     """Add a contact's normal force fn along -n and shear (sx, sy, sz) on i, the opposite
     on j, and the shear's torques about each centre (arms to the contact point)."""
     # torques arm_i n x F_s on i and (-arm_j n) x (-F_s) on j point the same way
@@ -272,7 +272,7 @@ def apply_contact(forces, torques, i, j, fn, nx, ny, nz, sx, sy, sz, arm_i, arm_
 
 
 @njit(cache=True)
-def _scatter_contact(forces, torques, i, j, fx, fy, fz, tx, ty, tz, arm_i, arm_j):  # type: ignore[no-untyped-def]
+def _scatter_contact(forces, torques, i, j, fx, fy, fz, tx, ty, tz, arm_i, arm_j):
     """Add the force (fx, fy, fz) on i and its opposite on j, and the torques arm t on
     both (t = n x F_s)."""
     forces[i, 0] += fx
@@ -306,7 +306,7 @@ def _turned_shear(sx, sy, sz, nx, ny, nz):
 
 
 @njit(cache=True)
-def _mindlin_shear(sx, sy, sz, vx, vy, vz, nx, ny, nz, k_t, limit):  # type: ignore[no-untyped-def]
+def _mindlin_shear(sx, sy, sz, vx, vy, vz, nx, ny, nz, k_t, limit):
     """A contact's new shear force: the stored one (sx, sy, sz) turned into the tangent
     plane of n (:func:`_turned_shear`), minus ``k_t`` times the tangential part of the
     contact point's relative displacement (vx, vy, vz), scaled down to Coulomb's
@@ -538,7 +538,7 @@ def cap_speed(velocities, max_speed):
 
 
 @njit(cache=True)
-def hertz_yield(e_star, r_star, overlap, plastic, yield_force):  # type: ignore[no-untyped-def]
+def hertz_yield(e_star, r_star, overlap, plastic, yield_force):
     """Normal force of a Hertz contact that yields (Eq. 4.4, Thornton's elastic-perfectly
     plastic contact); returns the force [N], the new plastic overlap [m] and the elastic
     contact radius [m].

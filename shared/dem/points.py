@@ -85,7 +85,7 @@ def _random_sequential_addition(
     accepted point or to an earlier point of the same batch, so the result depends on
     the seed only.
     """
-    accepted = np.empty((0, 3))
+    accepted: FloatArray = np.empty((0, 3))
     half = np.full(1, 0.5 * separation)
     for _ in range(10_000):
         missing = n_points - accepted.shape[0]

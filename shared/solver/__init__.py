@@ -8,9 +8,11 @@ row-wise backward error max_i |b - A x|_i / (|a_ii| ||x||_inf + |b_i|) <=
 ``method="auto"`` preconditions with a sparse Cholesky factor (CHOLMOD) below
 ``amg_unknowns`` unknowns and with a classical Ruge-Stueben hierarchy (pyamg) above.
 A stale factor or hierarchy is refreshed by rules that count CG iterations, not time,
-so they are deterministic. The rules in full: docs/performance.md, "shared.solver".
-Parts: :mod:`.spd` (the dispatcher and CG, and its reuse state for checkpoints),
-:mod:`.factor`, :mod:`.multigrid`.
+so they are deterministic. ``method="jacobi"`` preconditions with the current diagonal
+and buys nothing unless CG misses, for systems whose storage dominates the diagonal.
+The rules in full: docs/performance.md, "shared.solver". Parts: :mod:`.spd` (the
+dispatcher and CG, and its reuse state for checkpoints), :mod:`.factor`,
+:mod:`.multigrid`, :mod:`.jacobi`.
 """
 
 from shared.solver.base import SolverError, SolverStats

@@ -24,11 +24,12 @@ class SolverStats:
         Calls of :meth:`shared.solver.SPDSolver.solve`.
     factor_applications
         Applications of the preconditioner: forward/backward substitutions with a
-        factor, or V-cycles.
+        factor, V-cycles, or diagonal scalings.
     iterations
         Preconditioned CG iterations.
     fallbacks
-        Patterns on which ``method="auto"`` fell back from multigrid to the factor.
+        Patterns on which ``method="auto"`` fell back from multigrid, or
+        ``method="jacobi"`` from the diagonal, to the factor.
     """
 
     analyses: int = 0

@@ -104,7 +104,7 @@ class FactorReuse:
                 self.ordering = ordering_method
                 stats.analyses += 1
             assert self.factor is not None
-            if threaded:
+            if factor_blas_threads is not None:
                 set_cholmod_blas_threads(factor_blas_threads)
             self.factor.cholesky_inplace(matrix)
         except CholmodNotPositiveDefiniteError as error:
@@ -113,7 +113,7 @@ class FactorReuse:
                 "not connected to any imposed pressure, or a coefficient is negative"
             ) from error
         finally:
-            if threaded:
+            if threaded and blas_threads is not None:  # SPDSolver threads the factor only then
                 set_cholmod_blas_threads(blas_threads)
 
     def apply(self, vector: FloatArray) -> FloatArray:

@@ -1,10 +1,12 @@
-"""The SPD solver's dispatcher: a CHOLMOD factor or a multigrid hierarchy preconditions
-conjugate gradients on the current matrix, judged by a row-wise backward error.
+"""The SPD solver's dispatcher: a CHOLMOD factor, a multigrid hierarchy or the diagonal
+preconditions conjugate gradients on the current matrix, judged by a row-wise backward
+error.
 
 :class:`SPDSolver` keeps the sparsity pattern and the matrix its preconditioner was
 bought for, chooses the path (:mod:`shared.solver.factor`,
-:mod:`shared.solver.multigrid`), hands a system the hierarchy cannot solve to the factor
-(``method="auto"``), and runs the CG iterations both paths share. Its reuse state (what
+:mod:`shared.solver.multigrid`, :mod:`shared.solver.jacobi`), hands a system the
+hierarchy or the diagonal cannot solve to the factor (``method="auto"``,
+``method="jacobi"``), and runs the CG iterations the paths share. Its reuse state (what
 decides its next refactorisations) is saved in a checkpoint and restored by its own
 methods (:meth:`SPDSolver.reuse_state`, :meth:`SPDSolver.restore_reuse_state`), so that a
 resumed run continues bit for bit.
@@ -25,6 +27,7 @@ from sksparse.cholmod import Factor
 from shared.solver._kernels import _cg_update, _check_lower, _scaled_drift, _symmetric_product
 from shared.solver.base import Since, SolverError, SolverStats
 from shared.solver.factor import FactorReuse, set_cholmod_blas_threads
+from shared.solver.jacobi import DiagonalScaling
 from shared.solver.multigrid import AMG_STRENGTH, AMG_UNKNOWNS, MultigridReuse
 
 __all__ = ["SPDSolver"]
@@ -69,8 +72,10 @@ class SPDSolver:
         substitutions lose to. Off by default: a threaded factorisation rounds
         differently, so a run's results would depend on its thread count.
     method
-        ``"direct"`` (CHOLMOD factor), ``"amg"`` (multigrid hierarchy) or ``"auto"``:
-        multigrid from ``amg_unknowns`` unknowns on.
+        ``"direct"`` (CHOLMOD factor), ``"amg"`` (multigrid hierarchy), ``"auto"``:
+        multigrid from ``amg_unknowns`` unknowns on, or ``"jacobi"``: CG preconditioned
+        by the current diagonal, the factor for a system it does not solve within
+        ``jacobi_max_iterations`` (and for the rest of that pattern).
     amg_unknowns
         Crossover of ``method="auto"`` [1].
     amg_max_iterations
@@ -81,6 +86,8 @@ class SPDSolver:
     amg_strength
         Classical strength threshold theta of the coarsening [1]: a connection is strong
         if -a_ij >= theta max_k -a_ik.
+    jacobi_max_iterations
+        CG iterations allowed in one solve on the diagonal path [1].
 
     Notes
     -----
@@ -107,9 +114,10 @@ class SPDSolver:
         amg_max_iterations: int = 100,
         amg_rebuild_ratio: float = 1.5,
         amg_strength: float = AMG_STRENGTH,
+        jacobi_max_iterations: int = 500,
     ) -> None:
-        if method not in ("auto", "direct", "amg"):
-            raise ValueError(f"method must be 'auto', 'direct' or 'amg', got {method!r}")
+        if method not in ("auto", "direct", "amg", "jacobi"):
+            raise ValueError(f"method must be 'auto', 'direct', 'amg' or 'jacobi', got {method!r}")
         self.refactor_tolerance = refactor_tolerance
         self.residual_tolerance = residual_tolerance
         self.max_iterations = max_iterations
@@ -120,6 +128,7 @@ class SPDSolver:
         self.amg_max_iterations = amg_max_iterations
         self.amg_rebuild_ratio = amg_rebuild_ratio
         self.amg_strength = amg_strength
+        self.jacobi_max_iterations = jacobi_max_iterations
         self.blas_threads = blas_threads
         self.blas_threads_set = blas_threads is not None and set_cholmod_blas_threads(blas_threads)
         self.factor_blas_threads = factor_blas_threads if self.blas_threads_set else None
@@ -129,12 +138,13 @@ class SPDSolver:
         self.last_residual = 0.0
         self._cholmod = FactorReuse()
         self._multigrid = MultigridReuse()
+        self._diagonal = DiagonalScaling()
         self._since = Since()
         # the pattern and values of the matrix the preconditioner was bought for
         self._indptr: npt.NDArray[np.int32] | None = None
         self._indices: npt.NDArray[np.int32] | None = None
         self._factored_data: FloatArray | None = None
-        # whether the factor path took over the current pattern from multigrid
+        # whether the factor path took over the current pattern from multigrid or Jacobi
         self._fallback = False
 
     @property
@@ -281,6 +291,8 @@ class SPDSolver:
 
     def _apply(self, vector: FloatArray) -> FloatArray:
         self.stats.factor_applications += 1
+        if self._diagonal.inverse is not None:
+            return self._diagonal.apply(vector)
         if self._multigrid.cycle is not None:
             return self._multigrid.apply(vector)
         return self._cholmod.apply(vector)
@@ -344,7 +356,9 @@ class SPDSolver:
         def iterate(budget: int, start: FloatArray | None = None) -> tuple[FloatArray, bool]:
             return self._iterate(lower, rhs, diagonal, budget, offset, start)
 
-        if self.uses_multigrid(lower.shape[0]) and not self._fallback:
+        if self.method == "jacobi" and not self._fallback:
+            solution, converged = self._jacobi_solve(lower, ordered, iterate)
+        elif self.uses_multigrid(lower.shape[0]) and not self._fallback:
             solution, converged = self._multigrid.solve(
                 self.stats, fresh=fresh, max_iterations=self.amg_max_iterations,
                 rebuild_ratio=self.amg_rebuild_ratio,
@@ -366,6 +380,25 @@ class SPDSolver:
                 "(ill-conditioned or not positive definite?)"
             )
         return solution
+
+    def _jacobi_solve(self, lower: sp.csc_matrix, ordered: bool,
+                      iterate: Any) -> tuple[FloatArray, bool]:
+        """The diagonal path (:mod:`shared.solver.jacobi`); a system it does not solve
+        goes to a fresh factor, which keeps its pattern (as the multigrid fallback)."""
+        _check_lower(lower)
+        self._diagonal.build(lower)
+        try:
+            solution, converged = iterate(self.jacobi_max_iterations)
+        finally:
+            self._diagonal.inverse = None
+        if converged:
+            return solution, converged
+        log.info("Jacobi CG missed the tolerance (%.1e) on %d unknowns in %d iterations: factor "
+                 "path until the next pattern", self.last_residual, lower.shape[0],
+                 self.jacobi_max_iterations)
+        self._fallback = True
+        self.stats.fallbacks += 1
+        return self._factor_solve(lower, True, ordered, iterate)
 
     def _factor_solve(self, lower: sp.csc_matrix, fresh: bool, ordered: bool,
                       iterate: Any) -> tuple[FloatArray, bool]:

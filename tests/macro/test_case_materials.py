@@ -32,11 +32,12 @@ def test_a_cases_own_values_reach_its_parameters_and_no_other_cases():
                              powder)
     plain = mixture_parameters(
         case_materials(config["materials"], config["macro"]["cases"]["plain"]), powder)
-    assert own.beta == 3.0e-8 and own.lambda0 == 0.3
+    assert own.swelling_beta == 3.0e-8 and own.retention_exponent_reference == 0.3
     # the keys it does not set keep the defaults (the Appendix .1 script's alpha, beta;
     # Table 4.2), as the other case's
-    assert own.alpha == plain.alpha == 2.4e-8 and own.zeta0 == plain.zeta0 == 4.026e6
-    assert plain.beta == 1.6e-8 and plain.lambda0 == 0.26
+    assert own.swelling_alpha == plain.swelling_alpha == 2.4e-8
+    assert own.retention_pressure_reference == plain.retention_pressure_reference == 4.026e6
+    assert plain.swelling_beta == 1.6e-8 and plain.retention_exponent_reference == 0.26
 
 
 def test_the_model_is_built_from_the_cases_own_values(table_path, monkeypatch):

@@ -26,7 +26,8 @@ def _solve(suction: float, stress: float) -> tuple[float, float, float, float]:
     ``suction`` under ``stress``; also the law's volume."""
     v0, vs, ms = pellet(suction)
     volume = float(confined_volume(suction, stress, ms, v0, PHI0, MATERIAL))
-    sat = (1.0 + (suction / MATERIAL.zeta0) ** (1.0 / (1.0 - MATERIAL.lambda0))) ** -MATERIAL.lambda0
+    zeta, lam = MATERIAL.retention_pressure_reference, MATERIAL.retention_exponent_reference
+    sat = (1.0 + (suction / zeta) ** (1.0 / (1.0 - lam))) ** -lam
     water = 1000.0 * sat * (volume - vs)
     problem = PVProblem(np.array([water]), np.array([vs]), np.array([v0]), np.array([10.0 * v0]),
                         1000.0, 1.38e8, None, np.array([PHI0]), np.array([stress]), np.array([ms]))
@@ -127,7 +128,8 @@ def test_a_compressed_pellet_is_wetter_than_the_water_it_took_in():
     suction, which it cannot reach without draining."""
     v0, vs, ms = pellet(1e6)
     free = v0 * (1.0 + swelling(1e6))
-    sat = (1.0 + (1e6 / MATERIAL.zeta0) ** (1.0 / (1.0 - MATERIAL.lambda0))) ** -MATERIAL.lambda0
+    zeta, lam = MATERIAL.retention_pressure_reference, MATERIAL.retention_exponent_reference
+    sat = (1.0 + (1e6 / zeta) ** (1.0 / (1.0 - lam))) ** -lam
     water = 1000.0 * sat * (free - vs)
     problem = PVProblem(np.array([water]), np.array([vs]), np.array([v0]), np.array([10.0 * v0]),
                         1000.0, 1.38e8, None, np.array([PHI0]), np.array([5e6]), np.array([ms]))

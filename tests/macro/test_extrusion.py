@@ -13,7 +13,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from macro.extrusion import mobility
+from macro.extrusion import OVERFLOW_MARGIN, mobility
 from macro.model import MacroModel
 from macro.run import build_model
 from shared.upscaling import PermeabilityTable
@@ -128,3 +128,52 @@ def test_overflow_returns_a_squeezed_cell_within_its_void(wetted):
     assert model.densest_volume(np.array([n_p + cell]))[0] <= model.cells.voids[cell] * (1.0 + 1e-9)
     np.testing.assert_allclose(_totals(model), before, rtol=1e-12)
     assert model.counters.overflowed_cell_steps > 0
+
+
+def _squeezable(model: MacroModel) -> MacroModel:
+    """A copy of ``model`` whose state and voids the test may change."""
+    model = dataclasses.replace(model)
+    for name in ("solid_volume", "water_mass", "reference_volume", "volume"):
+        setattr(model, name, getattr(model, name).copy())
+    model.cells = dataclasses.replace(model.cells, voids=model.cells.voids.copy())
+    model.counters = dataclasses.replace(model.counters)
+    return model
+
+
+def test_overflow_routes_the_excess_past_full_neighbours_to_the_nearest_room(wetted):
+    """A squeezed cell whose face neighbours are all full (void = their densest clay)
+    hands its excess on to cells two face steps away or more: it ends within its void,
+    its neighbours stay within theirs, and solid, water and V_0 are conserved."""
+    model = _squeezable(wetted[1])
+    n_p = model.n_pellets
+    interior = ~model.inert[n_p:] & ~model.held[n_p:]
+    neighbours = model.mesh.neighbours
+    cell = next(int(c) for c in np.flatnonzero(interior)
+                if (neighbours[c] >= 0).all() and interior[neighbours[c]].all())
+    around = neighbours[cell]
+    model.cells.voids[around] = model.densest_volume(n_p + around)
+    model.cells.voids[cell] = 0.5 * float(model.densest_volume(np.array([n_p + cell]))[0])
+    before, far = _totals(model), model.solid_volume[n_p:].copy()
+    model.overflow()
+    for c in (cell, *around):
+        assert model.densest_volume(np.array([n_p + c]))[0] <= model.cells.voids[c] * (1.0 + 1e-9)
+    np.testing.assert_allclose(_totals(model), before, rtol=1e-12)
+    gained = np.flatnonzero(model.solid_volume[n_p:] > far * (1.0 + 1e-12))
+    assert gained.size > 0 and not np.isin(gained, [cell, *around]).any()
+
+
+def test_overflow_drains_a_held_cells_water_beyond_its_pore_space_through_the_boundary(wetted):
+    """A held cell holding more water than its pore space gives the excess to the water
+    supply, not to the interior: it ends with its pore space full (less the overflow's
+    margin), and the interior's
+    water and the boundary inflow end as they do without that excess."""
+    plain, model = _squeezable(wetted[1]), _squeezable(wetted[1])
+    n_p = model.n_pellets
+    held = int(np.flatnonzero(model.held[n_p:] & ~model.inert[n_p:])[0])
+    pore = model.cells.voids[held] / (1.0 + OVERFLOW_MARGIN) - model.solid_volume[n_p + held]
+    model.water_mass[n_p + held] = 1.5 * model.settings.density * pore
+    plain.overflow()
+    model.overflow()
+    assert model.water_mass[n_p + held] == pytest.approx(model.settings.density * pore, rel=1e-12)
+    assert model.interior_water() == pytest.approx(plain.interior_water(), rel=1e-12)
+    assert model.boundary_inflow == pytest.approx(plain.boundary_inflow, rel=1e-12, abs=1e-18)

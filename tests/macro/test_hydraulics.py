@@ -47,8 +47,8 @@ def test_model_step_respects_eq_4_58(model):
     sat = model.water_mass / (1000.0 * pore)
     powder = model.material
     shift = powder.reference_porosity - (1.0 - model.solid_volume / model.volume)
-    zeta = powder.zeta0 * np.exp(powder.retention_a * shift)
-    lam = powder.lambda0 * np.exp(powder.retention_b * shift)
+    zeta = powder.retention_pressure_reference * np.exp(powder.retention_pressure_porosity_factor * shift)
+    lam = powder.retention_exponent_reference * np.exp(powder.retention_exponent_porosity_factor * shift)
     slope = zeta * (1 - lam) / lam * (sat ** (-1 / lam) - 1) ** (-lam) * sat ** (-1 / lam - 1)
     free = ~model.held & ~model.inert
     with np.errstate(divide="ignore"):

@@ -83,7 +83,7 @@ def test_young_modulus_eq_4_3_within_its_bounds():
     m = dataclasses.replace(MATERIAL, young_bounds=(1e6, 1e12))
     s = 5e7
     expected = 3.0 * (1.0 - 2.0 * 0.3) * np.exp(2.4e-8 * s) / 1.6e-8
-    assert (m.poisson_ratio, m.alpha, m.beta) == (0.3, 2.4e-8, 1.6e-8)
+    assert (m.poisson_ratio, m.swelling_alpha, m.swelling_beta) == (0.3, 2.4e-8, 1.6e-8)
     assert young_modulus(s, m) == pytest.approx(expected, rel=1e-12)
     lower, upper = MATERIAL.young_bounds
     np.testing.assert_array_equal(young_modulus([-1e9, 1e10], MATERIAL), [lower, upper])

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from macro.transport import implicit_pressures, limited_rates, mass_rates, stable_time_step
+from macro.transport import CG_TOLERANCE, implicit_pressures, limited_rates, mass_rates, stable_time_step
 
 
 def test_stable_step_of_eq_4_58_by_hand():
@@ -22,8 +22,10 @@ def test_stable_step_of_eq_4_58_by_hand():
 
 
 def test_implicit_pressures_are_the_dense_backward_euler_solution(rng):
-    """A random graph of 30 systems, 5 held: the sparse CHOLMOD solve equals
-    (C/dt + L_FF) p' = C/dt p + G_FH p_H assembled densely here."""
+    """A random graph of 30 systems, 5 held: the sparse solve (Jacobi-preconditioned CG)
+    solves (C/dt + L_FF) p' = C/dt p + G_FH p_H assembled densely here to the row-wise
+    backward error CG_TOLERANCE, max_i |r_i| / (|M_ii| max |p'| + |rhs_i|), and so lies
+    within 10 times it of the dense solution."""
     n = 30
     pairs = np.array([(i, j) for i in range(n) for j in range(i + 1, n) if rng.uniform() < 0.2])
     conductance = rng.uniform(1e-13, 1e-12, len(pairs))
@@ -43,7 +45,9 @@ def test_implicit_pressures_are_the_dense_backward_euler_solution(rng):
     rhs = capacity[f] / dt * pressure[f] - laplacian[np.ix_(f, h)] @ pressure[h]
     expected = np.linalg.solve(matrix, rhs)
     got = implicit_pressures(pairs, conductance, pressure, capacity, dt, free)
-    np.testing.assert_allclose(got[f], expected, rtol=1e-10)
+    residual = np.abs(rhs - matrix @ got[f]) / (np.diag(matrix) * np.abs(got[f]).max() + np.abs(rhs))
+    assert residual.max() <= CG_TOLERANCE
+    np.testing.assert_allclose(got[f], expected, rtol=10.0 * CG_TOLERANCE)
     np.testing.assert_array_equal(got[h], pressure[h])
 
 

@@ -1,5 +1,5 @@
 """shared.materials: the clay parameters read from materials.pellet (the published values
-of its defaults), the key table against the schema, and the checks of the dataclass."""
+of its defaults), the key tables against the schema, and the checks of the dataclass."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import dataclasses
 import pytest
 
 from shared.config import load_schema
-from shared.materials import CLAY_CONFIG_KEYS, ClayParameters, clay_parameters
+from shared.materials import CLAY_CONFIG_KEYS, CLAY_LAW_KEYS, ClayLaws, ClayParameters, clay_parameters
 from tests._defaults import CONFIG, clay
 
 
@@ -18,6 +18,19 @@ def test_every_field_has_a_key_of_materials_pellet() -> None:
     pellet = load_schema()["properties"]["materials"]["properties"]["pellet"]["properties"]
     assert set(CLAY_CONFIG_KEYS.values()) <= set(pellet)
     assert len(set(CLAY_CONFIG_KEYS.values())) == len(CLAY_CONFIG_KEYS)
+
+
+def test_the_mixture_sections_hold_each_law_key_once() -> None:
+    """The macro mixture's material is a ClayLaws read from the same keys: each law key
+    is in exactly one of materials.mixture_powder and materials.mixture_pellet (so that
+    macro.laws.mixture_parameters may merge them), and the laws' fields are the clay's
+    less the fluids' and the cracks'."""
+    materials = load_schema()["properties"]["materials"]["properties"]
+    powder, pellet = (set(materials[name]["properties"]) for name in ("mixture_powder", "mixture_pellet"))
+    assert all((key in powder) + (key in pellet) == 1 for key in CLAY_LAW_KEYS.values())
+    law_fields = {field.name for field in dataclasses.fields(ClayLaws)}
+    assert set(CLAY_CONFIG_KEYS) - law_fields == {
+        "water_viscosity", "gas_viscosity", "surface_tension", "crack_roughness_factor"}
 
 
 def test_the_defaults_are_the_thesis_values() -> None:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import errno
 import logging
 import sys
+from types import TracebackType
 
 from shared.errors import ClaychainError
 from shared.io import write_failure
@@ -44,7 +45,7 @@ def setup(log_path: str) -> None:
     traceback_log = logging.getLogger(_TRACEBACK_LOGGER)
     traceback_log.propagate = False
 
-    def excepthook(kind, value, traceback):  # type: ignore[no-untyped-def]
+    def excepthook(kind: type[BaseException], value: BaseException, traceback: TracebackType | None) -> None:
         message = expected_message(value)
         traceback_log.error("%s: %s", kind.__name__, value, exc_info=(kind, value, traceback))
         if message is None:
