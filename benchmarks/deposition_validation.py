@@ -38,7 +38,7 @@ from imaging.packing.analysis import surface_areas  # noqa: E402
 from imaging.packing.config import check_packings, parameters_of, population_of  # noqa: E402
 from imaging.packing.deposition import _entry_pose  # noqa: E402
 from imaging.packing.population import sample_semi_axes, volumes  # noqa: E402
-from imaging.packing.run import run  # noqa: E402
+from imaging.packing.run import PackingOutputs, run  # noqa: E402
 from shared.config import DEFAULT_CONFIG_PATH, validate_config  # noqa: E402
 from shared.figures import save_figure  # noqa: E402
 
@@ -234,7 +234,8 @@ def validate_preset(name: str, scale: float, directory: Path, mode: str = "exact
         suffix += f"_seed{seed}"
     section = packing_section(section, name)
     start = time.perf_counter()
-    ds = run(section, directory / f"{name}_s{scale:g}{suffix}.nc")
+    stem = f"{name}_s{scale:g}{suffix}"
+    ds = run(section, stem, PackingOutputs(directory / f"{stem}.nc", directory / f"{stem}.png"))
     wall = time.perf_counter() - start
     ours = {key: float(ds[var]) * factor if var in ds else float("nan")
             for key, _, _, var, factor in QUANTITIES}

@@ -45,10 +45,11 @@ version carries a dirty mark when the tree is edited while the runs go on)."""
 def _uninterrupted(config: dict, case: str, table: Path, output: Path) -> tuple[xr.Dataset, list[int]]:
     """Run uninterrupted in this process, without snapshots; the result and the steps
     that remeshed."""
+    import macro.mock_up
     import macro.run
     from macro.model import MacroModel
 
-    remesh, save = MacroModel._remesh, macro.run.save_snapshot
+    remesh, save = MacroModel._remesh, macro.mock_up.save_snapshot
     steps: list[int] = []
 
     def counted(self: MacroModel) -> None:
@@ -56,11 +57,11 @@ def _uninterrupted(config: dict, case: str, table: Path, output: Path) -> tuple[
         remesh(self)
 
     MacroModel._remesh = counted  # type: ignore[method-assign]
-    macro.run.save_snapshot = lambda *args: None
+    macro.mock_up.save_snapshot = lambda *args: None
     try:
-        macro.run.run(config, case, table, output)
+        macro.run.run(config, case, table, macro.run.CaseOutputs(output))
     finally:
-        MacroModel._remesh, macro.run.save_snapshot = remesh, save  # type: ignore[method-assign]
+        MacroModel._remesh, macro.mock_up.save_snapshot = remesh, save  # type: ignore[method-assign]
     return xr.load_dataset(output), steps
 
 
@@ -165,24 +166,26 @@ def main() -> None:
     KILL_AT only and SIGKILLs itself when it is about to take the next (-1: never)."""
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     config, table, output, kill_at = sys.argv[1:]
+    import macro.mock_up
     import macro.run
     from macro.model import MacroModel
+    from shared.checkpointer import Checkpointer
 
-    step, save = MacroModel.step, macro.run.save_snapshot
+    step, save = MacroModel.step, macro.mock_up.save_snapshot
 
     def killed(self: MacroModel, max_dt: float = float("inf")) -> float:
         if self.steps == int(kill_at):
             os.kill(os.getpid(), signal.SIGKILL)
         return step(self, max_dt)
 
-    def at_the_kill(path: Path, digest: str, model: MacroModel, rows: dict, wall_time: float) -> None:
+    def at_the_kill(checkpointer: Checkpointer, model: MacroModel, rows: dict) -> None:
         if model.steps == int(kill_at):
-            save(path, digest, model, rows, wall_time)
+            save(checkpointer, model, rows)
 
     MacroModel.step = killed  # type: ignore[method-assign]
-    macro.run.save_snapshot = at_the_kill
+    macro.mock_up.save_snapshot = at_the_kill
     settings = json.loads(Path(config).read_text())
-    macro.run.run(settings, sorted(settings["macro"]["cases"])[0], table, output)
+    macro.run.run(settings, sorted(settings["macro"]["cases"])[0], table, macro.run.CaseOutputs(output))
 
 
 

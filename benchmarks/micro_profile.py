@@ -85,7 +85,7 @@ def bench_micro_profile(points: int = 8000, grid: str = "results/porosity/pellet
     fallbacks to the factor) of its flow steps and of its measurements."""
     import logging
 
-    from micro.run import run
+    from micro.run import CaseOutputs, run
     from shared.solver import SPDSolver
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
@@ -101,7 +101,7 @@ def bench_micro_profile(points: int = 8000, grid: str = "results/porosity/pellet
         with tempfile.TemporaryDirectory() as folder:
             start = time.perf_counter()
             profiler.enable()
-            ds = run(config, case, grid, Path(folder) / "case.nc", Path(folder) / "case.png")
+            ds = run(config, case, grid, CaseOutputs(Path(folder) / "case.nc", Path(folder) / "case.png"))
             profiler.disable()
             wall = time.perf_counter() - start
     finally:
@@ -130,7 +130,7 @@ def bench_micro_relaxation(points: int = 1000, grid: str = "results/porosity/pel
     import numpy as np
 
     import micro.hydration as hydration
-    from micro.run import run
+    from micro.run import CaseOutputs, run
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     config = copy.deepcopy(CONFIG)
@@ -150,7 +150,7 @@ def bench_micro_relaxation(points: int = 1000, grid: str = "results/porosity/pel
     try:
         with tempfile.TemporaryDirectory() as folder:
             start = time.perf_counter()
-            ds = run(config, "heterogeneous", grid, Path(folder) / "c.nc", Path(folder) / "c.png")
+            ds = run(config, "heterogeneous", grid, CaseOutputs(Path(folder) / "c.nc", Path(folder) / "c.png"))
             wall = time.perf_counter() - start
     finally:
         hydration.relax = relax
@@ -174,7 +174,7 @@ def _case_run(points: int, numerics: dict, grid: str,
     """One heterogeneous run with these ``micro.numerics`` changes: wall time, phases,
     DEM steps and the checkpoints' eps_v, saturation and water permeability (geometric
     mean of the axes)."""
-    from micro.run import run
+    from micro.run import CaseOutputs, run
 
     config = copy.deepcopy(CONFIG)
     config["micro"]["n_points"] = points
@@ -184,7 +184,7 @@ def _case_run(points: int, numerics: dict, grid: str,
         config["micro"]["checkpoints_suction_pa"] = checkpoints
     with tempfile.TemporaryDirectory() as folder:
         start = time.perf_counter()
-        ds = run(config, "heterogeneous", grid, Path(folder) / "c.nc", Path(folder) / "c.png")
+        ds = run(config, "heterogeneous", grid, CaseOutputs(Path(folder) / "c.nc", Path(folder) / "c.png"))
         wall = time.perf_counter() - start
     water = ds["permeability"].sel(phase="water").values
     return {"numerics": numerics, "wall_s": wall, "phases_s": phase_wall_times(ds.attrs),
@@ -303,7 +303,7 @@ def bench_measurement_workers(points: int = 150_000) -> dict:
 
     from benchmarks.parameters import CLAY
     from micro.permeability import FrozenState, checkpoint_permeabilities
-    from micro.run import measurement_executor
+    from micro.pool import measurement_executor
     from shared.dem import cube_points
     from shared.fv import facet_conductance
     from shared.mesh import build_mesh

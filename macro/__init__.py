@@ -1,7 +1,8 @@
 """claychain macro: the pellet-powder mixture mock-up (Caulk 2022, Chap. 4) fed by the
 pellet permeability table of the upscaling stage.
 
-Entry point: :func:`macro.run.run` (``config, case, table_path, output_path, figure_path``).
+Entry point: :func:`macro.run.run` (``config, case, table_path, CaseOutputs(result, figure)``),
+around the library function :func:`macro.mock_up.mock_up`.
 Modules, among others (``__all__`` lists them all): ``laws`` (constitutive laws),
 ``packing`` (random packing in the cylinder by overlap-energy minimisation), ``field``
 (powder heterogeneity), ``mixture`` (systems and exchanges on the Delaunay mesh),

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -23,9 +23,10 @@ from matplotlib.figure import Figure
 
 from shared.errors import InputError
 from shared.figures import new_figure, save_figure
-from shared.io import read_dataset, write_dataset
+from shared.io import read_dataset, write_outputs
 
 __all__ = [
+    "EnsembleOutputs",
     "QUANTITIES",
     "ensemble_statistics",
     "plot_ensemble",
@@ -200,25 +201,33 @@ def ensemble_figure(ds: xr.Dataset, path: str | Path, title: str = "") -> Path:
     return save_figure(plot_ensemble(ds, title), path)
 
 
+class EnsembleOutputs(NamedTuple):
+    """The files of :func:`run`: ``results/macro/ensemble_<name>.nc`` and its PNG."""
+
+    result: str | Path
+    figure: str | Path
+
+
 def run(
-    name: str,
     settings: Mapping[str, Any],
+    name: str,
     member_paths: Sequence[str | Path],
-    output_path: str | Path,
-    figure_path: str | Path,
+    outputs: EnsembleOutputs,
+    *,
     rule: str | None = None,
 ) -> xr.Dataset:
-    """Reduce an ensemble's member results to ``output_path`` and its figure.
+    """Reduce an ensemble's member results to its netCDF file and its figure.
 
     Parameters
     ----------
+    settings
+        The ensemble's validated entry (``case``, ``seeds``, ``time_points``,
+        ``band_quantiles``).
     name
         Name in ``macro.ensembles``.
-    settings
-        Its validated entry (``case``, ``seeds``, ``time_points``, ``band_quantiles``).
     member_paths
         The members' ``results/macro/<member>.nc``; their file names are the members'.
-    output_path, figure_path
+    outputs
         ``results/macro/ensemble_<name>.nc`` and ``.png``.
     rule
         Snakemake rule name for the provenance.
@@ -231,9 +240,9 @@ def run(
     required = [q for q in QUANTITIES if q not in OPTIONAL]
     members = {Path(path).stem: read_dataset(path, required) for path in member_paths}
     ds = ensemble_statistics(members, settings["time_points"], settings["band_quantiles"])
-    write_dataset(ds, output_path, stage="macro", title=f"claychain macro ensemble {name}",
+    title = f"ensemble {name} (case {settings['case']})"
+    write_outputs(ds, outputs.result, stage="macro", title=f"claychain macro ensemble {name}",
                   config={"ensemble": name, **settings}, inputs=member_paths, rule=rule,
-                  wildcards={"ensemble": name},
-                  references="Caulk (2022) thesis Sec. 4.10")
-    ensemble_figure(ds, figure_path, f"ensemble {name} (case {settings['case']})")
+                  wildcards={"ensemble": name}, references="Caulk (2022) thesis Sec. 4.10",
+                  figure=(outputs.figure, lambda path: ensemble_figure(ds, path, title)))
     return ds

@@ -1,24 +1,28 @@
 """The records of a macro run: what each step adds, the column's permeability when due,
-the stop distance over the window, and the thinning that keeps long runs bounded.
+the stop distance over the window, the thinning that keeps long runs bounded, and the
+run's Dataset.
 
 A record's quantities are named once, in :meth:`Records.record`; the rows of a new run
 are created by the first record, and a resumed run's rows are its snapshot's.
+:func:`records_dataset` gives each its variable of ``results/macro/<case>.nc``.
 """
 
 from __future__ import annotations
 
 import bisect
 import logging
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+import xarray as xr
 
 from macro.column_permeability import column_permeability
 from macro.model import MacroModel
-from macro.stopping import stop_distance
+from macro.stopping import MONITORED, stop_distance
 
-__all__ = ["INVARIANTS", "MEASUREMENT_ROWS", "PASSAGE_PRESSURE", "Records"]
+__all__ = ["INVARIANTS", "MEASUREMENT_ROWS", "PASSAGE_PRESSURE", "Records", "records_dataset"]
 
 LOG = logging.getLogger("claychain.macro")
 FloatArray = npt.NDArray[np.float64]
@@ -124,3 +128,88 @@ class Records:
             for key, values in self.rows.items():
                 if key not in MEASUREMENT_ROWS:
                     values[:] = values[:-1:2] + values[-1:]
+
+
+def _keep(steps: npt.NDArray[np.int64], wanted: int) -> npt.NDArray[np.int64]:
+    """Indices of at most ``wanted`` records nearest to equally spaced step numbers, the
+    first and last included (the records in memory are thinned unevenly)."""
+    targets = np.linspace(steps[0], steps[-1], min(steps.size, wanted))
+    nearest = np.clip(np.searchsorted(steps, targets), 1, steps.size - 1)
+    nearest -= (targets - steps[nearest - 1]) < (steps[nearest] - targets)
+    return np.unique(nearest)
+
+
+def records_dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: FloatArray) -> xr.Dataset:
+    """The Dataset of a run's records (:class:`Records`' ``rows`` and profile bin
+    ``edges`` [m]): at most ``records`` of them at equal step spacing, the column
+    permeabilities and first passages, the packing, and the run's counters as attributes."""
+    s = model.settings
+    keep = _keep(np.asarray(rows["step"]), s.records)
+    pick = {k: np.asarray(v)[keep] for k, v in rows.items() if k not in MEASUREMENT_ROWS}
+    z = 0.5 * (edges[:-1] + edges[1:]) + 0.5 * s.height
+    packing = model.packing
+    coords = {
+        "time": ("time", pick["time"], {"units": "s", "long_name": "simulated time"}),
+        "sensor": ("sensor", list(s.sensors.names), {"units": "1", "long_name": "radial pressure sensor (macro.sensors)"}),
+        "sensor_height": ("sensor", s.sensors.heights, {"units": "m", "long_name": "height of the sensor's centre above the lower plate"}),
+        "sensor_band_width": ("sensor", s.sensors.widths, {"units": "m", "long_name": "height of the wall band the sensor reads"}),
+        "band": ("band", np.arange(len(s.bands.names)), {"units": "1", "long_name": "equal height band of the curved wall, from the bottom"}),
+        "band_height": ("band", s.bands.heights, {"units": "m", "long_name": "height of the band's middle above the lower plate"}),
+        "material": ("material", ["pellet", "powder"], {"units": "1", "long_name": "material"}),
+        "z": ("z", z, {"units": "m", "long_name": "height above the lower plate"}),
+        "pellet": ("pellet", np.arange(model.n_pellets), {"units": "1", "long_name": "pellet index"}),
+        "xyz": ("xyz", ["x", "y", "z"], {"units": "1", "long_name": "axis"}),
+        "plate": ("plate", ["upper", "lower"], {"units": "1", "long_name": "plate of the container"}),
+        "permeability_time": ("permeability_time", np.asarray(rows["permeability_time"]),
+                              {"units": "s", "long_name": "simulated time of a column permeability measurement"}),
+    }
+    data = {
+        "sensor_pressure": (("time", "sensor"), pick["sensors"], {"units": "Pa", "long_name": "radial pressure read by each sensor: radial force in its band over 2 pi R w"}),
+        "band_pressure": (("time", "band"), pick["bands"], {"units": "Pa", "long_name": "radial pressure on the curved wall per equal height band (Appendix .1 getPressure), force over 2 pi R dz"}),
+        "axial_pressure_upper": (("time",), pick["axial_upper"], {"units": "Pa", "long_name": "axial pressure on the upper plate"}),
+        "axial_pressure_lower": (("time",), pick["axial_lower"], {"units": "Pa", "long_name": "axial pressure on the lower plate"}),
+        "mean_suction": (("time", "material"), pick["suction"], {"units": "Pa", "long_name": "volume-weighted mean suction"}),
+        "mean_saturation": (("time", "material"), pick["saturation"], {"units": "1", "long_name": "pore-volume-weighted mean water saturation"}),
+        "swelling_profile": (("time", "z"), pick["swelling"], {"units": "1", "long_name": "mean volumetric swelling strain V/V0 - 1 of pellets and powder along the axis"}),
+        "suction_profile": (("time", "z"), pick["suction_profile"], {"units": "Pa", "long_name": "mean suction along the axis"}),
+        "pellet_suction": (("time", "pellet"), pick["pellet_suction"], {"units": "Pa", "long_name": "suction of each pellet (field snapshots)"}),
+        "stop_distance": (("time",), pick["stop_distance"], {"units": "1", "long_name": "largest relative rate of the monitored quantities over its tolerance (1 = stop; NaN: too few records in the window)"}),
+        "unbalanced_force": (("time",), pick["unbalanced"], {"units": "1", "long_name": "mean resultant over mean contact force"}),
+        "time_step": (("time",), pick["dt"], {"units": "s", "long_name": "time step that ended at this record"}),
+        "balanced": (("time",), (pick["unbalanced"] < s.dem_balance_tolerance).astype(np.int8),
+                     {"units": "1", "long_name": "1 if the reading is from a balanced state (unbalanced force ratio below numerics.dem_balance_tolerance)"}),
+        **{name: (("time",), pick[name], {"units": units, "long_name": long})
+           for name, (units, long) in INVARIANTS.items()},
+        "pellet_position": (("pellet", "xyz"), packing.positions, {"units": "m", "long_name": "initial pellet centre (origin at the container's centre)"}),
+        "column_permeability": (("permeability_time",), np.asarray(rows["column_permeability"]), {"units": "m2", "long_name": "permeability of the whole column along its axis (steady flow between the plates, Appendix .1 emulatePermeability)"}),
+        "sensor_passage_time": (("sensor",), rows["passage"][0][:-2], {"units": "s", "long_name": f"first time the sensor read {PASSAGE_PRESSURE:g} Pa (every step; NaN: never)"}),
+        "axial_passage_time": (("plate",), rows["passage"][0][-2:], {"units": "s", "long_name": f"first time the plate read {PASSAGE_PRESSURE:g} Pa (every step; NaN: never)"}),
+        "pellet_radius_final": (("pellet",), model.radii, {"units": "m", "long_name": "pellet radius at the end"}),
+    }
+    table = model.table
+    attrs = {
+        "n_pellets": model.n_pellets,
+        "n_cells": model.n_cells,
+        "packing_fraction": packing.packing_fraction,
+        "packing_largest_overlap_m": packing.largest_overlap,
+        "table_condition": s.table_condition,
+        "table_lookups": table.looked_up,
+        "table_clamped_lookups": table.clamped,
+        **model.counters.attributes(),
+        "steps": model.steps,
+        "inert_void_fraction": model.neglected_void_fraction(),
+        "boundary_inflow_kg": model.boundary_inflow,
+        "dry_density_target_kg_m3": s.dry_density,
+        "dry_density_initial_kg_m3": float(pick["dry_density"][0]),
+        "dry_density_final_kg_m3": float(pick["dry_density"][-1]),
+        "pellet_powder_dry_mass_ratio": model.dry_mass_ratio(),
+        "powder_initial_porosity": model.powder_porosity,
+        "balanced_fraction": float(np.mean(pick["unbalanced"] < s.dem_balance_tolerance)),
+        "powder_heterogeneity": str(s.powder["heterogeneity"]),
+        "powder_swelling_pressure": int(s.powder_pressure),
+        "powder_pressure_on_walls": int(s.powder_on_walls),
+        "sensor_area_convention": ("force / (2 pi R dz)" if s.sensors.area_share == 1.0
+                                   else "force / (pi R dz), the thesis's getPressure"),
+        "stop_monitored": ", ".join(MONITORED),
+    }
+    return xr.Dataset(data, coords=coords, attrs=attrs)

@@ -16,26 +16,22 @@ from the beginning. Details: docs/micro.md, "micro.checkpoint".
 
 from __future__ import annotations
 
-import logging
 from dataclasses import asdict, fields
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from micro.hydration import BalanceProgress, FlowSystem, PelletState, update_cracks
+from shared.checkpointer import Checkpointer
 from shared.dem.state import ContactList, DEMState
 from shared.dem.walls import Walls
 from shared.errors import SnapshotError
 from shared.fv import FlowPattern
 from shared.materials import ClayParameters
 from shared.mesh import Mesh
-from shared.snapshot import read_meta, read_snapshot, write_snapshot
 from shared.solver import SPDSolver
 
-__all__ = ["save_checkpoint", "load_checkpoint", "checkpoint_wall_time"]
-
-LOG = logging.getLogger("micro.checkpoint")
+__all__ = ["save_checkpoint", "load_checkpoint"]
 
 _DEM_ARRAYS = ("positions", "velocities", "spins", "radii", "reference_radii", "masses",
                "inertia", "bonds", "bond_overlaps", "bond_broken", "fixed")
@@ -51,15 +47,15 @@ def _jsonable(record: dict[str, Any]) -> dict[str, Any]:
 
 
 def save_checkpoint(
-    path: Path, digest: str, state: PelletState, system: FlowSystem,
-    records: list[dict[str, Any]], reference_volume: float, wall_time: float = 0.0,
-    balance: BalanceProgress | None = None, phase_seconds: dict[str, float] | None = None,
+    checkpointer: Checkpointer, state: PelletState, system: FlowSystem,
+    records: list[dict[str, Any]], reference_volume: float,
+    balance: BalanceProgress | None = None,
 ) -> None:
-    """Write the state, its flow system and the records so far, atomically.
+    """Write the state, its flow system and the records so far to the checkpointer's
+    file, atomically, with the wall time so far (:meth:`shared.checkpointer.Checkpointer.save`).
 
-    ``wall_time`` is the wall time the run has taken so far [s] and ``phase_seconds``
-    its split by phase [s]; ``balance`` where the balance at the next checkpoint
-    stands, for a file written between two flow steps.
+    ``balance`` is where the balance at the next checkpoint stands, for a file written
+    between two flow steps.
     """
     arrays: dict[str, Any] = {f"dem_{k}": getattr(state.dem, k) for k in _DEM_ARRAYS}
     arrays.update({f"contacts_{k}": getattr(state.dem.contacts, k) for k in _CONTACT_ARRAYS})
@@ -78,22 +74,21 @@ def save_checkpoint(
                "n_remesh": state.n_remesh, "skin": state.dem.contacts.skin,
                "reference_volume": reference_volume,
                "walls_servo": None if state.walls is None else bool(state.walls.servo),
-               "solver": solver_scalars, "wall_time": float(wall_time),
-               "phase_seconds": dict(phase_seconds or {}),
+               "solver": solver_scalars,
                "records": [_jsonable(r) for r in records],
                "balance": None if balance is None else asdict(balance)}
-    write_snapshot(path, digest, scalars, arrays)
+    checkpointer.save(scalars, arrays)
 
 
 def load_checkpoint(
-    path: Path, digest: str, material: ClayParameters
+    checkpointer: Checkpointer, material: ClayParameters
 ) -> tuple[PelletState, FlowSystem, list[dict[str, Any]], float, BalanceProgress | None] | None:
     """The saved state, flow system, records, reference volume and, for a file written
     between two flow steps, the balance in progress; None if there is no usable file.
 
     A file written under another configuration or code (different hash) is ignored; one
     that fails its checks, or written by a version of the code that saved fewer arrays, is
-    moved aside (:func:`shared.snapshot.read_snapshot`). The crack network, a function of
+    moved aside (:meth:`shared.checkpointer.Checkpointer.resume`). The crack network, a function of
     the saved state, is rebuilt.
     """
     needed = ([f"dem_{k}" for k in _DEM_ARRAYS] + [f"contacts_{k}" for k in _CONTACT_ARRAYS]
@@ -132,11 +127,4 @@ def load_checkpoint(
         balance = None if meta.get("balance") is None else BalanceProgress(**meta["balance"])
         return state, system, records, float(meta["reference_volume"]), balance
 
-    return read_snapshot(path, digest, restore, LOG)
-
-
-def checkpoint_wall_time(path: Path) -> tuple[float, dict[str, float]]:
-    """Wall time [s] the run had taken when it wrote the checkpoint file ``path``, in all
-    and per phase (empty for a file written before phases were timed)."""
-    meta = read_meta(path)
-    return float(meta.get("wall_time", 0.0)), dict(meta.get("phase_seconds", {}))
+    return checkpointer.resume(restore)

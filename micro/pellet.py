@@ -339,7 +339,7 @@ def measure_checkpoint(
     """Everything recorded at a checkpoint (docs/design.md §2, ``results/micro``).
 
     The crack network is updated here (the hydration goes on with it). ``executor`` (a
-    worker process, :func:`micro.run.measurement_executor`) makes the eight independent
+    worker process, :func:`micro.pool.measurement_executor`) makes the eight independent
     permeability solves: with ``background``, all of them as one task on copies of the
     cell state while the caller goes on (the next checkpoint's hydration), else half of
     them while this process makes the others. The results do not depend on it.

@@ -4,8 +4,9 @@
 specimen image and porosity grid (:func:`imaging.ct.porosity.scan_datasets`) and writes
 them with their figure; ``rev`` reads the scan, the specimen image and the porosity grid,
 runs :func:`imaging.ct.rev.scan_rev` and writes its result and figure. The computations
-live in those modules and touch no file; each run only reads, calls and writes
-(:func:`shared.io.write_outputs`).
+live in those modules and touch no file; each run only builds the settings from the
+rule's configuration, reads, calls and writes (:func:`shared.io.write_outputs`), with the
+signature of every stage's run (docs/development.md, "Adding a stage").
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ from imaging.ct.rev import scan_rev
 from imaging.ct.settings import ONE_WORKER, PorositySettings, RevSettings, ScanResources
 from shared.io import read_dataset, write_outputs
 
-__all__ = ["PorosityOutputs", "phantom", "porosity", "rev", "phantom_spec", "open_scan"]
+__all__ = ["PorosityOutputs", "RevInputs", "RevOutputs", "phantom", "porosity", "rev", "phantom_spec",
+           "open_scan"]
 
 log = logging.getLogger("imaging.ct")
 
@@ -38,6 +40,22 @@ class PorosityOutputs(NamedTuple):
 
     image: str | Path
     porosity: str | Path
+    figure: str | Path
+
+
+class RevInputs(NamedTuple):
+    """The files :func:`rev` reads: the scan's file or folder, ``results/images/<sample>.nc``
+    (the specimen mask) and ``results/porosity/<sample>.nc``."""
+
+    scan: str | Path
+    image: str | Path
+    porosity: str | Path
+
+
+class RevOutputs(NamedTuple):
+    """The files of :func:`rev`: ``results/rev/<sample>.nc`` and its PNG."""
+
+    rev: str | Path
     figure: str | Path
 
 
@@ -75,26 +93,22 @@ def phantom_spec(
     )
 
 
-def phantom(
-    section: Mapping[str, Any],
-    calibration: Mapping[str, Any],
-    sample: str,
-    entry: Mapping[str, Any],
-    output: str | Path,
-) -> Path:
+def phantom(config: Mapping[str, Any], sample: str, output: str | Path) -> Path:
     """Write the synthetic pellet scan of a sample as a 16-bit multi-page TIFF.
 
     Parameters
     ----------
-    section, calibration
-        The ``phantom`` section and the density anchors of ``imaging.calibration`` (see
-        :func:`phantom_spec`).
-    sample, entry
-        The sample's name and its ``samples`` entry (its ``voxel_size_m`` is read).
+    config
+        The rule's configuration: ``phantom``, the section, ``calibration``, the density
+        anchors of ``imaging.calibration`` (see :func:`phantom_spec`), and ``sample``, the
+        sample's ``samples`` entry (its ``voxel_size_m`` is read).
+    sample
+        The sample's name.
     output
         Target TIFF.
     """
-    spec = phantom_spec(section, calibration, float(entry["voxel_size_m"]))
+    entry = config["sample"]
+    spec = phantom_spec(config["phantom"], config["calibration"], float(entry["voxel_size_m"]))
     grey, _ = pellet_phantom(spec)
     log.info("phantom %s: shape %s, voxel %.3g m", sample, grey.shape, spec.voxel_size)
     return write_tiff_stack(grey, output)
@@ -114,10 +128,11 @@ def open_scan(entry: Mapping[str, Any], scan: str | Path, chunk_mb: float) -> An
 
 
 def porosity(
+    config: Mapping[str, Any],
+    sample: str,
     scan: str | Path,
-    entry: Mapping[str, Any],
-    settings: PorositySettings,
     outputs: PorosityOutputs,
+    *,
     resources: ScanResources = ONE_WORKER,
     rule: str | None = None,
 ) -> xr.Dataset:
@@ -126,12 +141,15 @@ def porosity(
 
     Parameters
     ----------
+    config
+        The rule's validated configuration: ``sample``, the sample's ``samples`` entry
+        (source, layout, ``voxel_size_m``), and the arguments of
+        :meth:`PorositySettings.from_config`, ``imaging``, ``material`` and
+        ``micro_spacing``.
+    sample
+        The sample's name.
     scan
         The scan's file or folder (the phantom's TIFF for a phantom sample).
-    entry
-        The sample's ``samples`` entry (validated): source, layout, ``voxel_size_m``.
-    settings
-        The sample's porosity settings (:meth:`PorositySettings.from_config`).
     outputs
         The image, porosity and figure paths.
     resources
@@ -149,16 +167,18 @@ def porosity(
     ImageError, InputError
         As :func:`imaging.ct.porosity.scan_datasets`; nothing is written then.
     """
+    entry = config["sample"]
+    settings = PorositySettings.from_config(sample, config["imaging"], config["material"],
+                                            config["micro_spacing"])
     grey = open_scan(entry, scan, resources.chunk_mb)
-    config = {"sample": dict(entry), "imaging": settings.record()}
-    sample = settings.sample
+    record = {"sample": dict(entry), "imaging": settings.record()}
     with resources.scheduler():
         image, ds = scan_datasets(grey, settings, voxel_size=float(entry["voxel_size_m"]),
                                   resources=resources, source=scan)
         write_outputs(image, outputs.image, stage="imaging", title=f"CT scan of {sample}",
-                      config=config, inputs=[scan], rule=rule)
+                      config=record, inputs=[scan], rule=rule)
         write_outputs(ds, outputs.porosity, stage="imaging", title=f"porosity grid of {sample}",
-                      config=config, inputs=[outputs.image], rule=rule, references=_REFERENCE,
+                      config=record, inputs=[outputs.image], rule=rule, references=_REFERENCE,
                       figure=(outputs.figure, lambda path: figures.porosity_figure(image, ds, path)))
     log.info("%s: grid %s of %.3g m, mean porosity %.4f, clamped %.2g",
              sample, ds["porosity"].shape, ds.attrs["grid_spacing"],
@@ -167,11 +187,11 @@ def porosity(
 
 
 def rev(
-    scan: str | Path,
-    entry: Mapping[str, Any],
-    settings: RevSettings,
-    inputs: tuple[str | Path, str | Path],
-    outputs: tuple[str | Path, str | Path],
+    config: Mapping[str, Any],
+    sample: str,
+    inputs: RevInputs,
+    outputs: RevOutputs,
+    *,
     resources: ScanResources = ONE_WORKER,
     rule: str | None = None,
 ) -> xr.Dataset:
@@ -180,12 +200,14 @@ def rev(
 
     Parameters
     ----------
-    scan, entry
-        The scan's file or folder and the sample's ``samples`` entry (source and layout).
-    settings
-        The sample's REV and chord settings.
+    config
+        The rule's validated configuration: ``sample``, the sample's ``samples`` entry
+        (source and layout), and ``settings``, its ``rev`` and ``chords`` sections
+        (:class:`RevSettings`).
+    sample
+        The sample's name.
     inputs
-        ``results/images/<sample>.nc`` (the specimen mask) and ``results/porosity/<sample>.nc``.
+        The scan, its specimen image and its porosity grid.
     outputs
         ``results/rev/<sample>.nc`` and its PNG.
     resources
@@ -193,18 +215,19 @@ def rev(
     rule
         Snakemake rule name, for provenance.
     """
-    image_input, porosity_input = inputs
-    rev_output, figure_output = outputs
+    entry = config["sample"]
+    settings = RevSettings(config["settings"]["rev"], config["settings"]["chords"], sample)
+    scan, image_input, porosity_input = inputs
     grid = read_dataset(porosity_input, ["porosity"])
     grey = open_scan(entry, scan, resources.chunk_mb)
     with resources.scheduler(), xr.open_dataset(image_input, engine="netcdf4", chunks={}) as image:
         ds = scan_rev(grey, image, grid, settings, resources=resources, source=scan,
                       image_source=image_input)
-        write_outputs(ds, rev_output, stage="imaging",
+        write_outputs(ds, outputs.rev, stage="imaging",
                       title=f"REV and chord lengths of {settings.sample}",
                       config={"rev": dict(settings.rev), "chords": dict(settings.chords)},
                       seed=settings.rev["seed"], inputs=[scan, image_input, porosity_input],
                       rule=rule,
                       references="Ferrage et al. (2015), Phys. Rev. E 91, 062210, Sec. V.C",
-                      figure=(figure_output, lambda path: figures.rev_figure(ds, path)))
+                      figure=(outputs.figure, lambda path: figures.rev_figure(ds, path)))
     return ds

@@ -206,7 +206,7 @@ def axis_permeabilities(
         Pressure drop as a fraction of the suction [1].
     executor
         Makes half of the six independent solves while this thread makes the others
-        (:func:`micro.run.measurement_executor`: a worker process, since pyamg's cycles
+        (:func:`micro.pool.measurement_executor`: a worker process, since pyamg's cycles
         and CHOLMOD hold the GIL); None makes them one after the other. The results do
         not depend on it.
 

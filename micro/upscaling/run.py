@@ -17,7 +17,7 @@ import io
 import logging
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import xarray as xr
 
@@ -27,7 +27,7 @@ from shared.config import ConfigError
 from shared.io import OutputError, read_dataset, write_outputs
 from shared.table_export import CSV_EXPORT_ATTRIBUTE
 
-__all__ = ["run"]
+__all__ = ["TableOutputs", "run"]
 
 log = logging.getLogger("micro.upscaling")
 
@@ -42,12 +42,20 @@ def _csv_export(table: xr.Dataset) -> str:
     return stream.getvalue()
 
 
+class TableOutputs(NamedTuple):
+    """The files of :func:`run`: ``results/upscaling/pellet_permeability.nc``, its CSV
+    export and its PNG."""
+
+    table: str | Path
+    csv: str | Path
+    figure: str | Path
+
+
 def run(
     upscaling: Mapping[str, Any],
     inputs: Mapping[str, Sequence[str | Path]],
-    output: str | Path,
-    csv_output: str | Path,
-    figure_output: str | Path,
+    outputs: TableOutputs,
+    *,
     rule: str | None = None,
 ) -> xr.Dataset:
     """Build, check and write the pellet permeability table.
@@ -58,7 +66,7 @@ def run(
         Validated ``upscaling`` section (``conditions``, ``suction_range_pa``).
     inputs
         Per condition, the micro result files of its case or ensemble.
-    output, csv_output, figure_output
+    outputs
         ``pellet_permeability.nc``, ``.csv`` and ``.png``.
     rule
         Snakemake rule name, for provenance.
@@ -82,11 +90,11 @@ def run(
     export = _csv_export(table).encode()
     # the export's hash in the table: a hand edit of the export is refused, not ignored
     table.attrs[CSV_EXPORT_ATTRIBUTE] = hashlib.sha256(export).hexdigest()
-    write_outputs(table, output, stage="upscaling", title="pellet permeability table",
+    write_outputs(table, outputs.table, stage="upscaling", title="pellet permeability table",
                   config=dict(upscaling), inputs=files, rule=rule,
                   references="Caulk (2022), PhD thesis, Sec. 3.5.3 and 4.6",
-                  files={csv_output: export},
-                  figure=(figure_output, lambda path: table_figure(table, path)))
+                  files={outputs.csv: export},
+                  figure=(outputs.figure, lambda path: table_figure(table, path)))
     for condition in table["condition"].values:
         k = table["k"].sel(condition=condition, phase="water")
         log.info("%s: water k %.3g-%.3g m2 over %.3g-%.3g Pa from %d result(s)", condition,

@@ -7,6 +7,7 @@ import json
 
 import pytest
 
+import macro.mock_up
 import macro.run as macro_run
 from macro.laws import case_materials, mixture_parameters
 from shared.config import ConfigError, load_schema, validate_config
@@ -50,7 +51,7 @@ def test_the_model_is_built_from_the_cases_own_values(table_path, monkeypatch):
         seen.update(materials)
         raise Built
 
-    monkeypatch.setattr(macro_run, "mixture_parameters", spy)
+    monkeypatch.setattr(macro.mock_up, "mixture_parameters", spy)
     config = _two_cases()
     with pytest.raises(Built):
         macro_run.build_model(config, "own", PermeabilityTable.from_file(table_path, "free"))
@@ -64,7 +65,7 @@ def test_the_run_records_the_cases_own_values(table_path, tmp_path):
     case's materials, merged over the top-level ones."""
     config = _two_cases()
     config["macro"]["numerics"]["max_steps"] = 2
-    macro_run.run(config, "own", table_path, tmp_path / "own.nc")
+    macro_run.run(config, "own", table_path, macro_run.CaseOutputs(tmp_path / "own.nc"))
     recorded = json.loads(read_dataset(tmp_path / "own.nc").attrs["config_json"])
     pellet = recorded["materials"]["mixture_pellet"]
     assert pellet["swelling_beta_per_pa"] == 3.0e-8 and pellet["poisson_ratio"] == 0.3

@@ -19,7 +19,8 @@ import xarray as xr
 
 from macro.checkpoint import load_snapshot, save_snapshot
 from macro.model import MacroModel
-from macro.run import case_parameters, run
+from macro.run import CaseOutputs, case_parameters, run
+from shared.checkpointer import Checkpointer
 from shared.snapshot import read_meta
 from shared.upscaling import PermeabilityTable
 from tests._macro_cases import small_config
@@ -48,11 +49,12 @@ def _kill_at(monkeypatch, step):
 
 CHILD = """\
 import json, os, signal, sys
+import macro.mock_up
 import macro.run
 from macro.model import MacroModel
 
 config, table, output, kill_at, thin_above = sys.argv[1:]
-macro.run.THIN_ABOVE = int(thin_above)
+macro.mock_up.THIN_ABOVE = int(thin_above)
 step = MacroModel.step
 
 
@@ -63,7 +65,7 @@ def killed(self, max_dt=float("inf")):
 
 
 MacroModel.step = killed
-macro.run.run(json.loads(open(config).read()), "small", table, output)
+macro.run.run(json.loads(open(config).read()), "small", table, macro.run.CaseOutputs(output))
 """
 """A user's run in a process of its own, SIGKILLed when it is about to take step
 ``kill_at`` + 1 (after ``kill_at`` steps; -1: never), its records thinned above
@@ -97,7 +99,7 @@ def _remesh_steps(monkeypatch, table_path, config, output):
         remesh(self)
 
     monkeypatch.setattr(MacroModel, "remesh", counted)
-    run(config, "small", table_path, output)
+    run(config, "small", table_path, CaseOutputs(output))
     monkeypatch.setattr(MacroModel, "remesh", remesh)
     return xr.load_dataset(output), steps
 
@@ -119,7 +121,7 @@ def test_a_run_killed_three_times_resumes_to_the_uninterrupted_result(table_path
     # a packing that remeshes early and often (steps 5, 8 and 18); with most seeds this
     # loose column remeshes once or never in 36 steps
     config["macro"]["seed"] = 14
-    monkeypatch.setattr("macro.run.THIN_ABOVE", THIN_ABOVE)
+    monkeypatch.setattr("macro.mock_up.THIN_ABOVE", THIN_ABOVE)
     whole, remeshed = _remesh_steps(monkeypatch, table_path, config, tmp_path / "whole.nc")
     assert remeshed and remeshed[0] + 6 < steps, remeshed
     kills = (remeshed[0] // 2, remeshed[0] + 2, (remeshed[0] + 2 + steps) // 2)
@@ -161,7 +163,7 @@ def _killed_run(monkeypatch, config, table_path, out, step=2):
     """Run until the kill at ``step``; the snapshot left behind."""
     original = _kill_at(monkeypatch, step)
     with pytest.raises(KeyboardInterrupt):
-        run(config, "small", table_path, out)
+        run(config, "small", table_path, CaseOutputs(out))
     monkeypatch.setattr(MacroModel, "step", original)
     snapshot = out.with_name(f".{out.stem}.snapshot.npz")
     assert snapshot.is_file()
@@ -172,7 +174,7 @@ def _runs_afresh_setting_aside(snapshot, config, table_path, out, caplog, why):
     """The rerun starts afresh, the file is moved aside and one log line says ``why``."""
     content = snapshot.read_bytes()
     with caplog.at_level("INFO", logger="claychain.macro"):
-        assert run(config, "small", table_path, out).attrs["resumed"] == 0
+        assert run(config, "small", table_path, CaseOutputs(out)).attrs["resumed"] == 0
     aside = snapshot.with_name(snapshot.name + ".rejected")
     assert aside.read_bytes() == content and not snapshot.exists()
     lines = [r.getMessage() for r in caplog.records if "moved to" in r.getMessage()]
@@ -218,7 +220,7 @@ def test_a_snapshot_of_another_configuration_is_ignored(table_path, tmp_path, mo
     other["macro"]["seed"] = 5
     out = tmp_path / "case.nc"
     _killed_run(monkeypatch, other, table_path, out)
-    assert run(_config(3), "small", table_path, out).attrs["resumed"] == 0
+    assert run(_config(3), "small", table_path, CaseOutputs(out)).attrs["resumed"] == 0
 
 
 def test_a_snapshot_whose_records_differ_in_shape_is_set_aside(table_path, tmp_path, monkeypatch, caplog):
@@ -229,9 +231,10 @@ def test_a_snapshot_whose_records_differ_in_shape_is_set_aside(table_path, tmp_p
         digest = json.loads(str(data["header"]))["digest"]
     settings, material = case_parameters(config, "small")
     table = PermeabilityTable.from_file(table_path, settings.table_condition)
-    model, rows, wall_time = load_snapshot(snapshot, digest, settings, material, table)
+    checkpointer = Checkpointer(snapshot, digest)
+    model, rows = load_snapshot(checkpointer, settings, material, table)
     rows["swelling"][-1] = rows["swelling"][-1][:-1]
-    save_snapshot(snapshot, digest, model, rows, wall_time)
+    save_snapshot(checkpointer, model, rows)
     _runs_afresh_setting_aside(snapshot, config, table_path, out, caplog, "swelling differ in shape")
 
 
@@ -268,10 +271,14 @@ def test_the_whole_model_and_attributes_added_later_go_through_a_snapshot(model,
     model.added_nan = float("nan")
     rows = {"time": [1.0, 2.5], "swelling": [np.zeros(3), np.ones(3) / 7.0]}
     path = tmp_path / "s.npz"
-    save_snapshot(path, "d", model, rows, 12.5)
+    saving = Checkpointer(path, "d")
+    saving.wall_time = lambda: 12.5  # the wall time so far [s], as a run's checkpointer counts it
+    save_snapshot(saving, model, rows)
     settings, material = case_parameters(small_config(), "small")
     table = PermeabilityTable.from_file(table_path, "free")
-    loaded, loaded_rows, wall_time = load_snapshot(path, "d", settings, material, table)
+    loading = Checkpointer(path, "d")
+    loaded, loaded_rows = load_snapshot(loading, settings, material, table)
+    wall_time = loading.earlier
     assert wall_time == 12.5 and table.looked_up == 0 < loaded.table.looked_up == model.table.looked_up
     _assert_same_state(model, loaded, "model")
     _assert_same_state(rows, loaded_rows, "rows")
@@ -284,21 +291,21 @@ def test_the_whole_model_and_attributes_added_later_go_through_a_snapshot(model,
 def test_an_attribute_a_snapshot_cannot_hold_is_an_error_naming_it(model, tmp_path):
     model.added_set = {1, 2}
     with pytest.raises(TypeError, match=r"model\.added_set: a builtins\.set cannot be saved"):
-        save_snapshot(tmp_path / "s.npz", "d", model, {}, 0.0)
+        save_snapshot(Checkpointer(tmp_path / "s.npz", "d"), model, {})
     assert not (tmp_path / "s.npz").exists()
 
 
 def test_snapshot_of_other_code_is_ignored(table_path, tmp_path, monkeypatch, caplog):
     """An edit of the code macro.run imports between a kill and the rerun starts the case afresh."""
-    import macro.run
+    import shared.checkpointer
 
     out = tmp_path / "case.nc"
     original = _kill_at(monkeypatch, 2)
     with pytest.raises(KeyboardInterrupt):
-        run(_config(3), "small", table_path, out)
+        run(_config(3), "small", table_path, CaseOutputs(out))
     monkeypatch.setattr(MacroModel, "step", original)
     assert (tmp_path / ".case.snapshot.npz").is_file()
-    monkeypatch.setattr(macro.run, "module_sha256", lambda path: "edited")
+    monkeypatch.setattr(shared.checkpointer, "module_sha256", lambda path: "edited")
     with caplog.at_level("INFO", logger="claychain.macro"):
-        assert run(_config(3), "small", table_path, out).attrs["resumed"] == 0
+        assert run(_config(3), "small", table_path, CaseOutputs(out)).attrs["resumed"] == 0
     assert "snapshot of another configuration or code" in caplog.text

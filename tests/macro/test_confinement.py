@@ -12,7 +12,7 @@ import pytest
 
 from macro.laws import confined_pressure, confined_volume
 from macro.newton import NewtonSettings, PVProblem, solve_pressure_volume
-from macro.run import build_model, run
+from macro.run import CaseOutputs, build_model, run
 from shared.upscaling import PermeabilityTable
 from tests._macro_cases import small_config, swelling
 from tests.macro._material import CONFIG, MATERIAL, PHI0, pellet
@@ -59,7 +59,7 @@ def small_run(tmp_path_factory):
     write_table(table)
     config = small_config()
     config["macro"]["numerics"].update(max_steps=60, stop_tolerance=0.0)
-    return run(config, "small", table, tmp_path_factory.mktemp("run") / "small.nc"), table
+    return run(config, "small", table, CaseOutputs(tmp_path_factory.mktemp("run") / "small.nc")), table
 
 
 def test_water_is_conserved_at_every_record(small_run):
@@ -107,7 +107,7 @@ def test_first_passages_are_the_first_records_above_half_a_megapascal(tmp_path_f
     table = write_table(tmp_path_factory.mktemp("table") / "table.nc")
     config = small_config()
     config["macro"]["numerics"].update(max_steps=40, records=41, stop_tolerance=0.0)
-    ds = run(config, "small", table, tmp_path_factory.mktemp("run") / "small.nc")
+    ds = run(config, "small", table, CaseOutputs(tmp_path_factory.mktemp("run") / "small.nc"))
     readings = np.column_stack([ds["sensor_pressure"].values, ds["axial_pressure_upper"].values,
                                 ds["axial_pressure_lower"].values])
     passages = np.concatenate([ds["sensor_passage_time"].values, ds["axial_passage_time"].values])

@@ -119,7 +119,8 @@ def test_run_writes_the_product_from_the_members_files(tmp_path, kept_figures): 
         paths.append(write_dataset(ds, tmp_path / f"{name}.nc", stage="macro", title=name))
     settings = {"case": "small", "seeds": list(range(8)), "time_points": 12,
                 "band_quantiles": [0.1, 0.9]}
-    ensemble.run("e", settings, paths, tmp_path / "ensemble_e.nc", tmp_path / "ensemble_e.png",
+    ensemble.run(settings, "e", paths,
+                 ensemble.EnsembleOutputs(tmp_path / "ensemble_e.nc", tmp_path / "ensemble_e.png"),
                  rule="macro_ensemble")
     ds = read_dataset(tmp_path / "ensemble_e.nc", ["sensor_pressure_mean", "sensor_pressure_band"])
     assert list(ds["member"].values) == [f"e_s{k}" for k in range(8)]

@@ -11,7 +11,7 @@ import xarray as xr
 from macro.laws import mixture_parameters
 from macro.model import MacroModel
 from macro.packing import Packing, pack_cylinder
-from macro.run import build_model, case_parameters, mock_up, run
+from macro.run import CaseOutputs, build_model, case_parameters, mock_up, run
 from macro.settings import macro_settings
 from shared.io import OutputError, write_dataset
 from shared.provenance import file_sha256
@@ -24,7 +24,7 @@ def test_run_writes_the_contract(tmp_path, table_path, kept_figures):  # noqa: F
     config = small_config()
     config["macro"]["numerics"]["max_steps"] = 4
     out = tmp_path / "small.nc"
-    run(config, "small", table_path, out, tmp_path / "small.png")
+    run(config, "small", table_path, CaseOutputs(out, tmp_path / "small.png"))
     ds = xr.load_dataset(out)
     assert ds["sensor_pressure"].dims == ("time", "sensor")
     assert list(ds["sensor"].values) == ["S10", "S25", "S40"]
@@ -56,7 +56,7 @@ def test_mock_up_in_memory_equals_what_run_writes(tmp_path, table_path, monkeypa
     table = PermeabilityTable.from_file(table_path, settings.table_condition)
     written = tmp_path / "written"
     written.mkdir()
-    run(config, "small", table_path, written / "small.nc")
+    run(config, "small", table_path, CaseOutputs(written / "small.nc"))
     monkeypatch.chdir(tmp_path)
     before = sorted(tmp_path.rglob("*"))
     ds = mock_up(table, settings, material)
@@ -126,7 +126,7 @@ def test_larger_pellet_permeability_gives_a_faster_pressure_rise(tmp_path):
         table = write_table(tmp_path / f"table_{scale}.nc", scale)
         config = small_config()
         config["macro"]["numerics"].update(max_time_s=400.0, max_steps=2000, stop_tolerance=0.0)
-        ds = run(config, "small", table, tmp_path / f"run_{scale}.nc")
+        ds = run(config, "small", table, CaseOutputs(tmp_path / f"run_{scale}.nc"))
         assert ds["time"].values[-1] == pytest.approx(400.0)
         wall = ds["sensor_pressure"].mean("sensor") + ds["axial_pressure_upper"]
         results[scale] = (float(ds["mean_suction"].sel(material="pellet")[-1]), float(wall.mean()))
@@ -137,24 +137,24 @@ def test_larger_pellet_permeability_gives_a_faster_pressure_rise(tmp_path):
 def test_missing_or_malformed_table_is_named(tmp_path):
     config = small_config()
     with pytest.raises(OutputError, match="nowhere.nc: no such file"):
-        run(config, "small", tmp_path / "nowhere.nc", tmp_path / "out.nc")
+        run(config, "small", tmp_path / "nowhere.nc", CaseOutputs(tmp_path / "out.nc"))
     broken = synthetic_table().drop_vars("k_tensor")
     path = tmp_path / "broken.nc"
     broken.to_netcdf(path)
     with pytest.raises(OutputError, match="broken.nc: missing variable"):
-        run(config, "small", path, tmp_path / "out.nc")
+        run(config, "small", path, CaseOutputs(tmp_path / "out.nc"))
     assert not (tmp_path / "out.nc").exists()
 
 
 def test_pellets_larger_than_the_container_are_named(table_path, tmp_path):
     config = small_config(pellet_radius_m=0.02)
     with pytest.raises(ValueError, match="macro.pellet_radius_m = 0.02 m: a pellet of that radius does not fit"):
-        run(config, "small", table_path, tmp_path / "out.nc")
+        run(config, "small", table_path, CaseOutputs(tmp_path / "out.nc"))
 
 
 def test_unknown_case_is_named(table_path, tmp_path):
     with pytest.raises(KeyError, match="macro.cases has no case 'nope'"):
-        run(small_config(), "nope", table_path, tmp_path / "out.nc")
+        run(small_config(), "nope", table_path, CaseOutputs(tmp_path / "out.nc"))
 
 
 def test_powder_presses_eq_4_31_at_its_dry_density_once_it_fills_its_void(table_path):
@@ -222,7 +222,7 @@ def test_paraview_series_lists_its_snapshots(table_path, tmp_path):
     config = small_config()
     config["macro"]["numerics"].update(max_steps=12, max_time_s=2000.0, stop_tolerance=0.0)
     config["macro"]["vtk_snapshots"] = 4
-    ds = run(config, "small", table_path, tmp_path / "small.nc")
+    ds = run(config, "small", table_path, CaseOutputs(tmp_path / "small.nc"))
     pvd = (tmp_path / "small_vtk" / "small.pvd").read_text()
     files = sorted((tmp_path / "small_vtk").glob("step_*.vtu"))
     assert 2 <= len(files) <= 5 and all(f.name in pvd for f in files)
@@ -252,7 +252,7 @@ def test_spoiled_table_is_refused_naming_the_file(table_path, tmp_path, spoil, m
     path = tmp_path / "spoiled.nc"
     table.to_netcdf(path)
     with pytest.raises(OutputError, match=f"spoiled.nc.*{message}"):
-        run(small_config(), "small", path, tmp_path / "out.nc")
+        run(small_config(), "small", path, CaseOutputs(tmp_path / "out.nc"))
     assert not (tmp_path / "out.nc").exists()
 
 
@@ -265,7 +265,7 @@ def test_clamped_table_lookups_are_counted(tmp_path):
     write_dataset(table, path, stage="upscaling", title="narrow table")
     config = small_config()
     config["macro"]["numerics"]["max_steps"] = 3
-    ds = run(config, "small", path, tmp_path / "out.nc")
+    ds = run(config, "small", path, CaseOutputs(tmp_path / "out.nc"))
     assert ds.attrs["table_clamped_lookups"] > 0
     assert ds.attrs["table_clamped_lookups"] <= ds.attrs["table_lookups"]
 
@@ -277,23 +277,24 @@ def test_jammed_packing_is_refused_naming_the_keys(table_path, tmp_path):
     config["macro"]["mixture"]["packing_fraction"] = 0.58
     config["macro"]["numerics"]["packing_iterations"] = 20
     with pytest.raises(ValueError, match=r"macro.mixture: a pellet packing fraction of 0.58: .*packing_iterations"):
-        run(config, "small", table_path, tmp_path / "out.nc")
+        run(config, "small", table_path, CaseOutputs(tmp_path / "out.nc"))
     assert not (tmp_path / "out.nc").exists()
 
 
 def test_records_are_thinned_and_picked_at_equal_step_spacing(table_path, tmp_path, monkeypatch):
     """Past THIN_ABOVE records in memory every other one is dropped; the written records
     are the nearest to equally spaced steps, first and last included."""
-    import macro.run as macro_run
+    import macro.mock_up
+    import macro.records
 
-    monkeypatch.setattr(macro_run, "THIN_ABOVE", 10)
+    monkeypatch.setattr(macro.mock_up, "THIN_ABOVE", 10)
     config = small_config()
     config["macro"]["numerics"].update(max_steps=40, stop_tolerance=0.0, records=5)
-    ds = run(config, "small", table_path, tmp_path / "small.nc")
+    ds = run(config, "small", table_path, CaseOutputs(tmp_path / "small.nc"))
     assert 3 <= ds.sizes["time"] <= 5  # nearest records may coincide once thinned
     assert ds.attrs["steps"] == 40 and ds["time"].values[0] == 0.0
     assert ds["time_step"].values[-1] > 0.0
-    keep = macro_run._keep(np.array([0, 4, 8, 16, 24, 32, 33, 34, 35, 36, 40]), 5)
+    keep = macro.records._keep(np.array([0, 4, 8, 16, 24, 32, 33, 34, 35, 36, 40]), 5)
     np.testing.assert_array_equal(keep, [0, 2, 4, 5, 10])  # steps 0, 8, 16/24 -> 24, 32, 40
 
 
@@ -307,7 +308,7 @@ def test_run_stops_once_the_recorded_distance_reaches_one(table_path, tmp_path):
     config = small_config()
     config["macro"]["numerics"].update(max_steps=300, stop_after_s=0.0, stop_tolerance=10.0,
                                        stop_pressure_tolerance=10.0, records=400)
-    ds = run(config, "small", table_path, tmp_path / "small.nc")
+    ds = run(config, "small", table_path, CaseOutputs(tmp_path / "small.nc"))
     assert ds.attrs["stop_reason"] == "near_equilibrium" and ds.attrs["steps"] < 300
     distance = ds["stop_distance"].values
     assert distance[-1] <= 1.0 and not np.any(distance[:-1] <= 1.0)

@@ -39,7 +39,7 @@ def test_hydrate_from_memory_is_what_run_writes(config, tmp_path: Path,
     ds = micro_run.hydrate(porosity_grid(4e-4), micro_run.micro_settings(config, "c"))
     assert not any(tmp_path.iterdir())
     grid = write_porosity_grid(tmp_path / "porosity.nc", 4e-4)
-    micro_run.run(config, "c", grid, tmp_path / "c.nc", tmp_path / "c.png")
+    micro_run.run(config, "c", grid, micro_run.CaseOutputs(tmp_path / "c.nc", tmp_path / "c.png"))
     with xr.open_dataset(tmp_path / "c.nc") as written:
         assert sorted(ds.variables) == sorted(written.variables)
         for name in ds.variables:

@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
+import shared.checkpointer
+from micro import case as micro_case
 from micro import hydration
 from micro import run as micro_run
 from micro.forces import membrane_forces
@@ -281,8 +283,8 @@ def test_checkpoints_must_decrease(micro_config):
 
 def test_killed_run_resumes_to_the_same_result(micro_config, tmp_path, monkeypatch):
     config, grid = micro_config
-    reference = micro_run.run(config, "c", grid, tmp_path / "a.nc", tmp_path / "a.png")
-    original = micro_run.advance_to_balance
+    reference = micro_run.run(config, "c", grid, micro_run.CaseOutputs(tmp_path / "a.nc", tmp_path / "a.png"))
+    original = micro_case.advance_to_balance
     calls = {"n": 0}
 
     def dies_at_the_third(*args, **kwargs):
@@ -291,12 +293,12 @@ def test_killed_run_resumes_to_the_same_result(micro_config, tmp_path, monkeypat
             raise DivergenceError("simulated crash")
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(micro_run, "advance_to_balance", dies_at_the_third)
+    monkeypatch.setattr(micro_case, "advance_to_balance", dies_at_the_third)
     with pytest.raises(DivergenceError, match="last good checkpoint is kept"):
-        micro_run.run(config, "c", grid, tmp_path / "b.nc", tmp_path / "b.png")
+        micro_run.run(config, "c", grid, micro_run.CaseOutputs(tmp_path / "b.nc", tmp_path / "b.png"))
     assert (tmp_path / "b.checkpoint.npz").exists() and not (tmp_path / "b.nc").exists()
-    monkeypatch.setattr(micro_run, "advance_to_balance", original)
-    resumed = micro_run.run(config, "c", grid, tmp_path / "b.nc", tmp_path / "b.png")
+    monkeypatch.setattr(micro_case, "advance_to_balance", original)
+    resumed = micro_run.run(config, "c", grid, micro_run.CaseOutputs(tmp_path / "b.nc", tmp_path / "b.png"))
     assert not (tmp_path / "b.checkpoint.npz").exists()
     # the checkpoints before the crash come back from the file, the ones after it are
     # recomputed from the saved state: bit for bit either way
@@ -309,7 +311,7 @@ def test_a_checkpoint_of_other_code_is_not_resumed(micro_config, tmp_path, monke
     """The checkpoint's digest holds the hash of the code micro.run imports: after an
     edit, the file left by a killed run is found and ignored, and the case starts afresh."""
     config, grid = micro_config
-    original = micro_run.advance_to_balance
+    original = micro_case.advance_to_balance
 
     def dies_at_the_second(*args, **kwargs):
         if dies_at_the_second.calls == 1:
@@ -318,15 +320,15 @@ def test_a_checkpoint_of_other_code_is_not_resumed(micro_config, tmp_path, monke
         return original(*args, **kwargs)
 
     dies_at_the_second.calls = 0
-    monkeypatch.setattr(micro_run, "advance_to_balance", dies_at_the_second)
+    monkeypatch.setattr(micro_case, "advance_to_balance", dies_at_the_second)
     with pytest.raises(DivergenceError):
-        micro_run.run(config, "c", grid, tmp_path / "b.nc", tmp_path / "b.png")
-    monkeypatch.setattr(micro_run, "advance_to_balance", original)
+        micro_run.run(config, "c", grid, micro_run.CaseOutputs(tmp_path / "b.nc", tmp_path / "b.png"))
+    monkeypatch.setattr(micro_case, "advance_to_balance", original)
     loaded = []
-    load = micro_run.load_checkpoint
-    monkeypatch.setattr(micro_run, "load_checkpoint", lambda *a: loaded.append(load(*a)) or loaded[-1])
-    monkeypatch.setattr(micro_run, "module_sha256", lambda path: "edited")
-    micro_run.run(config, "c", grid, tmp_path / "b.nc", tmp_path / "b.png")
+    load = micro_case.load_checkpoint
+    monkeypatch.setattr(micro_case, "load_checkpoint", lambda *a: loaded.append(load(*a)) or loaded[-1])
+    monkeypatch.setattr(shared.checkpointer, "module_sha256", lambda path: "edited")
+    micro_run.run(config, "c", grid, micro_run.CaseOutputs(tmp_path / "b.nc", tmp_path / "b.png"))
     assert loaded == [None] and not (tmp_path / "b.checkpoint.npz").exists()
 
 

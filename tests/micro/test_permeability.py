@@ -242,19 +242,19 @@ def test_permeabilities_measured_with_a_worker_process_equal_the_serial_ones(
     on two threads) returns bit for bit what this process measures alone."""
     import numba
 
-    from micro import run
+    from micro import pool
 
-    monkeypatch.setattr(run, "MEASUREMENT_PROCESS_CELLS", 0)
+    monkeypatch.setattr(pool, "MEASUREMENT_PROCESS_CELLS", 0)
     monkeypatch.setattr(numba, "get_num_threads", lambda: 2)
     serial, tensor = _measured()
-    with run.measurement_executor(1) as executor:
+    with pool.measurement_executor(1) as executor:
         assert executor is not None
         shared, shared_tensor = _measured(executor)
     assert shared == serial
     np.testing.assert_array_equal(shared_tensor, tensor)
     # below the size threshold this process measures alone
-    monkeypatch.setattr(run, "MEASUREMENT_PROCESS_CELLS", 2)
-    with run.measurement_executor(1) as executor:
+    monkeypatch.setattr(pool, "MEASUREMENT_PROCESS_CELLS", 2)
+    with pool.measurement_executor(1) as executor:
         assert executor is None
 
 
@@ -270,12 +270,12 @@ def test_the_measurement_worker_logs_here_and_runs_one_blas_thread(
     import numba
     import threadpoolctl
 
-    from micro import run
+    from micro import pool
 
-    monkeypatch.setattr(run, "MEASUREMENT_PROCESS_CELLS", 0)
+    monkeypatch.setattr(pool, "MEASUREMENT_PROCESS_CELLS", 0)
     monkeypatch.setattr(numba, "get_num_threads", lambda: 2)
     caplog.set_level(logging.INFO)
-    with run.measurement_executor(1) as executor:
+    with pool.measurement_executor(1) as executor:
         worker = executor.submit(os.getpid).result()
         executor.submit(logging.getLogger("shared.solver").info, "from %s", "the worker").result()
         libraries = executor.submit(threadpoolctl.threadpool_info).result()

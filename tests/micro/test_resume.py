@@ -21,9 +21,11 @@ import pytest
 import scipy.sparse as sp
 import xarray as xr
 
+import micro.case as micro_case
+import micro.pool as micro_pool
 import micro.run as micro_run
-from micro.checkpoint import checkpoint_wall_time
 from micro.hydration import DivergenceError
+from shared.checkpointer import saved_wall_time
 from shared.config import validate_config
 from shared.solver import SPDSolver
 
@@ -66,7 +68,7 @@ def case(tmp_path_factory):
 def uninterrupted(case):
     config, grid, tmp = case
     output = tmp / "uninterrupted.nc"
-    micro_run.run(config, "c", grid, output, tmp / "uninterrupted.png")
+    micro_run.run(config, "c", grid, micro_run.CaseOutputs(output, tmp / "uninterrupted.png"))
     return output
 
 
@@ -97,7 +99,7 @@ def test_resume_after_a_kill_at_every_checkpoint_is_bit_identical(case, uninterr
                                                                    monkeypatch):
     config, grid, tmp = case
     output = tmp / f"killed_after_{kill}.nc"
-    original = micro_run.advance_to_balance
+    original = micro_case.advance_to_balance
     calls = {"n": 0}
 
     def killed(*args, **kwargs):
@@ -106,14 +108,14 @@ def test_resume_after_a_kill_at_every_checkpoint_is_bit_identical(case, uninterr
             raise DivergenceError("simulated kill")
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(micro_run, "advance_to_balance", killed)
+    monkeypatch.setattr(micro_case, "advance_to_balance", killed)
     with pytest.raises(DivergenceError, match="simulated kill"):
-        micro_run.run(config, "c", grid, output, output.with_suffix(".png"))
+        micro_run.run(config, "c", grid, micro_run.CaseOutputs(output, output.with_suffix(".png")))
     state_file = output.with_suffix(".checkpoint.npz")
-    before, phases = checkpoint_wall_time(state_file)
+    before, phases = saved_wall_time(state_file)
     assert before > 0.0 and not output.exists()
-    monkeypatch.setattr(micro_run, "advance_to_balance", original)
-    resumed = micro_run.run(config, "c", grid, output, output.with_suffix(".png"))
+    monkeypatch.setattr(micro_case, "advance_to_balance", original)
+    resumed = micro_run.run(config, "c", grid, micro_run.CaseOutputs(output, output.with_suffix(".png")))
     assert not state_file.exists()
     # the whole run: the killed run's time up to its checkpoint file, and the rest; the
     # phases partition it and carry the killed run's share over
@@ -135,7 +137,7 @@ def test_resume_after_a_kill_between_flow_steps_is_bit_identical(case, uninterru
     run's netCDF."""
     config, grid, tmp = case
     output = tmp / f"killed_in_balance_{kill}.nc"
-    original = micro_run.save_checkpoint
+    original = micro_case.save_checkpoint
     saves = {"n": 0}
 
     def killed(*args, **kwargs):
@@ -145,15 +147,15 @@ def test_resume_after_a_kill_between_flow_steps_is_bit_identical(case, uninterru
             if saves["n"] == kill:
                 raise DivergenceError("simulated kill")
 
-    monkeypatch.setattr(micro_run, "save_checkpoint", killed)
+    monkeypatch.setattr(micro_case, "save_checkpoint", killed)
     with pytest.raises(DivergenceError, match="simulated kill"):
-        micro_run.run(config, "c", grid, output, output.with_suffix(".png"))
+        micro_run.run(config, "c", grid, micro_run.CaseOutputs(output, output.with_suffix(".png")))
     state_file = output.with_suffix(".checkpoint.npz")
     with np.load(state_file) as data:
         balance = json.loads(str(data["meta"]))["balance"]
     assert balance is not None and balance["flow_steps"] >= 1
-    monkeypatch.setattr(micro_run, "save_checkpoint", original)
-    micro_run.run(config, "c", grid, output, output.with_suffix(".png"))
+    monkeypatch.setattr(micro_case, "save_checkpoint", original)
+    micro_run.run(config, "c", grid, micro_run.CaseOutputs(output, output.with_suffix(".png")))
     _assert_same_file(output, uninterrupted)
 
 
@@ -163,7 +165,7 @@ def test_the_saves_between_flow_steps_change_nothing(case, uninterrupted):
     quiet = copy.deepcopy(config)
     quiet["micro"]["snapshot_interval_s"] = 1e9
     output = tmp / "no_snapshots.nc"
-    micro_run.run(quiet, "c", grid, output, output.with_suffix(".png"))
+    micro_run.run(quiet, "c", grid, micro_run.CaseOutputs(output, output.with_suffix(".png")))
     with xr.open_dataset(uninterrupted) as a, xr.open_dataset(output) as b:
         for name in a.data_vars:
             np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
@@ -186,19 +188,19 @@ def test_measurements_in_a_worker_process_change_nothing(case, uninterrupted, in
     config, grid, tmp = case
     configured = copy.deepcopy(config)
     configured["micro"]["snapshot_interval_s"] = interval
-    monkeypatch.setattr(micro_run, "MEASUREMENT_PROCESS_CELLS", 0)
+    monkeypatch.setattr(micro_pool, "MEASUREMENT_PROCESS_CELLS", 0)
     monkeypatch.setattr(numba, "get_num_threads", lambda: 2)
     monkeypatch.setattr(CheckpointMeasurement, "done", lambda self: worker_done)
     submitted = []
-    original = micro_run.measure_checkpoint
+    original = micro_case.measure_checkpoint
 
     def counted(*args, **kwargs):
         submitted.append(kwargs["executor"] is not None and kwargs["background"])
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(micro_run, "measure_checkpoint", counted)
+    monkeypatch.setattr(micro_case, "measure_checkpoint", counted)
     output = tmp / f"worker_{interval:g}_{worker_done}.nc"
-    micro_run.run(configured, "c", grid, output, output.with_suffix(".png"))
+    micro_run.run(configured, "c", grid, micro_run.CaseOutputs(output, output.with_suffix(".png")))
     n = len(CHECKPOINTS)
     expected = ([False] * n if interval == 0.0 else
                 [worker_done or i % 2 == 0 for i in range(n - 1)] + [False])
@@ -223,7 +225,7 @@ def test_the_thread_count_changes_nothing(case, uninterrupted):
     before = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
-        micro_run.run(config, "c", grid, output, output.with_suffix(".png"))
+        micro_run.run(config, "c", grid, micro_run.CaseOutputs(output, output.with_suffix(".png")))
     finally:
         numba.set_num_threads(before)
     with xr.open_dataset(uninterrupted) as a, xr.open_dataset(output) as b:
@@ -237,12 +239,12 @@ import time
 
 import numba
 
-from micro import run
+from micro import pool
 
 if __name__ == "__main__":
-    run.MEASUREMENT_PROCESS_CELLS = 0
+    pool.MEASUREMENT_PROCESS_CELLS = 0
     numba.get_num_threads = lambda: 2
-    with run.measurement_executor(1) as executor:
+    with pool.measurement_executor(1) as executor:
         print(executor.submit(os.getpid).result(), flush=True)
         executor.submit(time.sleep, 600.0)
         time.sleep(600.0)
@@ -278,7 +280,7 @@ def test_a_killed_run_leaves_no_measurement_worker(tmp_path):
             assert _alive(worker)
         finally:
             run.send_signal(signal.SIGKILL)
-    deadline = time.monotonic() + 20 * micro_run.WORKER_PARENT_POLL_S + 10.0
+    deadline = time.monotonic() + 20 * micro_pool.WORKER_PARENT_POLL_S + 10.0
     while _alive(worker) and time.monotonic() < deadline:
         time.sleep(0.1)
     alive = _alive(worker)

@@ -63,7 +63,7 @@ def runs(tmp_path_factory):
                 "upscaling": {"conditions": {"free": "c", "confined": "c"}},
             })
             output = tmp / f"{label}.nc"
-            micro_run.run(config, "c", path, output, tmp / f"{label}.png")
+            micro_run.run(config, "c", path, micro_run.CaseOutputs(output, tmp / f"{label}.png"))
             patch.undo()
             with xr.open_dataset(output) as ds:
                 datasets[label] = ds.load()

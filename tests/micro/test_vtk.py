@@ -156,11 +156,11 @@ def test_run_writes_one_snapshot_per_checkpoint_only_when_asked(tmp_path):
     porosity = tmp_path / "porosity.nc"
     write_dataset(ds, porosity, stage="imaging", title="test grid")
 
-    micro_run.run(config, "c", porosity, tmp_path / "off.nc", tmp_path / "off.png")
+    micro_run.run(config, "c", porosity, micro_run.CaseOutputs(tmp_path / "off.nc", tmp_path / "off.png"))
     assert not (tmp_path / "off_vtk").exists()
     on = copy.deepcopy(config)
     on["micro"]["vtk_snapshots"] = True
-    result = micro_run.run(on, "c", porosity, tmp_path / "on.nc", tmp_path / "on.png")
+    result = micro_run.run(on, "c", porosity, micro_run.CaseOutputs(tmp_path / "on.nc", tmp_path / "on.png"))
     directory = tmp_path / "on_vtk"
     assert sorted(p.name for p in directory.iterdir()) == [
         "checkpoint_00.vtu", "checkpoint_01.vtu", "on.pvd"]

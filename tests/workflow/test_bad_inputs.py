@@ -33,11 +33,13 @@ from imaging.ct import run as ct_run
 from imaging.ct.io import ImageError, write_tiff_stack
 from imaging.ct.phantom import pellet_phantom
 from imaging.ct.porosity import CLAMPED_WARNING_FRACTION
-from imaging.ct.settings import PorositySettings, ScanResources
+from imaging.ct.settings import ScanResources
 from imaging.packing.config import check_packings
+from micro import case as micro_case
 from micro import run as micro_run
 from micro.config import check_studies
 from micro.hydration import DivergenceError
+from shared.checkpointer import Checkpointer
 from shared.config import ConfigError, default_config, load_config, validate_config
 from shared.errors import InputError
 from shared.io import OutputError, write_dataset
@@ -243,10 +245,11 @@ def _porosity(tmp: Path, source: str, scan: Path, *, imaging: dict | None = None
 def _ct_porosity(sample: str, entry: dict, imaging: dict, micro: tuple, scan: Path | str,
                  results: Path, name: str) -> xr.Dataset:
     """The imaging_porosity rule's entry point on a sample, as its script calls it."""
-    settings = PorositySettings.from_config(sample, imaging, CONFIG["materials"]["pellet"], micro)
+    config = {"sample": entry, "imaging": imaging, "material": CONFIG["materials"]["pellet"],
+              "micro_spacing": micro}
     outputs = ct_run.PorosityOutputs(results / f"images/{name}.nc", results / f"porosity/{name}.nc",
                                      results / f"porosity/{name}.png")
-    return ct_run.porosity(scan, entry, settings, outputs, ScanResources.from_mapping(imaging))
+    return ct_run.porosity(config, sample, scan, outputs, resources=ScanResources.from_mapping(imaging))
 
 
 @pytest.mark.parametrize("case", sorted(SCANS))
@@ -460,8 +463,8 @@ def test_a_bad_porosity_grid_is_refused_naming_the_file_and_key(case, tmp_path):
     path = _grid_file(tmp_path, grid)
     results = tmp_path / "results" / "micro"
     with pytest.raises(kind) as err:
-        micro_run.run(MICRO, "heterogeneous", path, results / "heterogeneous.nc",
-                      results / "heterogeneous.png")
+        micro_run.run(MICRO, "heterogeneous", path, micro_run.CaseOutputs(results / "heterogeneous.nc",
+                      results / "heterogeneous.png"))
     message = str(err.value)
     assert str(path) in message
     for word in words:
@@ -481,8 +484,8 @@ def test_a_grid_spanning_exactly_the_cube_is_accepted():
 def test_an_unknown_case_is_refused_naming_the_key(tmp_path):
     path = _grid_file(tmp_path, _grid(np.full((20, 20, 20), 0.3)))
     with pytest.raises(ConfigError, match=r"micro\.cases\.nowhere"):
-        micro_run.run(MICRO, "nowhere", path, tmp_path / "results/micro/nowhere.nc",
-                      tmp_path / "results/micro/nowhere.png")
+        micro_run.run(MICRO, "nowhere", path, micro_run.CaseOutputs(tmp_path / "results/micro/nowhere.nc",
+                      tmp_path / "results/micro/nowhere.png"))
     assert not _files(tmp_path / "results")
 
 
@@ -503,7 +506,7 @@ def test_a_damaged_checkpoint_file_is_set_aside_and_the_case_starts_afresh(damag
         "no header" if damage == "older" else "unreadable")
     if damage in ("cut", "older", "random-bytes"):
         state = initial_state(SpecimenSpec(edge_length=4e-3, n_points=125, seed=3), None, None, CLAY, DEM)
-        save_checkpoint(state_file, "abc", state, FlowSystem.for_mesh(state.mesh), [], 1.0)
+        save_checkpoint(Checkpointer(state_file, "abc"), state, FlowSystem.for_mesh(state.mesh), [], 1.0)
         content = state_file.read_bytes()[:300] if damage == "cut" else None
         if content is None:
             with np.load(state_file) as data:
@@ -515,7 +518,8 @@ def test_a_damaged_checkpoint_file_is_set_aside_and_the_case_starts_afresh(damag
             content = state_file.read_bytes()
     state_file.write_bytes(content)
     with caplog.at_level("WARNING", logger="micro.checkpoint"):
-        assert load_checkpoint(state_file, "abc", CLAY) is None
+        checkpointer = Checkpointer(state_file, "abc", log=logging.getLogger("micro.checkpoint"))
+        assert load_checkpoint(checkpointer, CLAY) is None
     aside = tmp_path / "heterogeneous.checkpoint.npz.rejected"
     assert not state_file.exists() and aside.read_bytes() == content
     [line] = [r.getMessage() for r in caplog.records]
@@ -528,11 +532,11 @@ def test_a_divergence_names_the_case_and_leaves_no_result(tmp_path, monkeypatch)
     def diverge(*args: Any, **kwargs: Any) -> None:
         raise DivergenceError("pressure became non-finite")
 
-    monkeypatch.setattr(micro_run, "advance_to_balance", diverge)
+    monkeypatch.setattr(micro_case, "advance_to_balance", diverge)
     results = tmp_path / "results" / "micro"
     with pytest.raises(DivergenceError, match="case heterogeneous, checkpoint 0"):
-        micro_run.run(MICRO, "heterogeneous", path, results / "heterogeneous.nc",
-                      results / "heterogeneous.png")
+        micro_run.run(MICRO, "heterogeneous", path, micro_run.CaseOutputs(results / "heterogeneous.nc",
+                      results / "heterogeneous.png"))
     assert not _files(tmp_path / "results")
 
 
@@ -565,7 +569,7 @@ def test_a_table_in_mpa_is_refused_naming_it_and_both_ranges(tmp_path):
     table = _macro_table(tmp_path, SUCTION / 1e6)
     with pytest.raises(InputError, match=r"table\.nc: its suctions \[0\.1, 200\] Pa miss the case's "
                                          r"range \[1e\+06, 1\.32e\+08\] Pa \(macro\.boundary_suction_pa"):
-        macro_run.run(_macro_config(), "small", table, tmp_path / "out.nc")
+        macro_run.run(_macro_config(), "small", table, macro_run.CaseOutputs(tmp_path / "out.nc"))
     assert not (tmp_path / "out.nc").exists()
 
 
@@ -574,7 +578,7 @@ def test_a_table_missing_less_than_a_decade_is_clamped_and_the_count_logged(tmp_
 
     table = _macro_table(tmp_path, np.geomspace(5e6, 1.0e8, 12))
     with caplog.at_level(logging.WARNING, logger="claychain.macro"):
-        ds = macro_run.run(_macro_config(), "small", table, tmp_path / "out.nc")
+        ds = macro_run.run(_macro_config(), "small", table, macro_run.CaseOutputs(tmp_path / "out.nc"))
     clamped, looked_up = ds.attrs["table_clamped_lookups"], ds.attrs["table_lookups"]
     assert 0 < clamped <= looked_up
     [line] = [r.getMessage() for r in caplog.records if "clamped" in r.getMessage()]

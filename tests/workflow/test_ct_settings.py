@@ -19,7 +19,7 @@ import yaml
 from imaging.ct import run as ct_run
 from imaging.ct.io import write_tiff_stack
 from imaging.ct.phantom import pellet_phantom
-from imaging.ct.settings import PorositySettings, RevSettings, ScanResources
+from imaging.ct.settings import RevSettings, ScanResources
 from imaging.ct_keys import POROSITY_KEYS, RESOURCE_KEYS, REV_KEYS, job_resources, resource_value
 from shared.config import ConfigError, default_config
 from tests.workflow._chain import ROOT, edited_copy, snakemake, workdir
@@ -58,12 +58,14 @@ def test_the_entry_points_read_the_listed_keys(tmp_path: Path, monkeypatch: pyte
     imaging["rev"].update(n_positions=8, n_sizes=3)
     entry = {"source": "tiff", "path": str(scan), "voxel_size_m": VOXEL}
     porosity = _Recording(imaging)
-    settings = PorositySettings.from_config("p", porosity, CONFIG["materials"]["pellet"], (4e-3, 64))
     outputs = ct_run.PorosityOutputs(tmp_path / "image.nc", tmp_path / "porosity.nc", tmp_path / "porosity.png")
-    ct_run.porosity(scan, entry, settings, outputs, ScanResources.from_mapping(porosity))
+    ct_run.porosity({"sample": entry, "imaging": porosity, "material": CONFIG["materials"]["pellet"],
+                     "micro_spacing": (4e-3, 64)}, "p", scan, outputs,
+                    resources=ScanResources.from_mapping(porosity))
     rev = _Recording(imaging)
-    ct_run.rev(scan, entry, RevSettings(rev["rev"], rev["chords"], "p"), outputs[:2],
-               (tmp_path / "rev.nc", tmp_path / "rev.png"), ScanResources.from_mapping(rev))
+    ct_run.rev({"sample": entry, "settings": rev}, "p", ct_run.RevInputs(scan, *outputs[:2]),
+               ct_run.RevOutputs(tmp_path / "rev.nc", tmp_path / "rev.png"),
+               resources=ScanResources.from_mapping(rev))
     assert porosity.read == {*POROSITY_KEYS, *RESOURCE_KEYS}
     assert rev.read == {*REV_KEYS, *RESOURCE_KEYS}
     # the REV settings hold the listed keys and the sample's name

@@ -10,7 +10,5 @@ from imaging.ct import run  # noqa: E402
 
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
-run.phantom(
-    sm.params.phantom, sm.params.calibration, sm.wildcards.sample, sm.params.sample,
-    sm.output[0],
-)
+config = {key: sm.params[key] for key in ("phantom", "calibration", "sample")}
+run.phantom(config, sm.wildcards.sample, sm.output[0])

@@ -7,13 +7,14 @@ sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
 import _logging  # noqa: E402
 
 from imaging.ct import run  # noqa: E402
-from imaging.ct.settings import RevSettings, ScanResources  # noqa: E402
+from imaging.ct.settings import ScanResources  # noqa: E402
 from imaging.ct_keys import job_resources  # noqa: E402
 
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
-settings = RevSettings(sm.params.settings["rev"], sm.params.settings["chords"], sm.wildcards.sample)
+config = {key: sm.params[key] for key in ("sample", "settings")}
 # the machine resources: the job's threads and resources (imaging/ct_keys.py), never params
 resources = ScanResources.from_mapping(job_resources(sm.threads, sm.resources))
-run.rev(sm.input.scan, sm.params.sample, settings, (sm.input.image, sm.input.porosity),
-        (sm.output.rev, sm.output.figure), resources, rule=sm.rule)
+inputs = run.RevInputs(sm.input.scan, sm.input.image, sm.input.porosity)
+outputs = run.RevOutputs(sm.output.rev, sm.output.figure)
+run.rev(config, sm.wildcards.sample, inputs, outputs, resources=resources, rule=sm.rule)

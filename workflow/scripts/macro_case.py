@@ -13,7 +13,5 @@ sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
 numba.set_num_threads(sm.threads)
 config = {"macro": sm.params.macro, "materials": sm.params.materials}
-run.run(
-    config, sm.wildcards.macro_case, sm.input.table, sm.output.result, sm.output.figure,
-    rule=sm.rule,
-)
+run.run(config, sm.wildcards.macro_case, sm.input.table, run.CaseOutputs(sm.output.result, sm.output.figure),
+        rule=sm.rule)

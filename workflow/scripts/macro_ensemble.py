@@ -10,7 +10,5 @@ from macro import ensemble  # noqa: E402
 
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
-ensemble.run(
-    sm.wildcards.ensemble, sm.params.ensemble, sm.input.members, sm.output.result,
-    sm.output.figure, rule=sm.rule,
-)
+outputs = ensemble.EnsembleOutputs(sm.output.result, sm.output.figure)
+ensemble.run(sm.params.ensemble, sm.wildcards.ensemble, sm.input.members, outputs, rule=sm.rule)

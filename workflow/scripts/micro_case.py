@@ -19,4 +19,4 @@ if __name__ == "__main__":
     numba.set_num_threads(sm.threads)
     config = {"micro": sm.params.micro, "materials": sm.params.materials}
     (case,) = sm.params.micro["cases"]
-    run.run(config, case, sm.input.porosity, sm.output.result, sm.output.figure, rule=sm.rule)
+    run.run(config, case, sm.input.porosity, run.CaseOutputs(sm.output.result, sm.output.figure), rule=sm.rule)

@@ -10,4 +10,5 @@ from imaging.packing import run  # noqa: E402
 
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
-run.run(sm.params.section, sm.output.result, rule=sm.rule)
+outputs = run.PackingOutputs(sm.output.result, sm.output.figure)
+run.run(sm.params.section, sm.wildcards.packing, outputs, rule=sm.rule)

@@ -11,4 +11,5 @@ from micro.upscaling import run  # noqa: E402
 sm = snakemake  # noqa: F821
 _logging.setup(sm.log[0])
 inputs = {condition: list(sm.input[condition]) for condition in sm.params.upscaling["conditions"]}
-run.run(sm.params.upscaling, inputs, sm.output.table, sm.output.csv, sm.output.figure, rule=sm.rule)
+outputs = run.TableOutputs(sm.output.table, sm.output.csv, sm.output.figure)
+run.run(sm.params.upscaling, inputs, outputs, rule=sm.rule)

@@ -109,9 +109,10 @@ def test_the_datasets_are_what_the_stage_writes(tmp_path):
     entry = {"source": "tiff", "path": str(scan), "voxel_size_m": 2e-4}
     out = ct_run.PorosityOutputs(tmp_path / "image.nc", tmp_path / "porosity.nc",
                                  tmp_path / "porosity.png")
-    ct_run.porosity(scan, entry, settings, out)
-    ct_run.rev(scan, entry, rev_settings, (out.image, out.porosity),
-               (tmp_path / "rev.nc", tmp_path / "rev.png"))
+    ct_run.porosity({"sample": entry, "imaging": dict(imaging, grid_spacing_m=6e-4),
+                     "material": CONFIG["materials"]["pellet"], "micro_spacing": (1.0, 8)}, "p", scan, out)
+    ct_run.rev({"sample": entry, "settings": imaging}, "p", ct_run.RevInputs(scan, out.image, out.porosity),
+               ct_run.RevOutputs(tmp_path / "rev.nc", tmp_path / "rev.png"))
     for memory, path in ((image, out.image), (grid, out.porosity), (rev, tmp_path / "rev.nc")):
         written = read_dataset(path)
         xr.testing.assert_identical(written.drop_attrs(deep=False)[list(memory.data_vars)],

@@ -14,7 +14,7 @@ from imaging.ct import run as ct_run
 from imaging.ct.calibration import anchors_through, histogram_peaks
 from imaging.ct.io import write_tiff_stack
 from imaging.ct.phantom import pellet_phantom
-from imaging.ct.settings import PorositySettings, ScanResources, grid_spacing
+from imaging.ct.settings import ScanResources, grid_spacing
 from shared.config import ConfigError, default_config, sample_imaging
 
 CONFIG = default_config()
@@ -37,10 +37,11 @@ def _granular(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
 def _porosity(tmp: Path, scan: Path, imaging: dict, voxel: float = 1e-4):
     results = tmp / "results"
     entry = {"source": "tiff", "path": str(scan), "voxel_size_m": voxel}
-    settings = PorositySettings.from_config("scan", imaging, CONFIG["materials"]["pellet"], (1.0, 8))
+    config = {"sample": entry, "imaging": imaging, "material": CONFIG["materials"]["pellet"],
+              "micro_spacing": (1.0, 8)}
     outputs = ct_run.PorosityOutputs(results / "images/scan.nc", results / "porosity/scan.nc",
                                      results / "porosity/scan.png")
-    return ct_run.porosity(scan, entry, settings, outputs, ScanResources.from_mapping(imaging))
+    return ct_run.porosity(config, "scan", scan, outputs, resources=ScanResources.from_mapping(imaging))
 
 
 def test_histogram_peaks_find_two_phases_and_their_line(rng):

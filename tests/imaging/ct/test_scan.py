@@ -16,7 +16,7 @@ from imaging.ct import run as ct_run
 from imaging.ct.io import write_tiff_stack
 from imaging.ct.phantom import pellet_phantom
 from imaging.ct.scan import estimated_peak_bytes
-from imaging.ct.settings import PorositySettings, RevSettings, ScanResources
+from imaging.ct.settings import ScanResources
 from shared.config import default_config
 
 CONFIG = default_config()
@@ -46,17 +46,19 @@ def _stage(scan: Path, out: Path, **imaging_changes) -> tuple[xr.Dataset, xr.Dat
     imaging["rev"].update(n_positions=2000, n_sizes=6)
     entry = {"source": "tiff", "path": str(scan), "voxel_size_m": VOXEL}
     resources = ScanResources.from_mapping(imaging)
-    porosity = ct_run.porosity(scan, entry, _settings(imaging),
+    porosity = ct_run.porosity(_config(entry, imaging), "p", scan,
                                ct_run.PorosityOutputs(out / "image.nc", out / "porosity.nc",
-                                                      out / "porosity.png"), resources)
-    rev = ct_run.rev(scan, entry, RevSettings(imaging["rev"], imaging["chords"], "p"),
-                     (out / "image.nc", out / "porosity.nc"), (out / "rev.nc", out / "rev.png"),
-                     resources)
+                                                      out / "porosity.png"), resources=resources)
+    rev = ct_run.rev({"sample": entry, "settings": imaging}, "p",
+                     ct_run.RevInputs(scan, out / "image.nc", out / "porosity.nc"),
+                     ct_run.RevOutputs(out / "rev.nc", out / "rev.png"), resources=resources)
     return porosity, rev
 
 
-def _settings(imaging: dict) -> PorositySettings:
-    return PorositySettings.from_config("p", imaging, CONFIG["materials"]["pellet"], (1.0, 8))
+def _config(entry: dict, imaging: dict) -> dict:
+    """The imaging_porosity rule's configuration of sample ``p``."""
+    return {"sample": entry, "imaging": imaging, "material": CONFIG["materials"]["pellet"],
+            "micro_spacing": (1.0, 8)}
 
 
 @pytest.fixture(scope="module")
@@ -98,10 +100,10 @@ def _traced_peak(tmp: Path, slices: int, traced: bool = True) -> tuple[int, int]
     imaging["calibration"].update(grey_air=2000.0, grey_muscovite=60000.0)
     if traced:
         tracemalloc.start()
-    ct_run.porosity(path, entry, _settings(imaging),
+    ct_run.porosity(_config(entry, imaging), "p", path,
                     ct_run.PorosityOutputs(tmp / f"image_{slices}.nc", tmp / f"porosity_{slices}.nc",
                                            tmp / f"porosity_{slices}.png"),
-                    ScanResources.from_mapping(imaging))
+                    resources=ScanResources.from_mapping(imaging))
     if not traced:
         return 0, size
     peak = tracemalloc.get_traced_memory()[1]

@@ -12,7 +12,7 @@ import xarray as xr
 
 from imaging.packing.config import packing_settings
 from imaging.packing.dataset import build_packing
-from imaging.packing.run import run
+from imaging.packing.run import PackingOutputs, run
 from shared.io import read_dataset
 
 TINY = {"n_particles": 25, "box_width_m": 3e-6, "attempts_per_cycle": 150, "voxel_resolution": 64,
@@ -33,7 +33,7 @@ def test_build_packing_gives_disk_volumes_and_the_written_file(tmp_path: Path) -
     zone = ds.attrs["box_width"] ** 2 * (z_max - z_min)
     assert float(ds["porosity"]) == pytest.approx(1 - volume[inside].sum() / zone, rel=1e-12)
     assert ds.sizes["particle"] == 25
-    run(settings, tmp_path / "tiny.nc")
+    run(settings, "tiny", PackingOutputs(tmp_path / "tiny.nc", tmp_path / "tiny.png"))
     written = read_dataset(tmp_path / "tiny.nc")
     # the settling time is the wall time of the run, the one variable that differs
     xr.testing.assert_identical(written.drop_attrs(deep=False).drop_vars("settle_time"),

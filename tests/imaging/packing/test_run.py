@@ -12,7 +12,7 @@ import yaml
 
 from imaging.packing.config import population_of
 from imaging.packing.population import sample_semi_axes
-from imaging.packing.run import run
+from imaging.packing.run import PackingOutputs, run
 from shared.config import ConfigError
 from shared.io import read_dataset
 from tests._figures import check_figure, kept_figures  # noqa: F401
@@ -30,7 +30,8 @@ CONTRACT = ["center", "semi_axes", "euler", "normal", "porosity_profile", "order
 def test_run_writes_the_contract(tmp_path: Path, caplog: pytest.LogCaptureFixture,
                                  kept_figures) -> None:  # noqa: F811
     with caplog.at_level(logging.INFO, logger="imaging.packing"):
-        ds = run(packing_section({**TINY, "store_voxel_image": True}), tmp_path / "tiny.nc")
+        ds = run(packing_section({**TINY, "store_voxel_image": True}), "tiny",
+                 PackingOutputs(tmp_path / "tiny.nc", tmp_path / "tiny.png"))
     assert any("ETA" in record.message for record in caplog.records)
     back = read_dataset(tmp_path / "tiny.nc", required=CONTRACT)
     assert (tmp_path / "tiny.png").stat().st_size > 10_000
@@ -131,7 +132,7 @@ def test_unbounded_laws_are_left_to_the_sampled_check() -> None:
 def test_box_narrower_than_the_largest_sampled_particle(tmp_path: Path) -> None:
     section = packing_section({**TINY, "basal_surface_sigma": 2.0, "n_particles": 200})
     with pytest.raises(ValueError, match="box_width_m"):
-        run(section, tmp_path / "x.nc")
+        run(section, "x", PackingOutputs(tmp_path / "x.nc", tmp_path / "x.png"))
 
 
 @pytest.mark.parametrize("preset", PRESETS, ids=lambda p: p.stem)

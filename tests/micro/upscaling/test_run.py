@@ -20,14 +20,18 @@ def _write(ds, path):
     return path
 
 
+def _outputs(stem):
+    """The table, its CSV export and its figure at ``stem`` with their suffixes."""
+    return upscaling_run.TableOutputs(*(stem.with_suffix(suffix) for suffix in (".nc", ".csv", ".png")))
+
+
 def test_run_writes_table_csv_and_figure_and_nothing_on_refusal(tmp_path):
     section = {"conditions": {"free": ["a", "b"], "confined": "c"}, "suction_range_pa": list(RANGE)}
     inputs = {"free": [_write(_micro(1), tmp_path / "a.nc"), _write(_micro(2), tmp_path / "b.nc")],
               "confined": [_write(_micro(3), tmp_path / "c.nc")]}
     out = tmp_path / "up" / "pellet_permeability"
     out.parent.mkdir()
-    table = upscaling_run.run(section, inputs, out.with_suffix(".nc"), out.with_suffix(".csv"),
-                              out.with_suffix(".png"))
+    table = upscaling_run.run(section, inputs, _outputs(out))
     back = read_table(out.with_suffix(".nc"))
     xr.testing.assert_allclose(back[["k", "k_tensor", "saturation"]], table[["k", "k_tensor", "saturation"]])
     assert str(tmp_path / "a.nc") in back.attrs["inputs"]
@@ -47,8 +51,7 @@ def test_run_writes_table_csv_and_figure_and_nothing_on_refusal(tmp_path):
     refused.mkdir()
     bad = _write(_micro(4).assign(permeability=lambda d: -d["permeability"]), tmp_path / "d.nc")
     with pytest.raises(ConfigError, match="d.nc"):
-        upscaling_run.run(section, {**inputs, "confined": [bad]}, refused / "t.nc",
-                          refused / "t.csv", refused / "t.png")
+        upscaling_run.run(section, {**inputs, "confined": [bad]}, _outputs(refused / "t"))
     assert not any(refused.iterdir())
 
 
@@ -60,7 +63,7 @@ def test_a_hand_edit_of_the_csv_export_is_refused_naming_the_route(tmp_path):
     inputs = {"free": [_write(_micro(1), tmp_path / "a.nc")], "confined": [tmp_path / "a.nc"]}
     out = tmp_path / "up" / "pellet_permeability"
     out.parent.mkdir()
-    upscaling_run.run(section, inputs, out.with_suffix(".nc"), out.with_suffix(".csv"), out.with_suffix(".png"))
+    upscaling_run.run(section, inputs, _outputs(out))
     check_csv_export(out.with_suffix(".nc"))
     export = out.with_suffix(".csv")
     lines = export.read_text().splitlines()

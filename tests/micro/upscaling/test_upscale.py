@@ -28,7 +28,7 @@ def test_upscale_averages_in_log_k_and_equals_the_written_table(tmp_path):
     section = {"conditions": {"free": ["a", "b"], "confined": "c"}, "suction_range_pa": list(RANGE)}
     out = tmp_path / "up" / "table"
     upscaling_run.run(section, {"free": [paths["a"], paths["b"]], "confined": [paths["c"]]},
-                      out.with_suffix(".nc"), out.with_suffix(".csv"), out.with_suffix(".png"))
+                      upscaling_run.TableOutputs(*(out.with_suffix(s) for s in (".nc", ".csv", ".png"))))
     written = read_dataset(out.with_suffix(".nc"))
     xr.testing.assert_identical(written.drop_attrs(deep=False), table.drop_attrs(deep=False))
 
