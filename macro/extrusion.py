@@ -17,10 +17,8 @@ step is linearised backward Euler in the cells' pressures (the SPD system of
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -28,10 +26,11 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
 from macro.laws import confined_pressure, free_volume, swelling_pressure
+from macro.settings import ExtrusionSettings
 from macro.state import ModelState
 from macro.transport import edge_rates, implicit_pressures, limited_fluxes
 
-__all__ = ["Extrusion", "ExtrusionSettings", "extrusion_settings", "mobility"]
+__all__ = ["Extrusion", "mobility"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -49,39 +48,6 @@ ROUTED_ROOM = 1e-6
 OVERFLOW_MARGIN = 1e-4
 """Contents left below the void after an overflow, relative to it (the local problem
 needs room: V_s + m_w / rho < V_max)."""
-
-
-@dataclass(frozen=True)
-class ExtrusionSettings:
-    """``macro.homogenisation`` and ``macro.extrusion`` (workflow/schemas/config.schema.yaml).
-
-    Attributes
-    ----------
-    enabled
-        ``homogenisation: extrusion``; False: the thesis's immobile powder (``none``).
-    mobility
-        M_0 [m2/(Pa s)].
-    mobile_saturation
-        S_c, the saturation below which clay does not flow [1].
-    max_solid_change
-        Largest fraction of a system's solid that leaves it in one step [1].
-    """
-
-    enabled: bool
-    mobility: float
-    mobile_saturation: float
-    max_solid_change: float
-
-
-def extrusion_settings(macro: Mapping[str, Any], case: Mapping[str, Any]) -> ExtrusionSettings:
-    """The extrusion settings of a case (its own ``homogenisation`` and ``extrusion`` first)."""
-    section = {**macro["extrusion"], **case.get("extrusion", {})}
-    return ExtrusionSettings(
-        enabled=str(case.get("homogenisation", macro["homogenisation"])) == "extrusion",
-        mobility=float(section["mobility_m2_per_pa_s"]),
-        mobile_saturation=float(section["mobile_saturation"]),
-        max_solid_change=float(section["max_solid_change"]),
-    )
 
 
 def mobility(saturation: npt.ArrayLike, settings: ExtrusionSettings) -> FloatArray:

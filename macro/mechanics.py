@@ -26,7 +26,7 @@ from macro.laws import (
     young_modulus,
 )
 from macro.mixture import facet_angles, matching_keys
-from macro.readings import Readings
+from macro.parts import Readings
 from macro.state import ModelState
 from shared.dem import FireParameters, FireState, cylinder_contacts, detect_contacts, fire_step, yielding_hertz_mindlin
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -27,11 +27,11 @@ from macro.laws import MixtureParameters, saturation, swelling_strain
 from macro.mechanics import Mechanics
 from macro.mixture import cell_voids, container_points, solid_angles
 from macro.packing import Packing
-from macro.parts import CellGeometry, Contacts, Counters
+from macro.parts import CellGeometry, Contacts
 from macro.pressure_volume import PressureVolume
-from macro.readings import Readings, WallReadings
+from macro.readings import WallReadings
 from macro.settings import MacroSettings, powder_porosity
-from shared.mesh import Mesh, build_mesh
+from shared.mesh import build_mesh
 from shared.upscaling import PermeabilityTable
 
 __all__ = ["MacroModel"]
@@ -41,51 +41,8 @@ FloatArray = npt.NDArray[np.float64]
 
 @dataclass
 class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, WallReadings):
-    """State of the mixture; :meth:`step` advances it.
-
-    Systems 0..n_p-1 are pellets, n_p..n_p+n_c-1 cells. Arrays over systems: water mass
-    [kg], volume V [m3], pressure p [Pa], solid volume V_s [m3], reference volume V_0
-    [m3], largest volume V_max [m3], held (Dirichlet end cells). The mesh's vertices are
-    the pellet centres, then the fixed ``container`` points (``on_plate`` over all
-    vertices: the container points on the plates).
-    """
-
-    settings: MacroSettings
-    material: MixtureParameters
-    table: PermeabilityTable
-    mesh: Mesh
-    positions: FloatArray
-    velocities: FloatArray
-    radii: FloatArray
-    water_mass: FloatArray
-    volume: FloatArray
-    pressure: FloatArray
-    solid_volume: FloatArray
-    reference_volume: FloatArray
-    max_volume: FloatArray
-    held: npt.NDArray[np.bool_]
-    inert: npt.NDArray[np.bool_]
-    initial_void: FloatArray
-    container: FloatArray
-    on_plate: npt.NDArray[np.bool_]
-    cells: CellGeometry
-    contacts: Contacts
-    packing: Packing
-    """The packing the model was built on."""
-    time: float = 0.0
-    steps: int = 0
-    boundary_inflow: float = 0.0
-    counters: Counters = field(default_factory=Counters)
-    latest_readings: Readings | None = None
-    trial_time_step: float = 0.0
-    spins: FloatArray | None = None
-    pellet_frames: FloatArray | None = None
-    stress: FloatArray | None = None
-    powder_porosity: float = 0.0
-    initial_interior_water: float = 0.0
-    occupied_loss: FloatArray | None = None
-    pellet_initial_solid: FloatArray | None = None
-
+    """The mixture (its state: :class:`macro.state.ModelState`) composed of its parts;
+    :meth:`step` advances it."""
 
     @classmethod
     def create(cls, settings: MacroSettings, material: MixtureParameters,

@@ -14,7 +14,7 @@ import numpy.typing as npt
 
 from macro.mixture import Exchanges
 
-__all__ = ["CellGeometry", "Contacts", "Counters"]
+__all__ = ["CellGeometry", "Contacts", "Counters", "Readings"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -95,3 +95,16 @@ class Counters:
         times as ``seconds_<phase>``."""
         named = {name: getattr(self, name) for name in self.__dataclass_fields__ if name != "phase_seconds"}
         return named | {f"seconds_{phase}": value for phase, value in self.phase_seconds.items()}
+
+
+@dataclass
+class Readings:
+    """Wall readings of one instant: pressures of the named sensors (sensors,) and of the
+    equal height bands (bands,) [Pa], axial pressures on the upper and lower plates [Pa],
+    unbalanced force ratio [1]."""
+
+    sensors: FloatArray
+    bands: FloatArray
+    axial_upper: float
+    axial_lower: float
+    unbalanced: float

@@ -3,28 +3,13 @@ push through the hull), water and volume invariants, means and axial profiles.""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import numpy.typing as npt
 
+from macro.parts import Readings
 from macro.state import ModelState
 
 FloatArray = npt.NDArray[np.float64]
-
-
-@dataclass
-class Readings:
-    """Wall readings of one instant: pressures of the named sensors (sensors,) and of the
-    equal height bands (bands,) [Pa], axial pressures on the upper and lower plates [Pa],
-    unbalanced force ratio [1]."""
-
-    sensors: FloatArray
-    bands: FloatArray
-    axial_upper: float
-    axial_lower: float
-    unbalanced: float
-
 
 
 class WallReadings(ModelState):

@@ -9,7 +9,6 @@ from typing import Any
 
 import numpy as np
 
-from macro.extrusion import ExtrusionSettings, extrusion_settings
 from macro.newton import NewtonSettings
 from macro.sensors import WallBands, equal_bands, named_sensors
 from shared.errors import ConfigError
@@ -17,7 +16,8 @@ from shared.errors import ConfigError
 SENSOR_AREA_SHARES = {"band": 1.0, "script": 0.5}
 """``macro.sensor_area``: the share of a band's wall area 2 pi R w its forces are divided by."""
 
-__all__ = ["MacroSettings", "macro_settings", "mixture_fractions", "powder_porosity"]
+__all__ = ["ExtrusionSettings", "MacroSettings", "extrusion_settings", "macro_settings", "mixture_fractions",
+           "powder_porosity"]
 
 RANDOM_CLOSE_PACKING = 0.64
 """Densest random packing of equal spheres, in bulk [1]: the ceiling of the pellet
@@ -25,6 +25,40 @@ packing fraction. The container's walls lower what it holds (0.585-0.589 with pe
 radius 3.5 mm in the default container, 0.548-0.550 with 5.99 mm; radius 2 mm holds 0.60:
 benchmarks/reference/macro_packing.json); :func:`macro.run.build_model` refuses a
 packing left overlapping."""
+
+
+
+@dataclass(frozen=True)
+class ExtrusionSettings:
+    """``macro.homogenisation`` and ``macro.extrusion`` (workflow/schemas/config.schema.yaml).
+
+    Attributes
+    ----------
+    enabled
+        ``homogenisation: extrusion``; False: the thesis's immobile powder (``none``).
+    mobility
+        M_0 [m2/(Pa s)].
+    mobile_saturation
+        S_c, the saturation below which clay does not flow [1].
+    max_solid_change
+        Largest fraction of a system's solid that leaves it in one step [1].
+    """
+
+    enabled: bool
+    mobility: float
+    mobile_saturation: float
+    max_solid_change: float
+
+
+def extrusion_settings(macro: Mapping[str, Any], case: Mapping[str, Any]) -> ExtrusionSettings:
+    """The extrusion settings of a case (its own ``homogenisation`` and ``extrusion`` first)."""
+    section = {**macro["extrusion"], **case.get("extrusion", {})}
+    return ExtrusionSettings(
+        enabled=str(case.get("homogenisation", macro["homogenisation"])) == "extrusion",
+        mobility=float(section["mobility_m2_per_pa_s"]),
+        mobile_saturation=float(section["mobile_saturation"]),
+        max_solid_change=float(section["max_solid_change"]),
+    )
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,9 @@ import pytest
 
 from macro.model import MacroModel
 from macro.parts import Counters
+from macro.state import ModelState
 
-PARTS = [base for base in MacroModel.__mro__[1:] if base.__module__.startswith("macro.")]
+PARTS = [base for base in MacroModel.__mro__[1:] if base.__module__.startswith("macro.") and base is not ModelState]
 
 
 def _self_attributes(cls: type) -> set[str]:
