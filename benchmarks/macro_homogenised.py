@@ -54,9 +54,13 @@ def bench_macro_homogenised() -> dict:
     hull_cells, areas = mesh.boundary_cells[side], mesh.boundary_areas[side]
     # the same state read with the powder pushing on the container through the hull
     heights, loads, upper, lower = model.powder_wall_loads()
-    contacts = model.readings
-    with_powder = s.sensors.pressures(heights, loads, s.radius) + contacts.sensors
     area = np.pi * s.radius**2
+    readings, powder = model.readings, s.sensors.pressures(heights, loads, s.radius)
+    # the readings hold the powder's push where powder_pressure_on_walls is on (the default)
+    on = 1.0 if s.powder_on_walls else 0.0
+    contacts = readings.sensors - on * powder
+    with_powder = contacts + powder
+    plates = [readings.axial_upper - on * upper / area, readings.axial_lower - on * lower / area]
     time = ds["time"].values
     passage = {}
     for sensor, height in zip(ds["sensor"].values, ds["sensor_height"].values, strict=True):
@@ -79,10 +83,9 @@ def bench_macro_homogenised() -> dict:
         "void_over_tetrahedron_median_inside": float(np.median((model.cells.voids / volumes)[active & ~on_container])),
         "curved_wall_hull_inert_area_fraction": float(areas[model.inert[n_p:][hull_cells]].sum() / areas.sum()),
         "sensors": [str(v) for v in ds["sensor"].values],
-        "sensor_pressure_contacts_mpa": [float(v) * MPA for v in contacts.sensors],
+        "sensor_pressure_contacts_mpa": [float(v) * MPA for v in contacts],
         "sensor_pressure_with_powder_on_walls_mpa": [float(v) * MPA for v in with_powder],
-        "plates_contacts_mpa": [contacts.axial_upper * MPA, contacts.axial_lower * MPA],
-        "plates_with_powder_on_walls_mpa": [(contacts.axial_upper + upper / area) * MPA,
-                                            (contacts.axial_lower + lower / area) * MPA],
+        "plates_contacts_mpa": [float(v) * MPA for v in plates],
+        "plates_with_powder_on_walls_mpa": [(plates[0] + upper / area) * MPA, (plates[1] + lower / area) * MPA],
         "passage_of_0p5_mpa": passage,
     }
