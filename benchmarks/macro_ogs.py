@@ -552,7 +552,7 @@ def _record(setup: ColumnSetup, flow: dict, rm: dict, ours: dict | None) -> dict
             f"{day:g}": float(np.interp(day * DAY, rm["time"], np.mean(list(rm["sensors"].values()), axis=0))) * MPA
             for day in PROFILE_DAYS},
     }
-    from macro.run import PASSAGE_PRESSURE
+    from macro.records import PASSAGE_PRESSURE
 
     # OGS's walls start at Eq. 4.33's S_0 p'_vc, ours at zero: the rise by PASSAGE_PRESSURE
     readings = {**rm["sensors"], "upper_plate": rm["plates"][:, 0], "lower_plate": rm["plates"][:, 1]}
