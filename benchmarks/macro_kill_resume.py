@@ -3,14 +3,17 @@
 ``python -m benchmarks run macro_kill_resume [--size MAX_STEPS]`` runs the default
 configuration's first macro case (``MAX_STEPS`` lowers ``macro.numerics.max_steps``) on
 the synthetic pellet permeability table of ``benchmarks.macro``, uninterrupted in this
-process, then in a process of its own SIGKILLed three times (before the first remesh
-and after two later ones) and rerun from its snapshot each time. It records the kill
-points, the snapshot resumed from, the wall times, and whether the result and the
-ParaView series are the uninterrupted run's, bit for bit, naming what differs. The kill
-points and the snapshot setting: docs/performance.md, "benchmarks.macro_kill_resume".
+process, then as a user's run in a process of its own, SIGKILLed from this one three
+times (once its snapshot holds a step before the first remesh, and after two later
+ones: the kill lands wherever the next step is) and rerun from its snapshot each time.
+The remesh steps come from a first run in memory; nothing of the model is patched. It
+records the kill points, the snapshot resumed from, the wall times, and whether the
+result and the ParaView series are the uninterrupted run's, bit for bit, naming what
+differs. The kill points and the snapshot setting: docs/performance.md,
+"benchmarks.macro_kill_resume".
 
-``python -m benchmarks.macro_kill_resume CONFIG TABLE OUTPUT KILL_AT`` is the user's
-run (configuration as JSON; KILL_AT -1: never killed).
+``python -m benchmarks.macro_kill_resume CONFIG TABLE OUTPUT`` is the user's run
+(configuration as JSON).
 """
 
 from __future__ import annotations
@@ -42,43 +45,62 @@ VARYING = ("runtime_s", "resumed", "created", "history", "code_version", "source
 version carries a dirty mark when the tree is edited while the runs go on)."""
 
 
-def _uninterrupted(config: dict, case: str, table: Path, output: Path) -> tuple[xr.Dataset, list[int]]:
-    """Run uninterrupted in this process, without snapshots; the result and the steps
-    that remeshed."""
-    import macro.mock_up
+def _remesh_steps(config: dict, case: str, table: Path, steps: int) -> list[int]:
+    """The steps that remesh among the first ``steps``, from a run in memory (the model's
+    public counters after each step of :func:`macro.mock_up.hydration`)."""
+    from macro.mock_up import THIN_ABOVE, build_model, hydration
+    from macro.records import Records
+    from shared.upscaling import PermeabilityTable
+
+    model = build_model(config, case, PermeabilityTable.from_file(table, "free"))
+    records = Records(model, None)
+    records.record(model, 0.0)
+    records.stop_distance(model)
+    records.measure(model)
+    remeshed, before = [], model.counters.remeshes
+    for _ in hydration(model, records, THIN_ABOVE):
+        if model.counters.remeshes > before:
+            remeshed.append(model.steps)
+        before = model.counters.remeshes
+        if model.steps >= steps:
+            break
+    return remeshed
+
+
+def _uninterrupted(config: dict, case: str, table: Path, output: Path) -> xr.Dataset:
+    """The run uninterrupted in this process, with the user's configuration (its
+    snapshots included, so that the provenance's configuration is the same); its result."""
     import macro.run
-    from macro.model import MacroModel
 
-    remesh, save = MacroModel._remesh, macro.mock_up.save_snapshot
-    steps: list[int] = []
-
-    def counted(self: MacroModel) -> None:
-        steps.append(self.steps + 1)
-        remesh(self)
-
-    MacroModel._remesh = counted  # type: ignore[method-assign]
-    macro.mock_up.save_snapshot = lambda *args: None
-    try:
-        macro.run.run(config, case, table, macro.run.CaseOutputs(output))
-    finally:
-        MacroModel._remesh, macro.mock_up.save_snapshot = remesh, save  # type: ignore[method-assign]
-    return xr.load_dataset(output), steps
+    macro.run.run(config, case, table, macro.run.CaseOutputs(output))
+    return xr.load_dataset(output)
 
 
 def _user_run(config: Path, table: Path, output: Path, kill_at: int) -> tuple[int, float]:
-    """The user's run in a process of its own (its log on this one's stderr); its exit
+    """The user's run in a process of its own (its log on this one's stderr), SIGKILLed
+    from here as soon as its snapshot (one after every step) holds step ``kill_at``:
+    the kill lands wherever the next step happens to be (-1: never killed). Its exit
     code and wall time [s]."""
     start = time.monotonic()
-    done = subprocess.run([sys.executable, "-m", "benchmarks.macro_kill_resume", str(config),
-                           str(table), str(output), str(kill_at)], cwd=output.parent,
-                          env={**os.environ, "PYTHONPATH": str(ROOT)}, stdout=subprocess.DEVNULL)
-    return done.returncode, time.monotonic() - start
+    child = subprocess.Popen([sys.executable, "-m", "benchmarks.macro_kill_resume", str(config),
+                              str(table), str(output)], cwd=output.parent,
+                             env={**os.environ, "PYTHONPATH": str(ROOT)}, stdout=subprocess.DEVNULL)
+    while kill_at >= 0 and child.poll() is None:
+        try:
+            if _snapshot(output)[0] >= kill_at:
+                child.kill()
+                break
+        except OSError:  # not written yet
+            pass
+        time.sleep(0.02)
+    code = child.wait()
+    return code, time.monotonic() - start
 
 
 def _snapshot(output: Path) -> tuple[int, int]:
     """Step and remesh count of the run's snapshot."""
     model = read_meta(output.with_name(f".{output.stem}.snapshot.npz"))["model"]
-    return int(model["steps"]), int(model["remeshes"])
+    return int(model["steps"]), int(model["counters"]["object"]["remeshes"])
 
 
 def _differences(whole: xr.Dataset, resumed: xr.Dataset) -> list[str]:
@@ -111,9 +133,10 @@ def bench_macro_kill_resume(max_steps: int | None = None) -> dict:
         tmp = Path(folder)
         table = write_dataset(synthetic_table(), tmp / "table.nc", stage="upscaling", title="synthetic")
         start = time.monotonic()
-        whole, remeshed = _uninterrupted(config, case, table, tmp / "whole.nc")
+        whole = _uninterrupted(config, case, table, tmp / "whole.nc")
         whole_s = time.monotonic() - start
         steps = int(whole.attrs["steps"])
+        remeshed = _remesh_steps(config, case, table, steps)
         third = len(remeshed) // 3
         if len(remeshed) >= 3:
             kills = [remeshed[0] // 2, remeshed[third], remeshed[2 * third]]
@@ -162,31 +185,13 @@ def bench_macro_kill_resume(max_steps: int | None = None) -> dict:
 
 
 def main() -> None:
-    """The user's run: ``CONFIG TABLE OUTPUT KILL_AT``; writes its snapshot after step
-    KILL_AT only and SIGKILLs itself when it is about to take the next (-1: never)."""
+    """The user's run: ``CONFIG TABLE OUTPUT``, as its Snakemake job runs it."""
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
-    config, table, output, kill_at = sys.argv[1:]
-    import macro.mock_up
+    config, table, output = sys.argv[1:]
     import macro.run
-    from macro.model import MacroModel
-    from shared.checkpointer import Checkpointer
 
-    step, save = MacroModel.step, macro.mock_up.save_snapshot
-
-    def killed(self: MacroModel, max_dt: float = float("inf")) -> float:
-        if self.steps == int(kill_at):
-            os.kill(os.getpid(), signal.SIGKILL)
-        return step(self, max_dt)
-
-    def at_the_kill(checkpointer: Checkpointer, model: MacroModel, rows: dict) -> None:
-        if model.steps == int(kill_at):
-            save(checkpointer, model, rows)
-
-    MacroModel.step = killed  # type: ignore[method-assign]
-    macro.mock_up.save_snapshot = at_the_kill
     settings = json.loads(Path(config).read_text())
     macro.run.run(settings, sorted(settings["macro"]["cases"])[0], table, macro.run.CaseOutputs(output))
-
 
 
 if __name__ == "__main__":
