@@ -54,9 +54,7 @@ def _remesh_steps(config: dict, case: str, table: Path, steps: int) -> list[int]
 
     model = build_model(config, case, PermeabilityTable.from_file(table, "free"))
     records = Records(model, None)
-    records.record(model, 0.0)
-    records.stop_distance(model)
-    records.measure(model)
+    records.start(model)
     remeshed, before = [], model.counters.remeshes
     for _ in hydration(model, records, THIN_ABOVE):
         if model.counters.remeshes > before:

@@ -135,10 +135,7 @@ def simulate(
     s: MacroSettings = model.settings
     records = Records(model, rows)
     rows = records.rows
-    if records.new:
-        records.record(model, 0.0)
-        records.stop_distance(model)
-        records.measure(model)
+    records.start(model)
     progress = RunProgress(f"macro ({model.n_pellets} pellets, {model.n_cells} cells)", LOG,
                            s.max_time, s.max_steps, s.stop_after, model.time, model.steps)
     held_by = -1

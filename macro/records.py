@@ -71,6 +71,14 @@ class Records:
         self.rows.setdefault("passage", [])  # absent from the snapshots of earlier versions
         self._tolerances = np.array([s.stop_tolerance] * 2 + [s.stop_pressure_tolerance] * 3)
 
+    def start(self, model: MacroModel) -> None:
+        """The first entries of a new run (nothing for a resumed one): the initial state,
+        its stop distance and the column's permeability at t = 0."""
+        if self.new:
+            self.record(model, 0.0)
+            self.stop_distance(model)
+            self.measure(model)
+
     def record(self, model: MacroModel, dt: float) -> None:
         """Append the model's state after a step of ``dt`` [s] (0 for the initial state)."""
         r = model.readings
