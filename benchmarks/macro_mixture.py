@@ -77,6 +77,7 @@ def mixture_record(path: str | Path = RESULT) -> dict:
         "spread_halves_days": float(time[halved[0]] / DAY) if halved.size else None,
         "balanced_fraction": float(ds["balanced"].mean()),
         "largest_unbalanced_ratio": float(ds["unbalanced_force"].max()),
+        "largest_net_unbalanced_ratio": float(ds["net_unbalanced_force"].max()),
         "largest_overfill": float(ds["largest_overfill"].max()),
         "pellets_below_boundary_suction_at_end": int((ds["pellet_suction"].values[-1]
                                                        < 0.999 * CONFIG["macro"]["boundary_suction_pa"]).sum()),

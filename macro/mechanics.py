@@ -25,10 +25,18 @@ from macro.laws import (
     yield_pressure,
     young_modulus,
 )
-from macro.mixture import facet_angles, matching_keys
+from macro.mixture import facet_angles
 from macro.parts import Readings
 from macro.state import ModelState
-from shared.dem import FireParameters, FireState, cylinder_contacts, detect_contacts, fire_step, yielding_hertz_mindlin
+from shared.dem import (
+    FireParameters,
+    FireState,
+    cylinder_contacts,
+    detect_contacts,
+    fire_step,
+    pair_values,
+    yielding_hertz_mindlin,
+)
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -128,8 +136,19 @@ class Mechanics(ModelState):
 
     def relax(self, substeps: int) -> Readings:
         """Quasi-static DEM under the current radii, moduli and powder: FIRE steps
-        (:func:`shared.dem.fire_step`) until the unbalanced force ratio is below
+        (:func:`shared.dem.fire_step`) until both the unbalanced force ratio (mean
+        resultant over mean contact force) and the net one (the pellets' net resultant over
+        the plates' mean load; 0 while the plates carry nothing) are below
         ``dem_balance_tolerance``, at most ``substeps`` (counted in ``dem_substeps_used``).
+        The mean ratio alone is blind to a residual that points the same way along the
+        column, which the plates read as a difference of loads.
+
+        The contacts' slip and yield are committed when the relaxation ends, from its
+        final positions (a return mapping): FIRE's steps are a solver's iterations, not
+        a loading path, and the balanced state does not depend on how they got there
+        (:func:`shared.dem.yielding_hertz_mindlin`). Committed at every FIRE step, the
+        overshoots slid and yielded contacts, and readings at 0.01 and 0.001 differed by
+        4 % (docs/macro.md).
 
         The degrees of freedom are the pellets' translations and their rotations times
         the radii, with one mass per pellet: its normal contact stiffness plus the
@@ -163,7 +182,18 @@ class Mechanics(ModelState):
         nu = self.material.poisson_ratio
         z_lo, z_hi = -0.5 * s.height, 0.5 * s.height
         skin = 0.2 * float(self.radii.mean())
-        pairs, shear, plastic = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin))
+        # the contacts' committed history (the last relaxation's) and the tangential
+        # displacement since; their trial forces are committed once this relaxation ends
+        pairs = detect_contacts(self.positions, self.radii, 1.0, skin)
+        shear: FloatArray = np.zeros((pairs.shape[0], 3))
+        plastic: FloatArray = np.zeros(pairs.shape[0])
+        history = self.contacts
+        if history.pairs is not None and history.shear is not None and history.plastic is not None:
+            shear, plastic = pair_values(pairs, history.pairs, history.shear), \
+                pair_values(pairs, history.pairs, history.plastic)
+        slip: FloatArray = np.zeros_like(shear)
+        wall_slip = np.zeros_like(self.contacts.wall_shear)
+        wall_shear, wall_plastic = self.contacts.wall_shear.copy(), self.contacts.wall_plastic.copy()
         reference = self.positions.copy()
         # mass floor: the stiffness of a contact overlapping by 1e-3 r
         floor = 2.0 * young / (1.0 - nu * nu) * self.radii * np.sqrt(1e-3)
@@ -197,27 +227,31 @@ class Mechanics(ModelState):
                     external, cell_pressure, powder_stiffness = trial[:3]
                     anchor = self.positions.copy()
             if 2.0 * np.sqrt(((self.positions - reference) ** 2).sum(axis=1)).max() > skin:
-                pairs, shear, plastic = self._contacts(detect_contacts(self.positions, self.radii, 1.0, skin),
-                                                       pairs, shear, plastic)
-                reference = self.positions.copy()
+                found = detect_contacts(self.positions, self.radii, 1.0, skin)
+                shear, plastic, slip = (pair_values(found, pairs, values) for values in (shear, plastic, slip))
+                pairs, reference = found, self.positions.copy()
             # past an inversion, the push linearised about its last positions with the
             # isotropic stiffness k = sum dP/dV_c A^2, the bound of its rank-one terms
             forces = external - powder_stiffness[:, None] * (self.positions - anchor)
             torques = np.zeros((n_p, 3))
             stiffness = powder_stiffness.copy()
+            trial_shear, trial_plastic = np.empty_like(shear), np.empty_like(plastic)
             normal = yielding_hertz_mindlin(self.positions, moved, turned, self.radii, young, nu,
-                                            self.material.friction, pairs, shear, forces, torques,
-                                            stiffness, strength, plastic)
+                                            self.material.friction, pairs, trial_shear, forces, torques,
+                                            stiffness, strength, trial_plastic, shear, plastic, slip)
             radial, lower, upper = cylinder_contacts(
                 self.positions, moved, turned, self.radii, young, nu, s.wall_friction, s.radius, z_lo, z_hi,
-                forces, torques, stiffness, strength, self.contacts.wall_plastic, self.contacts.wall_shear)
+                forces, torques, stiffness, strength, wall_plastic, wall_shear, self.contacts.wall_plastic,
+                self.contacts.wall_shear, wall_slip)
             carried = np.concatenate([normal[normal > 0.0], radial[radial > 0.0],
                                       lower[lower > 0.0], upper[upper > 0.0]])
             resultant = np.sqrt((forces**2).sum(axis=1)).mean()
             unbalanced = float(resultant / carried.mean()) if carried.size else 0.0
+            plates = 0.5 * float(lower.sum() + upper.sum())
+            net = float(np.linalg.norm(forces.sum(axis=0)) / plates) if plates > 0.0 else 0.0
             if k == substeps:
                 break
-            if unbalanced < s.dem_balance_tolerance:
+            if unbalanced < s.dem_balance_tolerance and net < s.dem_balance_tolerance:
                 break
             mass = np.tile(np.maximum(stiffness, floor), 2)
             step = fire_step(fire, rates, np.concatenate([forces, torques / self.radii[:, None]]), mass, cap)
@@ -225,7 +259,8 @@ class Mechanics(ModelState):
             self.positions += moved
             k += 1
         self.velocities, self.spins = rates[:n_p], rates[n_p:] / self.radii[:, None]
-        self.contacts.pairs, self.contacts.shear, self.contacts.plastic = pairs, shear, plastic
+        self.contacts.pairs, self.contacts.shear, self.contacts.plastic = pairs, trial_shear, trial_plastic
+        self.contacts.wall_shear, self.contacts.wall_plastic = wall_shear, wall_plastic
         self.counters.dem_substeps += k
         self.cells.pressures = cell_pressure
         self.move_geometry()
@@ -242,7 +277,7 @@ class Mechanics(ModelState):
             lower_force += extra_lower
         return Readings(s.sensors.pressures(heights, loads, s.radius),
                         s.bands.pressures(heights, loads, s.radius),
-                        upper_force / area, lower_force / area, unbalanced)
+                        upper_force / area, lower_force / area, unbalanced, net)
 
     def push_field(self) -> Callable[[FloatArray], tuple[FloatArray, FloatArray, FloatArray, bool]]:
         """The powder's push as a function of the pellets' positions, for one relaxation:
@@ -309,30 +344,6 @@ class Mechanics(ModelState):
                       radii + self.positions[:, 2] - 0.5 * s.height):
             lost += _cap_volume(radii, np.maximum(depth, 0.0))
         self.occupied_loss = np.minimum(lost / (4.0 / 3.0 * np.pi * radii**3), MAX_OVERLAP_LOSS)
-
-    def _contacts(self, pairs: npt.NDArray[np.int64], old_pairs: npt.NDArray[np.int64] | None = None,
-                  old_shear: FloatArray | None = None, old_plastic: FloatArray | None = None,
-                  ) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
-        """Detected pairs, their shear forces and plastic overlaps carried over from the
-        same pairs before (by default the contacts at the end of the last relaxation); new
-        pairs start at 0."""
-        if old_pairs is None:
-            old_pairs, old_shear, old_plastic = self.contacts.pairs, self.contacts.shear, self.contacts.plastic
-        shear = np.zeros((pairs.shape[0], 3))
-        plastic = np.zeros(pairs.shape[0])
-        if old_pairs is not None and old_shear is not None and old_plastic is not None \
-                and old_pairs.size and pairs.size:
-            n = self.n_pellets
-            match = matching_keys(old_pairs.min(axis=1) * n + old_pairs.max(axis=1),
-                                  pairs.min(axis=1) * n + pairs.max(axis=1))
-            found = match >= 0
-            source = match[found]
-            # the stored force acts on the pair's first pellet: flip where the order flipped
-            sign = np.where(old_pairs[source, 0] == pairs[found, 0], 1.0, -1.0)
-            shear[found] = old_shear[source] * sign[:, None]
-            plastic[found] = old_plastic[source]
-        return pairs, shear, plastic
-
 
 
 def _cap_volume(radius: FloatArray, height: FloatArray) -> FloatArray:

@@ -101,10 +101,12 @@ class Counters:
 class Readings:
     """Wall readings of one instant: pressures of the named sensors (sensors,) and of the
     equal height bands (bands,) [Pa], axial pressures on the upper and lower plates [Pa],
-    unbalanced force ratio [1]."""
+    the unbalanced force ratio (mean resultant over mean contact force) and the net one
+    (the pellets' net resultant over the plates' mean load) [1]."""
 
     sensors: FloatArray
     bands: FloatArray
     axial_upper: float
     axial_lower: float
     unbalanced: float
+    net_unbalanced: float

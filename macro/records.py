@@ -89,7 +89,7 @@ class Records:
             "suction": model.mean_suction(), "saturation": model.mean_saturation(),
             "swelling": swell, "suction_profile": suction,
             "pellet_suction": -model.pressure[: model.n_pellets].copy(),
-            "unbalanced": r.unbalanced, "dt": dt, "step": model.steps, **model.invariants(),
+            "unbalanced": r.unbalanced, "net_unbalanced": r.net_unbalanced, "dt": dt, "step": model.steps, **model.invariants(),
         }
         for name, value in entry.items():
             self.rows.setdefault(name, []).append(value)
@@ -154,6 +154,7 @@ def records_dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: Flo
     s = model.settings
     keep = _keep(np.asarray(rows["step"]), s.records)
     pick = {k: np.asarray(v)[keep] for k, v in rows.items() if k not in MEASUREMENT_ROWS}
+    balanced = np.maximum(pick["unbalanced"], pick["net_unbalanced"]) < s.dem_balance_tolerance
     z = 0.5 * (edges[:-1] + edges[1:]) + 0.5 * s.height
     packing = model.packing
     coords = {
@@ -183,9 +184,10 @@ def records_dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: Flo
         "pellet_suction": (("time", "pellet"), pick["pellet_suction"], {"units": "Pa", "long_name": "suction of each pellet (field snapshots)"}),
         "stop_distance": (("time",), pick["stop_distance"], {"units": "1", "long_name": "largest relative rate of the monitored quantities over its tolerance (1 = stop; NaN: too few records in the window)"}),
         "unbalanced_force": (("time",), pick["unbalanced"], {"units": "1", "long_name": "mean resultant over mean contact force"}),
+        "net_unbalanced_force": (("time",), pick["net_unbalanced"], {"units": "1", "long_name": "the pellets' net resultant over the plates' mean load"}),
         "time_step": (("time",), pick["dt"], {"units": "s", "long_name": "time step that ended at this record"}),
-        "balanced": (("time",), (pick["unbalanced"] < s.dem_balance_tolerance).astype(np.int8),
-                     {"units": "1", "long_name": "1 if the reading is from a balanced state (unbalanced force ratio below numerics.dem_balance_tolerance)"}),
+        "balanced": (("time",), balanced.astype(np.int8),
+                     {"units": "1", "long_name": "1 if the reading is from a balanced state (unbalanced and net unbalanced force ratios below numerics.dem_balance_tolerance)"}),
         **{name: (("time",), pick[name], {"units": units, "long_name": long})
            for name, (units, long) in INVARIANTS.items()},
         "pellet_position": (("pellet", "xyz"), packing.positions, {"units": "m", "long_name": "initial pellet centre (origin at the container's centre)"}),
@@ -212,7 +214,7 @@ def records_dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: Flo
         "dry_density_final_kg_m3": float(pick["dry_density"][-1]),
         "pellet_powder_dry_mass_ratio": model.dry_mass_ratio(),
         "powder_initial_porosity": model.powder_porosity,
-        "balanced_fraction": float(np.mean(pick["unbalanced"] < s.dem_balance_tolerance)),
+        "balanced_fraction": float(np.mean(balanced)),
         "powder_heterogeneity": str(s.powder["heterogeneity"]),
         "powder_swelling_pressure": int(s.powder_pressure),
         "powder_pressure_on_walls": int(s.powder_on_walls),

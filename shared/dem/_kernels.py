@@ -562,22 +562,38 @@ def hertz_yield(e_star, r_star, overlap, plastic, yield_force):
 
 
 @njit(cache=True)
+def _slipped(ux, uy, uz, vx, vy, vz, nx, ny, nz):
+    """A contact's tangential displacement since its last committed state: the stored one
+    turned into the tangent plane of n (:func:`_turned_shear`) plus the tangential part of
+    the substep's relative displacement (vx, vy, vz) [m]."""
+    vn = vx * nx + vy * ny + vz * nz
+    ux, uy, uz = _turned_shear(ux, uy, uz, nx, ny, nz)
+    return ux + vx - vn * nx, uy + vy - vn * ny, uz + vz - vn * nz
+
+
+@njit(cache=True)
 def yielding_hertz_mindlin(positions, velocities, spins, radii, young, poisson, friction, pairs,
-                        shear, forces, torques, stiffness, yield_force, plastic):
+                           shear, forces, torques, stiffness, yield_force, plastic,
+                           committed_shear, committed_plastic, slip):
     """Hertz-Mindlin forces between points of their own moduli, with Coulomb friction and
-    yield (Eqs. 4.1-4.9 of the macro model); updates ``shear`` in place.
+    yield (Eqs. 4.1-4.9 of the macro model), returned from the last committed state.
 
     Normal: F_n = 4/3 E* sqrt(R*) delta^(3/2), E* = E_a E_b / ((E_a + E_b)(1 - nu^2))
-    from each pellet's modulus (Eq. 4.2). Shear (Eqs. 4.5-4.9): the stored force, turned
-    into the current tangent plane, changes by -k_t times the tangential part of the
-    contact point's relative displacement in the substep (velocities and spins are per
-    substep: time unit 1), k_t = 4 G a / (2 - nu), G the mean of the two shear moduli
+    from each pellet's modulus (Eq. 4.2). Shear (Eqs. 4.5-4.9): the committed force,
+    turned into the current tangent plane, changes by -k_t times the tangential
+    displacement of the contact point since the commit (``slip`` [m], updated in place
+    with the substep's relative displacement: velocities and spins are per substep,
+    time unit 1), k_t = 4 G a / (2 - nu), G the mean of the two shear moduli
     E / (2 (1 + nu)), a = sqrt(R* delta); Coulomb's limit |F_s| <= tan(phi) F_n with
-    ``friction`` = tan(phi). ``shear[k]`` is the force on ``pairs[k, 0]`` [N]. The normal
-    force yields at the smaller ``yield_force`` of the two pellets (:func:`hertz_yield`;
-    ``plastic`` [m] per pair, updated in place, reset when the pellets part). Adds the
-    forces, the torques and the normal tangent stiffness 2 E* a per pellet; returns the
-    normal force of each pair [N] (0 if apart).
+    ``friction`` = tan(phi). The normal force yields at the smaller ``yield_force`` of the
+    two pellets (:func:`hertz_yield`, from the committed plastic overlap [m]). Writes the
+    trial ``shear`` (on ``pairs[k, 0]`` [N]) and ``plastic`` per pair (0 where the
+    pellets are apart), which a caller commits once balanced: the forces at given
+    positions then do not depend on the path that led there (a solver's iterations slide
+    and yield nothing). Passing the committed arrays as the trial ones, with a zero
+    ``slip``, commits at every call (the explicit incremental update). Adds the forces,
+    the torques and the normal tangent stiffness 2 E* a per pellet; returns the normal
+    force of each pair [N] (0 if apart).
     """
     normal = np.zeros(pairs.shape[0])
     factor = 1.0 - poisson * poisson
@@ -585,21 +601,24 @@ def yielding_hertz_mindlin(positions, velocities, spins, radii, young, poisson, 
         i, j = pairs[k, 0], pairs[k, 1]
         dx, dy, dz, dist = _separation(positions, i, j)
         overlap = radii[i] + radii[j] - dist
+        if dist > 0.0:
+            nx, ny, nz = dx / dist, dy / dist, dz / dist
+            arm_i, arm_j = radii[i] - 0.5 * max(overlap, 0.0), radii[j] - 0.5 * max(overlap, 0.0)
+            vx, vy, vz = contact_velocity(velocities, spins, i, j, nx, ny, nz, arm_i, arm_j)
+            slip[k, 0], slip[k, 1], slip[k, 2] = _slipped(slip[k, 0], slip[k, 1], slip[k, 2], vx, vy, vz,
+                                                         nx, ny, nz)
         if overlap <= 0.0 or dist == 0.0:
             shear[k, 0] = shear[k, 1] = shear[k, 2] = 0.0
             plastic[k] = 0.0
             continue
-        nx, ny, nz = dx / dist, dy / dist, dz / dist
         e_star = young[i] * young[j] / (factor * (young[i] + young[j]))
         fn, plastic[k], a = hertz_yield(e_star, radii[i] * radii[j] / (radii[i] + radii[j]), overlap,
-                                        plastic[k], min(yield_force[i], yield_force[j]))
+                                        committed_plastic[k], min(yield_force[i], yield_force[j]))
         normal[k] = fn
-        arm_i, arm_j = radii[i] - 0.5 * overlap, radii[j] - 0.5 * overlap
-        vx, vy, vz = contact_velocity(velocities, spins, i, j, nx, ny, nz, arm_i, arm_j)
         shear_modulus = 0.25 * (young[i] + young[j]) / (1.0 + poisson)
         k_t = 4.0 * shear_modulus * a / (2.0 - poisson)
-        sx, sy, sz = _mindlin_shear(shear[k, 0], shear[k, 1], shear[k, 2], vx, vy, vz, nx, ny, nz, k_t,
-                                    friction * fn)
+        sx, sy, sz = _mindlin_shear(committed_shear[k, 0], committed_shear[k, 1], committed_shear[k, 2],
+                                    slip[k, 0], slip[k, 1], slip[k, 2], nx, ny, nz, k_t, friction * fn)
         shear[k, 0], shear[k, 1], shear[k, 2] = sx, sy, sz
         apply_contact(forces, torques, i, j, fn, nx, ny, nz, sx, sy, sz, arm_i, arm_j)
         stiffness[i] += 2.0 * e_star * a
@@ -609,25 +628,29 @@ def yielding_hertz_mindlin(positions, velocities, spins, radii, young, poisson, 
 
 @njit(cache=True)
 def cylinder_contacts(positions, velocities, spins, radii, young, poisson, friction, cylinder_radius,
-                      z_low, z_high, forces, torques, stiffness, yield_force, plastic, shear):
+                      z_low, z_high, forces, torques, stiffness, yield_force, plastic, shear,
+                      committed_plastic, committed_shear, slip):
     """Hertz-Mindlin contacts with a rigid cylinder and two rigid end plates, with
-    Coulomb friction.
+    Coulomb friction, returned from the last committed state.
 
     A pellet of radius r at distance rho from the axis overlaps the curved wall by
     rho + r - R and a plate by r - (distance to the plate); force 4/3 E* sqrt(r) delta^(3/2)
     with E* = E / (1 - nu^2) (rigid wall, R* = r; the wall's curvature is neglected),
-    yielding at the pellet's ``yield_force`` (:func:`hertz_yield`; ``plastic`` (n, 3) [m]
-    per pellet for the wall, lower and upper plate, updated in place). With ``friction``
-    = tan(phi_w) > 0, the tangential force ``shear[i, w]`` [N] (n, 3, 3, updated in
-    place) is Mindlin's against a rigid surface: turned into the current tangent plane, it
-    changes by -k_t times the tangential displacement of the contact point (``velocities``
-    and ``spins`` are per substep, the contact point ``r - delta`` from the centre),
-    k_t = 8 G a / (2 - nu), G = E / (2 (1 + nu)), a = sqrt(r delta), within Coulomb's
-    |F_t| <= tan(phi_w) F_n; it is reset when the pellet leaves the surface, and adds its
-    torque about the centre. ``friction`` 0 leaves the contacts frictionless (``shear``
-    and ``torques`` untouched). Adds the normal tangent stiffness 2 E* a per pellet.
-    Returns per pellet the normal force on the curved wall (radial, outwards), on the
-    lower and on the upper plate [N].
+    yielding at the pellet's ``yield_force`` (:func:`hertz_yield` from
+    ``committed_plastic``, (n, 3) [m] per pellet for the wall, lower and upper plate;
+    the trial ``plastic`` written). With ``friction`` = tan(phi_w) > 0, the tangential
+    force (n, 3, 3) [N] is Mindlin's against a rigid surface: ``committed_shear``, turned
+    into the current tangent plane, minus k_t times the contact point's tangential
+    displacement since the commit (``slip`` [m], updated in place with the substep's:
+    ``velocities`` and ``spins`` are per substep, the contact point ``r - delta`` from the
+    centre), k_t = 8 G a / (2 - nu), G = E / (2 (1 + nu)), a = sqrt(r delta), within
+    Coulomb's |F_t| <= tan(phi_w) F_n; written to the trial ``shear`` (0 off the surface)
+    with its torque about the centre. As for :func:`yielding_hertz_mindlin`, the caller
+    commits the trial arrays once balanced, or passes the committed ones as the trial
+    ones with a zero ``slip`` to commit at every call. ``friction`` 0 leaves the
+    contacts frictionless (``shear``, ``slip`` and ``torques`` untouched). Adds the
+    normal tangent stiffness 2 E* a per pellet. Returns per pellet the normal force on
+    the curved wall (radial, outwards), on the lower and on the upper plate [N].
     """
     n = positions.shape[0]
     loads = np.zeros((n, 3))
@@ -641,27 +664,32 @@ def cylinder_contacts(positions, velocities, spins, radii, young, poisson, frict
         overlaps = (rho + radii[i] - cylinder_radius, z_low + radii[i] - positions[i, 2],
                     positions[i, 2] + radii[i] - z_high)
         for w in range(3):
+            nx, ny, nz = normals[w]
+            arm = radii[i] - max(overlaps[w], 0.0)
+            if friction > 0.0:
+                # the contact point's displacement: the centre's plus spin x (arm n)
+                vx = velocities[i, 0] + arm * (spins[i, 1] * nz - spins[i, 2] * ny)
+                vy = velocities[i, 1] + arm * (spins[i, 2] * nx - spins[i, 0] * nz)
+                vz = velocities[i, 2] + arm * (spins[i, 0] * ny - spins[i, 1] * nx)
+                slip[i, w, 0], slip[i, w, 1], slip[i, w, 2] = _slipped(
+                    slip[i, w, 0], slip[i, w, 1], slip[i, w, 2], vx, vy, vz, nx, ny, nz)
             if overlaps[w] <= 0.0:
                 plastic[i, w] = 0.0
                 shear[i, w, 0] = shear[i, w, 1] = shear[i, w, 2] = 0.0
                 continue
-            fn, plastic[i, w], a = hertz_yield(e_star, radii[i], overlaps[w], plastic[i, w], yield_force[i])
+            fn, plastic[i, w], a = hertz_yield(e_star, radii[i], overlaps[w], committed_plastic[i, w],
+                                               yield_force[i])
             loads[i, w] = fn
-            nx, ny, nz = normals[w]
             forces[i, 0] -= fn * nx
             forces[i, 1] -= fn * ny
             forces[i, 2] -= fn * nz
             stiffness[i] += 2.0 * e_star * a
             if friction <= 0.0:
                 continue
-            arm = radii[i] - overlaps[w]
-            # the contact point's displacement: the centre's plus spin x (arm n)
-            vx = velocities[i, 0] + arm * (spins[i, 1] * nz - spins[i, 2] * ny)
-            vy = velocities[i, 1] + arm * (spins[i, 2] * nx - spins[i, 0] * nz)
-            vz = velocities[i, 2] + arm * (spins[i, 0] * ny - spins[i, 1] * nx)
             k_t = 4.0 * young[i] * a / ((1.0 + poisson) * (2.0 - poisson))
-            sx, sy, sz = _mindlin_shear(shear[i, w, 0], shear[i, w, 1], shear[i, w, 2], vx, vy, vz, nx, ny, nz,
-                                        k_t, friction * fn)
+            sx, sy, sz = _mindlin_shear(committed_shear[i, w, 0], committed_shear[i, w, 1],
+                                        committed_shear[i, w, 2], slip[i, w, 0], slip[i, w, 1], slip[i, w, 2],
+                                        nx, ny, nz, k_t, friction * fn)
             shear[i, w, 0], shear[i, w, 1], shear[i, w, 2] = sx, sy, sz
             forces[i, 0] += sx
             forces[i, 1] += sy

@@ -20,9 +20,10 @@ def test_normal_force_is_hertz_with_the_harmonic_modulus():
     positions, r, young = _pair(1e-5)
     nu = 0.3
     forces, torques, stiffness = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(2)
+    shear, plastic = np.zeros((1, 3)), np.zeros(1)
     normal = hertz_mindlin_pairs(positions, np.zeros((2, 3)), np.zeros((2, 3)), r, young, nu, 0.5,
-                                 np.array([[0, 1]]), np.zeros((1, 3)), forces, torques, stiffness,
-                                 np.full(2, np.inf), np.zeros(1))
+                                 np.array([[0, 1]]), shear, forces, torques, stiffness,
+                                 np.full(2, np.inf), plastic, shear, plastic, np.zeros((1, 3)))
     e_star = 1.0 / ((1 - nu**2) / young[0] + (1 - nu**2) / young[1])  # Eq. 4.2
     r_star = r[0] * r[1] / r.sum()
     expected = 4.0 / 3.0 * e_star * np.sqrt(r_star) * 1e-5**1.5  # Eq. 4.1
@@ -31,9 +32,9 @@ def test_normal_force_is_hertz_with_the_harmonic_modulus():
 
 
 def test_shear_grows_with_mindlin_stiffness_until_coulomb():
-    """Pellet 0 slides along y by 1e-8 m per substep: the shear force on it is
-    -k_t * slip, k_t = 4 G a / (2 - nu) with G the mean shear modulus, until it reaches
-    tan(phi) F_n; the torques are the arms times the shear force."""
+    """Pellet 0 slides along y by 1e-8 m per substep, each committed: the shear force on
+    it is -k_t * slip, k_t = 4 G a / (2 - nu) with G the mean shear modulus, until it
+    reaches tan(phi) F_n; the torques are the arms times the shear force."""
     positions, r, young = _pair(1e-5)
     nu, friction = 0.3, np.tan(np.radians(30.0))
     shear = np.zeros((1, 3))
@@ -43,9 +44,10 @@ def test_shear_grows_with_mindlin_stiffness_until_coulomb():
     history = []
     for _ in range(600):
         forces, torques, stiffness = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(2)
+        plastic = np.zeros(1)
         normal = hertz_mindlin_pairs(positions, moved, np.zeros((2, 3)), r, young, nu, friction,
                                      np.array([[0, 1]]), shear, forces, torques, stiffness,
-                                     np.full(2, np.inf), np.zeros(1))
+                                     np.full(2, np.inf), plastic, shear, plastic, np.zeros((1, 3)))
         history.append(-shear[0, 1])
     history = np.array(history)
     assert history[0] == pytest.approx(k_t * 1e-8, rel=1e-9)
@@ -55,15 +57,43 @@ def test_shear_grows_with_mindlin_stiffness_until_coulomb():
     assert torques[0, 2] == pytest.approx(arm * shear[0, 1], rel=1e-12)
 
 
+def test_uncommitted_shear_depends_on_the_end_displacement_not_the_path():
+    """Pellet 0 slides 200 substeps of 5e-8 m along y, past Coulomb's limit, then 150 back.
+    Uncommitted (the committed force 0 throughout), its trial shear force is that of the net
+    2.5e-6 m in one go, -k_t 2.5e-6 below the limit: a solver's iterations slide nothing.
+    Committed at every substep, the contact slid at tan(phi) F_n and unloads elastically
+    from there, to k_t 7.5e-6 - tan(phi) F_n on the other side."""
+    positions, r, young = _pair(1e-5)
+    nu, friction, step = 0.3, np.tan(np.radians(30.0)), 5e-8
+    a = np.sqrt(r[0] * r[1] / r.sum() * 1e-5)
+    k_t = 4.0 * (0.5 * (young[0] + young[1]) / (2 * (1 + nu))) * a / (2 - nu)
+    committed, slip = np.zeros((1, 3)), np.zeros((1, 3))
+    explicit = np.zeros((1, 3))
+    for sign in [1.0] * 200 + [-1.0] * 150:
+        moved = np.array([[0.0, sign * step, 0.0], [0.0, 0.0, 0.0]])
+        args = (positions, moved, np.zeros((2, 3)), r, young, nu, friction, np.array([[0, 1]]))
+        trial, plastic = np.zeros((1, 3)), np.zeros(1)
+        normal = hertz_mindlin_pairs(*args, trial, np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(2),
+                                     np.full(2, np.inf), plastic, committed, np.zeros(1), slip)
+        hertz_mindlin_pairs(*args, explicit, np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(2),
+                            np.full(2, np.inf), plastic, explicit, plastic, np.zeros((1, 3)))
+    limit = friction * normal[0]
+    assert k_t * 200 * step > limit > k_t * 50 * step and k_t * 150 * step < 2.0 * limit
+    np.testing.assert_allclose(slip[0], [0.0, 50 * step, 0.0], rtol=1e-9, atol=1e-20)
+    np.testing.assert_allclose(trial[0], [0.0, -k_t * 50 * step, 0.0], rtol=1e-9, atol=1e-15)
+    assert explicit[0, 1] == pytest.approx(k_t * 150 * step - limit, rel=1e-9)
+
+
 def _loaded(overlaps, yield_force, plastic):
     """Normal force of the pair at each overlap in turn (the plastic overlap carried)."""
     out = []
     for overlap in overlaps:
         positions, r, young = _pair(overlap)
         forces, torques, stiffness = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(2)
+        shear = np.zeros((1, 3))
         out.append(hertz_mindlin_pairs(positions, np.zeros((2, 3)), np.zeros((2, 3)), r, young, 0.3, 0.5,
-                                       np.array([[0, 1]]), np.zeros((1, 3)), forces, torques, stiffness,
-                                       yield_force, plastic)[0])
+                                       np.array([[0, 1]]), shear, forces, torques, stiffness,
+                                       yield_force, plastic, shear, plastic, np.zeros((1, 3)))[0])
     return np.array(out)
 
 
@@ -100,10 +130,10 @@ def test_plate_contact_yields_like_a_pair_with_a_rigid_flat():
     hertz = 4.0 / 3.0 * young / (1 - nu**2) * np.sqrt(r)
     d_y = (f_y / hertz) ** (2.0 / 3.0)
     positions = np.array([[0.0, 0.0, -0.05 + r - 2.0 * d_y]])
-    forces, stiffness, plastic = np.zeros((1, 3)), np.zeros(1), np.zeros((1, 3))
+    forces, stiffness, plastic, shear = np.zeros((1, 3)), np.zeros(1), np.zeros((1, 3)), np.zeros((1, 3, 3))
     rest = np.zeros((1, 3))
     radial, lower, upper = container_contacts(positions, rest, rest, np.array([r]), np.array([young]), nu, 0.0,
                                               0.03, -0.05, 0.05, forces, np.zeros((1, 3)), stiffness,
-                                              np.array([f_y]), plastic, np.zeros((1, 3, 3)))
+                                              np.array([f_y]), plastic, shear, plastic, shear, np.zeros((1, 3, 3)))
     assert lower[0] == pytest.approx(2.0 * f_y, rel=1e-9) and forces[0, 2] == pytest.approx(2.0 * f_y, rel=1e-9)
     assert radial[0] == 0.0 and upper[0] == 0.0 and plastic[0, 1] > 0.0
