@@ -45,11 +45,12 @@ MAX_STEP = 1e-3
 radii: a pellet entering a contact stiffer than its mass moves at most this far."""
 REMESHES = 2
 """Largest number of new meshes within one relaxation."""
-FIRE = FireParameters()
-"""FIRE's constants for the relaxation: Bitzek et al.'s. Starting at the largest time step
-(each row's mass is its own stiffness) with FIRE 2.0's alpha_start 0.25 took a third fewer
-FIRE steps while each relaxation stopped on the mean ratio alone, and twice as many with
-the net one (benchmarks/reference/macro_fire.json)."""
+FIRE = FireParameters(dt_start=1.0, alpha_start=0.25)
+"""FIRE's constants for the relaxation: each row's mass is its own stiffness (frequency 1
+per row), so the largest time step, 1, needs no ramp from Bitzek et al.'s dt_start 0.1;
+alpha_start is FIRE 2.0's (Guenole et al. 2020). Bitzek's start takes half the FIRE steps,
+but its readings at 0.01 and 0.001 differ by up to 3.5 % where these differ by 2.7 %
+(docs/macro.md; benchmarks/reference/macro_fire.json)."""
 MAX_OVERLAP_LOSS = 0.3
 """Largest fraction of a pellet's sphere that its overlaps may cut off."""
 

@@ -89,7 +89,8 @@ class Records:
             "suction": model.mean_suction(), "saturation": model.mean_saturation(),
             "swelling": swell, "suction_profile": suction,
             "pellet_suction": -model.pressure[: model.n_pellets].copy(),
-            "unbalanced": r.unbalanced, "net_unbalanced": r.net_unbalanced, "dt": dt, "step": model.steps, **model.invariants(),
+            "unbalanced": r.unbalanced, "net_unbalanced": r.net_unbalanced, "dt": dt, "step": model.steps,
+            **model.invariants(),
         }
         for name, value in entry.items():
             self.rows.setdefault(name, []).append(value)
