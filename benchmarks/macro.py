@@ -69,6 +69,7 @@ def bench_macro_steps(steps: int = 100, pellet_radius: float | None = None) -> d
         model.step()  # compiles what the set-up did not
         for key in model.counters.phase_seconds:
             model.counters.phase_seconds[key] = 0.0
+        fire_before = model.counters.dem_substeps
         start = time.perf_counter()
         for _ in range(steps):
             model.step()
@@ -84,6 +85,7 @@ def bench_macro_steps(steps: int = 100, pellet_radius: float | None = None) -> d
         "steps_per_s": steps / wall,
         "simulated_s": model.time,
         "phase_s": dict(model.counters.phase_seconds),
+        "fire_steps_per_step": (model.counters.dem_substeps - fire_before) / steps,
         "newton_fallbacks": model.counters.newton_fallbacks,
         "remeshes": model.counters.remeshes,
     }
@@ -91,7 +93,7 @@ def bench_macro_steps(steps: int = 100, pellet_radius: float | None = None) -> d
 
 def bench_macro_scaling(steps: int = 100, radii: tuple[float, ...] = (5.99e-3, 4.73e-3, 3.65e-3, 3.0e-3)) -> dict:
     """Cost per step against the pellet count (the Appendix .1 radii and a smaller one)
-    and the exponent of a power-law fit, per phase and in total."""
+    and the exponent of a power-law fit, per phase, in total and of the FIRE steps per step."""
     rows = [bench_macro_steps(steps, r) for r in radii]
     count = np.array([r["n_pellets"] for r in rows], dtype=float)
     fits = {}
@@ -109,7 +111,9 @@ def bench_macro_scaling(steps: int = 100, radii: tuple[float, ...] = (5.99e-3, 4
     ax.legend(fontsize=7)
     OUT.mkdir(parents=True, exist_ok=True)
     save_figure(fig, OUT / "macro_scaling.png")
-    return {"runs": rows, "exponent_per_step": fits}
+    fire = np.array([r["fire_steps_per_step"] for r in rows])
+    return {"runs": rows, "exponent_per_step": fits,
+            "exponent_fire_steps_per_step": float(np.polyfit(np.log(count), np.log(fire), 1)[0])}
 
 
 def main() -> None:
