@@ -6,7 +6,8 @@ the synthetic pellet permeability table of ``benchmarks.macro``, uninterrupted i
 process, then as a user's run in a process of its own, SIGKILLed from this one three
 times (once its snapshot holds a step before the first remesh, and after two later
 ones: the kill lands wherever the next step is) and rerun from its snapshot each time.
-The remesh steps come from a first run in memory; nothing of the model is patched. It
+The remesh steps come from the uninterrupted result's records (their step and remesh
+count), at the records' resolution; nothing of the model is patched. It
 records the kill points, the snapshot resumed from, the wall times, and whether the
 result and the ParaView series are the uninterrupted run's, bit for bit, naming what
 differs. The kill points and the snapshot setting: docs/performance.md,
@@ -45,24 +46,11 @@ VARYING = ("runtime_s", "resumed", "created", "history", "code_version", "source
 version carries a dirty mark when the tree is edited while the runs go on)."""
 
 
-def _remesh_steps(config: dict, case: str, table: Path, steps: int) -> list[int]:
-    """The steps that remesh among the first ``steps``, from a run in memory (the model's
-    public counters after each step of :func:`macro.mock_up.hydration`)."""
-    from macro.mock_up import THIN_ABOVE, build_model, hydration
-    from macro.records import Records
-    from shared.upscaling import PermeabilityTable
-
-    model = build_model(config, case, PermeabilityTable.from_file(table, "free"))
-    records = Records(model, None)
-    records.start(model)
-    remeshed, before = [], model.counters.remeshes
-    for _ in hydration(model, records, THIN_ABOVE):
-        if model.counters.remeshes > before:
-            remeshed.append(model.steps)
-        before = model.counters.remeshes
-        if model.steps >= steps:
-            break
-    return remeshed
+def _remesh_steps(result: xr.Dataset) -> list[int]:
+    """The steps of the records at which the remesh count grew: each at or after a
+    remesh, before the next record's step."""
+    count, step = result["remesh_count"].values, result["step"].values
+    return [int(k) for k in step[1:][np.diff(count) > 0]]
 
 
 def _uninterrupted(config: dict, case: str, table: Path, output: Path) -> xr.Dataset:
@@ -134,7 +122,7 @@ def bench_macro_kill_resume(max_steps: int | None = None) -> dict:
         whole = _uninterrupted(config, case, table, tmp / "whole.nc")
         whole_s = time.monotonic() - start
         steps = int(whole.attrs["steps"])
-        remeshed = _remesh_steps(config, case, table, steps)
+        remeshed = _remesh_steps(whole)
         third = len(remeshed) // 3
         if len(remeshed) >= 3:
             kills = [remeshed[0] // 2, remeshed[third], remeshed[2 * third]]

@@ -90,7 +90,7 @@ class Records:
             "swelling": swell, "suction_profile": suction,
             "pellet_suction": -model.pressure[: model.n_pellets].copy(),
             "unbalanced": r.unbalanced, "net_unbalanced": r.net_unbalanced, "dt": dt, "step": model.steps,
-            **model.invariants(),
+            "remeshes": model.counters.remeshes, **model.invariants(),
         }
         for name, value in entry.items():
             self.rows.setdefault(name, []).append(value)
@@ -187,6 +187,8 @@ def records_dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: Flo
         "unbalanced_force": (("time",), pick["unbalanced"], {"units": "1", "long_name": "mean resultant over mean contact force"}),
         "net_unbalanced_force": (("time",), pick["net_unbalanced"], {"units": "1", "long_name": "the pellets' net resultant over the plates' mean load"}),
         "time_step": (("time",), pick["dt"], {"units": "s", "long_name": "time step that ended at this record"}),
+        "step": (("time",), pick["step"], {"units": "1", "long_name": "coupled steps so far"}),
+        "remesh_count": (("time",), pick["remeshes"], {"units": "1", "long_name": "remeshes so far"}),
         "balanced": (("time",), balanced.astype(np.int8),
                      {"units": "1", "long_name": "1 if the reading is from a balanced state (unbalanced and net unbalanced force ratios below numerics.dem_balance_tolerance)"}),
         **{name: (("time",), pick[name], {"units": units, "long_name": long})

@@ -158,3 +158,12 @@ def test_records_balance_and_cells_hold_their_powder_after_the_first_steps(small
     np.testing.assert_array_equal(ds["balanced"].values, ratio < tolerance)
     assert ds.attrs["capped_cell_steps"] == 0
     assert ds["largest_overfill"].max() < 0.5
+
+
+def test_records_count_the_steps_and_remeshes_as_the_run_does(small_run):
+    """The records' step and remesh count, kept per step, end at the run's own counters
+    (the attributes) and never decrease."""
+    ds, _ = small_run
+    step, remeshes = ds["step"].values, ds["remesh_count"].values
+    assert step[0] == 0 and step[-1] == ds.attrs["steps"] and np.all(np.diff(step) > 0)
+    assert remeshes[-1] == ds.attrs["remeshes"] and np.all(np.diff(remeshes) >= 0)
