@@ -193,6 +193,8 @@ class Mechanics(ModelState):
             shear, plastic = pair_values(pairs, history.pairs, history.shear), \
                 pair_values(pairs, history.pairs, history.plastic)
         slip: FloatArray = np.zeros_like(shear)
+        # the kernels overwrite every row of the trial arrays at each FIRE step
+        trial_shear, trial_plastic = np.empty_like(shear), np.empty_like(plastic)
         wall_slip = np.zeros_like(self.contacts.wall_shear)
         wall_shear, wall_plastic = self.contacts.wall_shear.copy(), self.contacts.wall_plastic.copy()
         reference = self.positions.copy()
@@ -231,12 +233,12 @@ class Mechanics(ModelState):
                 found = detect_contacts(self.positions, self.radii, 1.0, skin)
                 shear, plastic, slip = (pair_values(found, pairs, values) for values in (shear, plastic, slip))
                 pairs, reference = found, self.positions.copy()
+                trial_shear, trial_plastic = np.empty_like(shear), np.empty_like(plastic)
             # past an inversion, the push linearised about its last positions with the
             # isotropic stiffness k = sum dP/dV_c A^2, the bound of its rank-one terms
             forces = external - powder_stiffness[:, None] * (self.positions - anchor)
             torques = np.zeros((n_p, 3))
             stiffness = powder_stiffness.copy()
-            trial_shear, trial_plastic = np.empty_like(shear), np.empty_like(plastic)
             normal = yielding_hertz_mindlin(self.positions, moved, turned, self.radii, young, nu,
                                             self.material.friction, pairs, trial_shear, forces, torques,
                                             stiffness, strength, trial_plastic, shear, plastic, slip)
