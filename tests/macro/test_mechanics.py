@@ -59,6 +59,27 @@ def test_relaxation_of_the_small_column_balances_to_the_tolerance(model, toleran
     assert model.counters.dem_substeps - used < 400
 
 
+def test_net_resultant_is_that_of_the_push_and_the_container_alone(model):
+    """Newton's third law: the pair contacts cancel in the pellets' net resultant, so the
+    relaxation's net ratio equals the one of the powder's push and the container's
+    contacts alone, evaluated apart at the balanced positions; once the plates carry
+    the column it is below the tolerance."""
+    for _ in range(8):
+        model.step()
+    readings = model.relax(400)
+    n_p, s, rest = model.n_pellets, model.settings, np.zeros((model.n_pellets, 3))
+    forces = model.push_field()(model.positions)[0].copy()
+    _, lower, upper = cylinder_contacts(
+        model.positions, rest, rest, model.radii, young_modulus(-model.pressure[:n_p], model.material),
+        model.material.poisson_ratio, 0.0, s.radius, -0.5 * s.height, 0.5 * s.height, forces, np.zeros((n_p, 3)),
+        np.zeros(n_p), yield_force(-model.pressure[:n_p], model.material), np.zeros((n_p, 3)),
+        np.zeros((n_p, 3, 3)), model.contacts.wall_plastic, np.zeros((n_p, 3, 3)), np.zeros((n_p, 3, 3)))
+    assert lower.sum() > 0.0 and upper.sum() > 0.0
+    net = np.linalg.norm(forces.sum(axis=0)) / (0.5 * (lower.sum() + upper.sum()))
+    assert readings.net_unbalanced == pytest.approx(net, rel=1e-9)
+    assert net < s.dem_balance_tolerance
+
+
 def test_frictional_walls_keep_the_balance_and_carry_shear(model):
     """With a wall friction angle of 20 deg the column still balances to 0.01, and the
     wall's tangential forces stay within Coulomb's tan(20 deg) times their normal force."""
