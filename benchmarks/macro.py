@@ -15,6 +15,7 @@ import json
 import tempfile
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
@@ -23,6 +24,9 @@ from benchmarks.parameters import CONFIG
 from shared.figures import new_figure, save_figure
 from shared.io import write_dataset
 from shared.upscaling import PermeabilityTable
+
+if TYPE_CHECKING:
+    from macro.model import MacroModel
 
 OUT = Path("results/benchmarks")
 
@@ -50,9 +54,11 @@ def synthetic_table() -> xr.Dataset:
     )
 
 
-def bench_macro_steps(steps: int = 100, pellet_radius: float | None = None) -> dict:
-    """Steps per second and seconds per phase of the default macro case (optionally with
-    another pellet radius [m], the container unchanged)."""
+def bench_macro_steps(steps: int = 100, pellet_radius: float | None = None, days: float = 0.0) -> dict:
+    """Steps per second and seconds per phase of the default macro case over its first
+    ``steps`` coupled steps (optionally with another pellet radius [m], the container
+    unchanged); ``step_rows`` holds each step's end time [s], FIRE steps and wall time [s],
+    continued until the model has simulated ``days`` days."""
     import copy
 
     from macro.run import build_model
@@ -71,9 +77,13 @@ def bench_macro_steps(steps: int = 100, pellet_radius: float | None = None) -> d
             model.counters.phase_seconds[key] = 0.0
         fire_before = model.counters.dem_substeps
         start = time.perf_counter()
+        rows = []
         for _ in range(steps):
-            model.step()
+            rows.append(_timed_step(model))
         wall = time.perf_counter() - start
+        phase_s, fire_steps = dict(model.counters.phase_seconds), model.counters.dem_substeps - fire_before
+        while model.time < 86400.0 * days:
+            rows.append(_timed_step(model))
     packing = model.packing  # type: ignore[attr-defined]
     return {
         "case": case,
@@ -84,27 +94,51 @@ def bench_macro_steps(steps: int = 100, pellet_radius: float | None = None) -> d
         "steps": steps,
         "steps_per_s": steps / wall,
         "simulated_s": model.time,
-        "phase_s": dict(model.counters.phase_seconds),
-        "fire_steps_per_step": (model.counters.dem_substeps - fire_before) / steps,
+        "phase_s": phase_s,
+        "fire_steps_per_step": fire_steps / steps,
         "newton_fallbacks": model.counters.newton_fallbacks,
         "remeshes": model.counters.remeshes,
+        "step_rows": rows,
     }
 
 
-def bench_macro_scaling(steps: int = 100, radii: tuple[float, ...] = (5.99e-3, 4.73e-3, 3.65e-3, 3.0e-3)) -> dict:
+def _timed_step(model: MacroModel) -> list[float]:
+    """One coupled step: the model's time after it [s], its FIRE steps, its wall time [s]."""
+    fire, clock = model.counters.dem_substeps, time.perf_counter()
+    model.step()
+    return [model.time, model.counters.dem_substeps - fire, time.perf_counter() - clock]
+
+
+def bench_macro_scaling(steps: int = 100, radii: tuple[float, ...] = (5.99e-3, 4.73e-3, 3.65e-3, 3.0e-3),
+                        days: float = 3.0) -> dict:
     """Cost per step against the pellet count (the Appendix .1 radii and a smaller one)
-    and the exponent of a power-law fit, per phase, in total and of the FIRE steps per step."""
-    rows = [bench_macro_steps(steps, r) for r in radii]
+    and the exponent of a power-law fit, per phase, in total and of the FIRE steps per step,
+    over the first ``steps`` steps; and over the steps of the first ``days`` days, the
+    same stage of the hydration at every size (a smaller cell takes smaller time steps,
+    so a fixed count of steps ends earlier in the larger columns)."""
+    rows = [bench_macro_steps(steps, r, days) for r in radii]
     count = np.array([r["n_pellets"] for r in rows], dtype=float)
+    same_time = []
+    for r in rows:
+        table = np.array(r["step_rows"])
+        within = table[table[:, 0] <= 86400.0 * days]
+        same_time.append({"steps": int(within.shape[0]), "ms_per_step": 1e3 * float(within[:, 2].mean()),
+                          "fire_steps_per_step": float(within[:, 1].mean())})
+
+    def exponent(values: list[float]) -> float:
+        return float(np.polyfit(np.log(count), np.log(values), 1)[0])
+
     fits = {}
     fig, axes = new_figure(1, 1, width=4.6, height=3.6)
     ax = axes[0][0]  # type: ignore[index]
     for phase in ("total", *rows[0]["phase_s"]):
         per_step = np.array([(1.0 / r["steps_per_s"]) if phase == "total" else r["phase_s"][phase] / steps
                              for r in rows])
-        fits[phase] = float(np.polyfit(np.log(count), np.log(per_step), 1)[0])
+        fits[phase] = exponent(list(per_step))
         ax.loglog(count, 1e3 * per_step, "o-" if phase == "total" else ".--",
                   label=f"{phase} (N^{fits[phase]:.2f})")
+    same = [r["ms_per_step"] for r in same_time]
+    ax.loglog(count, same, "s-", label=f"total, first {days:g} days (N^{exponent(same):.2f})")
     ax.set_xlabel("pellets")
     ax.set_ylabel("wall time per coupled step [ms]")
     ax.set_title("macro model: cost per step (2 cores)")
@@ -112,8 +146,10 @@ def bench_macro_scaling(steps: int = 100, radii: tuple[float, ...] = (5.99e-3, 4
     OUT.mkdir(parents=True, exist_ok=True)
     save_figure(fig, OUT / "macro_scaling.png")
     fire = np.array([r["fire_steps_per_step"] for r in rows])
-    return {"runs": rows, "exponent_per_step": fits,
-            "exponent_fire_steps_per_step": float(np.polyfit(np.log(count), np.log(fire), 1)[0])}
+    return {"runs": rows, "exponent_per_step": fits, "exponent_fire_steps_per_step": exponent(list(fire)),
+            "same_time": {"days": days, "runs": same_time,
+                          "exponent_per_step": exponent(same),
+                          "exponent_fire_steps_per_step": exponent([r["fire_steps_per_step"] for r in same_time])}}
 
 
 def main() -> None:
