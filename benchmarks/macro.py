@@ -136,7 +136,8 @@ def bench_macro_scaling(steps: int = 100, radii: tuple[float, ...] = (5.99e-3, 4
                              for r in rows])
         fits[phase] = exponent(list(per_step))
         ax.loglog(count, 1e3 * per_step, "o-" if phase == "total" else ".--",
-                  label=f"{phase} (N^{fits[phase]:.2f})")
+                  label=f"{phase}, first {steps} steps (N^{fits[phase]:.2f})" if phase == "total"
+                  else f"{phase} (N^{fits[phase]:.2f})")
     same = [r["ms_per_step"] for r in same_time]
     ax.loglog(count, same, "s-", label=f"total, first {days:g} days (N^{exponent(same):.2f})")
     ax.set_xlabel("pellets")
