@@ -107,9 +107,33 @@ def _corner_angle(opposite, left, right):
     return np.arccos(min(1.0, max(-1.0, cos)))
 
 
+@njit(cache=True)
+def incidence(entries, n_rows):
+    """Where each row below ``n_rows`` occurs in an (m, k) array of row indices (a mesh's
+    tetrahedra or triangles): CSR offsets (n_rows + 1,) and the flat positions i k + j,
+    ascending for each row, the order in which a serial scatter over the array visits
+    them (so a gather over them sums in the same order)."""
+    flat = entries.ravel()
+    start = np.zeros(n_rows + 1, dtype=np.int64)
+    for e in flat:
+        if e < n_rows:
+            start[e + 1] += 1
+    for r in range(n_rows):
+        start[r + 1] += start[r]
+    fill = start[:-1].copy()
+    where = np.empty(start[n_rows], dtype=np.int64)
+    for i in range(flat.size):
+        e = flat[i]
+        if e < n_rows:
+            where[fill[e]] = i
+            fill[e] += 1
+    return start, where
+
+
 @njit(cache=True, parallel=True)
 def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sphere_radii, n_pellets,
-                solid_mass, densest, free, candidate, bound, scale, alpha, void_floor):
+                solid_mass, densest, free, candidate, bound, scale, alpha, void_floor, cell_incidence,
+                facet_incidence):
     """The powder's push on the pellets at the mesh's current points, in one pass.
 
     Per cell: the void (tetrahedron less the clay spheres' solid-angle shares, floored
@@ -118,7 +142,9 @@ def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sph
     its clay is held below its ``free`` volume, at most ``bound``; per interior
     triangle: each pellet's sector theta r^2 / 2 pushed by the pressure jump across it
     along the normal from the first cell to the second (as :meth:`macro.mechanics.
-    Mechanics.hydro_forces`).
+    Mechanics.hydro_forces`). ``cell_incidence`` and ``facet_incidence`` are
+    :func:`incidence` of the tetrahedra and triangles: each pellet gathers its cells'
+    stiffness and its triangles' push in mesh order, in parallel and deterministic.
 
     Returns
     -------
@@ -135,7 +161,8 @@ def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sph
     n_cells, n_facets = tetrahedra.shape[0], facet_vertices.shape[0]
     pressure = np.zeros(n_cells)
     slope = np.zeros(n_cells)
-    omega = np.zeros((n_cells, 4))
+    # read only at pellet vertices of pressing cells, which set them
+    omega = np.empty((n_cells, 4))
     flipped = np.zeros(n_cells, dtype=np.bool_)
     for c in prange(n_cells):
         if not candidate[c]:
@@ -154,13 +181,19 @@ def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sph
         l01, l02, l03 = np.sqrt(s01), np.sqrt(s02), np.sqrt(s03)
         l12, l13, l23 = np.sqrt(s12), np.sqrt(s13), np.sqrt(s23)
         triple = 6.0 * volume
-        omega[c, 0] = _solid_angle(triple, l01, l02, l03, s12, s13, s23)
-        omega[c, 1] = _solid_angle(triple, l01, l12, l13, s02, s03, s23)
-        omega[c, 2] = _solid_angle(triple, l02, l12, l23, s01, s03, s13)
-        omega[c, 3] = _solid_angle(triple, l03, l13, l23, s01, s02, s12)
+        # container points hold no clay (radius 0): their solid angles are not needed
+        if tetrahedra[c, 0] < n_pellets:
+            omega[c, 0] = _solid_angle(triple, l01, l02, l03, s12, s13, s23)
+        if tetrahedra[c, 1] < n_pellets:
+            omega[c, 1] = _solid_angle(triple, l01, l12, l13, s02, s03, s23)
+        if tetrahedra[c, 2] < n_pellets:
+            omega[c, 2] = _solid_angle(triple, l02, l12, l23, s01, s03, s13)
+        if tetrahedra[c, 3] < n_pellets:
+            omega[c, 3] = _solid_angle(triple, l03, l13, l23, s01, s02, s12)
         inside = 0.0
         for v in range(4):
-            inside += omega[c, v] * clay_radii[tetrahedra[c, v]] ** 3
+            if tetrahedra[c, v] < n_pellets:
+                inside += omega[c, v] * clay_radii[tetrahedra[c, v]] ** 3
         void = max(volume - inside / 3.0, void_floor * volume)
         held = max(void, densest[c])
         if free[c] <= held:
@@ -171,13 +204,16 @@ def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sph
         else:
             pressure[c] = value
             slope[c] = value * alpha * solid_mass[c] / (held * held)
-    # each triangle's push on its three vertices, then summed in order (deterministic)
-    parts = np.zeros((n_facets, 3, 3))
+    # each triangle's push on its pellet vertices (read only where the triangle pushes),
+    # then gathered per pellet in mesh order (deterministic)
+    parts = np.empty((n_facets, 3, 3))
+    pushes = np.zeros(n_facets, dtype=np.bool_)
     for f in prange(n_facets):
         c0, c1 = facet_cells[f, 0], facet_cells[f, 1]
         jump = pressure[c0] - pressure[c1]
         if jump == 0.0:
             continue
+        pushes[f] = True
         a, b, c = points[facet_vertices[f, 0]], points[facet_vertices[f, 1]], points[facet_vertices[f, 2]]
         nx = (b[1] - a[1]) * (c[2] - a[2]) - (b[2] - a[2]) * (c[1] - a[1])
         ny = (b[2] - a[2]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[2] - a[2])
@@ -201,21 +237,20 @@ def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sph
             parts[f, k, 0] = push * nx
             parts[f, k, 1] = push * ny
             parts[f, k, 2] = push * nz
+    cell_start, cell_where = cell_incidence
+    facet_start, facet_where = facet_incidence
     stiffness = np.zeros(n_pellets)
-    inverted = False
-    for c in range(n_cells):
-        inverted = inverted or flipped[c]
-        if slope[c] > 0.0:
-            for v in range(4):
-                vertex = tetrahedra[c, v]
-                if vertex < n_pellets:
-                    area = omega[c, v] * sphere_radii[vertex] ** 2
-                    stiffness[vertex] += slope[c] * area * area
     forces = np.zeros((n_pellets, 3))
-    for f in range(n_facets):
-        for k in range(3):
-            vertex = facet_vertices[f, k]
-            if vertex < n_pellets:
+    for p in prange(n_pellets):
+        for e in range(cell_start[p], cell_start[p + 1]):
+            c, v = cell_where[e] // 4, cell_where[e] % 4
+            if slope[c] > 0.0:
+                area = omega[c, v] * sphere_radii[p] ** 2
+                stiffness[p] += slope[c] * area * area
+        for e in range(facet_start[p], facet_start[p + 1]):
+            f, k = facet_where[e] // 3, facet_where[e] % 3
+            if pushes[f]:
                 for d in range(3):
-                    forces[vertex, d] += parts[f, k, d]
+                    forces[p, d] += parts[f, k, d]
+    inverted = flipped.any()
     return forces, pressure, stiffness, inverted

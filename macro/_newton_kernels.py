@@ -16,7 +16,7 @@ volume, 3 no solution found, 4 drier than the retention curve allows at s_max,
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 NEWTON, BRACKETED, INFEASIBLE, UNSOLVED, DRIEST, CONFINED = 0, 1, 2, 3, 4, 5
 BOUND = 1e-6
@@ -220,7 +220,7 @@ def _bisected(a, b, m, vs, v0, st, ms, vmax, fixed, rho, law):
     return _clipped_volume(s, m, vs, v0, st, ms, vmax, fixed, rho, law), s
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def solve_systems(water, solid, v0, stress, msolid, vmax, fixed, previous_volume, previous_suction,
                   rho, smax, tol, max_iter, mu0, decay, relax0, h, law):
     """Volume [m3], suction [Pa], iterations and status of every system.
@@ -235,7 +235,8 @@ def solve_systems(water, solid, v0, stress, msolid, vmax, fixed, previous_volume
     suction = np.empty(n)
     iterations = np.zeros(n, dtype=np.int64)
     status = np.zeros(n, dtype=np.int64)
-    for i in range(n):
+    # every system is independent: one per thread, the same results in any order
+    for i in prange(n):
         m, vs, vm = water[i], solid[i], vmax[i]
         low = vs + m / rho
         if not low < vm * (1.0 - 1e-12):

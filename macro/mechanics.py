@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 
-from macro._kernels import powder_push
+from macro._kernels import incidence, powder_push
 from macro.geometry import VOID_FLOOR
 from macro.laws import (
     free_volume,
@@ -290,7 +290,8 @@ class Mechanics(ModelState):
         the kernel of :meth:`powder_pressure` and :meth:`hydro_forces` fused).
 
         What the positions do not change within a relaxation (the radii, the suctions,
-        the solid, the densest and free volumes, the yield bounds) is evaluated once here.
+        the solid, the densest and free volumes, the yield bounds, each pellet's cells and
+        triangles) is evaluated once here.
         """
         n_p, cells = self.n_pellets, slice(self.n_pellets, None)
         mesh, m = self.mesh, self.material
@@ -303,7 +304,8 @@ class Mechanics(ModelState):
             mesh.tetrahedra, mesh.facet_vertices, mesh.facet_cells, self.clay_radii(), self.vertex_radii(), n_p,
             self.solid_mass()[cells], self.densest_volume(cells, with_water=False),
             free_volume(suction, self.reference_volume[cells], m), candidate, self._pressure_bound(),
-            m.beta_v * saturation(suction, self.retention_porosity()[cells], m), m.alpha_v, VOID_FLOOR)
+            m.beta_v * saturation(suction, self.retention_porosity()[cells], m), m.alpha_v, VOID_FLOOR,
+            incidence(mesh.tetrahedra, n_p), incidence(mesh.facet_vertices, n_p))
         container = self.container
 
         def push(positions: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, bool]:

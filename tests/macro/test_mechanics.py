@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from macro._kernels import incidence
 from macro.laws import yield_force, young_modulus
 from macro.mechanics import Mechanics
 from shared.dem import cylinder_contacts
@@ -121,3 +122,14 @@ def test_fused_push_equals_the_pressure_and_facet_forces_computed_apart(model):
     by_pellet = np.bincount(model.mesh.tetrahedra.ravel(), (slope[:, None] * area**2).ravel(),
                             minlength=model.n_vertices)[:model.n_pellets]
     np.testing.assert_allclose(stiffness, by_pellet, rtol=1e-10)
+
+
+def test_incidence_lists_each_pellets_entries_in_mesh_order():
+    """:func:`macro._kernels.incidence`, the gather order of the fused push, against
+    numpy's search of the flattened array: every row below the bound, its flat
+    positions ascending, the container's rows left out."""
+    entries = np.random.default_rng(5).integers(0, 40, size=(300, 4))
+    start, where = incidence(entries, 30)
+    for row in range(30):
+        np.testing.assert_array_equal(where[start[row]:start[row + 1]], np.flatnonzero(entries.ravel() == row))
+    assert start[-1] == (entries < 30).sum()
