@@ -7,6 +7,9 @@ import numpy as np
 import pytest
 
 from macro.laws import saturation
+from macro.run import build_model
+from shared.upscaling import PermeabilityTable
+from tests._macro_cases import small_config
 
 
 def test_a_new_model_is_at_the_initial_suction_except_its_held_ends(model):
@@ -32,3 +35,31 @@ def test_steps_add_up_to_the_models_time_and_honour_max_dt(model):
     assert model.steps == 3 and model.time == pytest.approx(sum(dts), rel=1e-15)
     short = 0.25 * min(dts)
     assert model.step(max_dt=short) <= short and model.steps == 4
+
+
+def test_one_thread_and_two_give_the_same_column_to_the_bit(table_path):
+    """The parallel kernels (the powder's push, the contacts' gather, the local problems)
+    write each element from its own inputs and sum in the mesh's order, so a job's
+    thread count (``macro.threads``) cannot change its results: 6 steps of the small
+    column on 1 thread and on 2 hold the same positions, pressures, radii and FIRE
+    count."""
+    numba = pytest.importorskip("numba")
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one core: no second thread to compare with")
+    runs = []
+    before = numba.get_num_threads()
+    try:
+        for threads in (1, 2):
+            numba.set_num_threads(threads)
+            column = build_model(small_config(), "small", PermeabilityTable.from_file(table_path, "free"))
+            for _ in range(6):
+                column.step()
+            runs.append((column.positions.copy(), column.pressure.copy(), column.radii.copy(),
+                         column.counters.dem_substeps))
+    finally:
+        numba.set_num_threads(before)
+    (x1, p1, r1, k1), (x2, p2, r2, k2) = runs
+    assert k1 == k2 > 0
+    np.testing.assert_array_equal(x1, x2)
+    np.testing.assert_array_equal(p1, p2)
+    np.testing.assert_array_equal(r1, r2)

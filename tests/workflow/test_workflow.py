@@ -143,6 +143,8 @@ _MACRO = {"results/macro/weibull.nc", "results/macro/weibull.png"}
         ("materials.pellet.swelling_beta_per_pa", 1.0e-8, _MICRO),
         # the mock-up's parameters rerun the macro case alone, no micro or imaging rule
         ("materials.mixture_powder.retention_exponent_reference", 0.3, _MACRO),
+        # the macro job's threads are a machine resource: the results do not depend on them
+        ("macro.threads", 1, set()),
     ],
 )
 def test_a_config_edit_changes_the_params_of_its_readers_only(

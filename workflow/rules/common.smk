@@ -282,12 +282,18 @@ def get_macro_case_config(wildcards):
     shared = {
         key: value
         for key, value in config["macro"].items()
-        if key not in ("cases", "ensembles")
+        if key not in ("cases", "ensembles", "threads")
     }
     return {
         **shared,
         "cases": {wildcards.macro_case: MACRO_ENTRIES[wildcards.macro_case]},
     }
+
+
+def get_macro_threads(wildcards):
+    """Threads of a macro job (``macro.threads``; not a param: the results do not
+    depend on it)."""
+    return config["macro"]["threads"]
 
 
 def get_macro_materials(wildcards):

@@ -17,6 +17,7 @@ rule macro_case:
         code=script_code("macro_case.py"),
         macro=get_macro_case_config,
         materials=get_macro_materials,
+    threads: get_macro_threads
     conda:
         "../envs/claychain.yaml"
     log:
