@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import pytest
 
@@ -38,12 +39,11 @@ def test_steps_add_up_to_the_models_time_and_honour_max_dt(model):
 
 
 def test_one_thread_and_two_give_the_same_column_to_the_bit(table_path):
-    """The parallel kernels (the powder's push, the contacts' gather, the local problems)
-    write each element from its own inputs and sum in the mesh's order, so a job's
+    """The parallel kernels (the powder's push and its per-pellet gather, the local
+    problems) write each element from its own inputs and sum in the mesh's order, so a job's
     thread count (``macro.threads``) cannot change its results: 6 steps of the small
     column on 1 thread and on 2 hold the same positions, pressures, radii and FIRE
     count."""
-    numba = pytest.importorskip("numba")
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("one core: no second thread to compare with")
     runs = []
