@@ -35,6 +35,7 @@ from shared.dem import (
     detect_contacts,
     fire_step,
     pair_values,
+    rigid_translation,
     yielding_hertz_mindlin,
 )
 
@@ -51,6 +52,10 @@ per row), so the largest time step, 1, needs no ramp from Bitzek et al.'s dt_sta
 alpha_start is FIRE 2.0's (Guenole et al. 2020). Bitzek's start takes half the FIRE steps,
 but its readings at 0.01 and 0.001 differ by up to 3.5 % where these differ by 2.7 %
 (docs/macro.md; benchmarks/reference/macro_fire.json)."""
+CORRECTION_INTERVAL = 10
+"""Fewest force evaluations between two rigid corrections of a relaxation."""
+CORRECTION_STEP = 1e-5
+"""Finite-difference step of the rigid correction's tangent, in mean pellet radii."""
 MAX_OVERLAP_LOSS = 0.3
 """Largest fraction of a pellet's sphere that its overlaps may cut off."""
 
@@ -140,9 +145,17 @@ class Mechanics(ModelState):
         (:func:`shared.dem.fire_step`) until both the unbalanced force ratio (mean
         resultant over mean contact force) and the net one (the pellets' net resultant over
         the plates' mean load; 0 while the plates carry nothing) are below
-        ``dem_balance_tolerance``, at most ``substeps`` (counted in ``dem_substeps_used``).
-        The mean ratio alone is blind to a residual that points the same way along the
-        column, which the plates read as a difference of loads.
+        ``dem_balance_tolerance``, at most ``substeps`` force evaluations (counted in
+        ``dem_substeps_used``). The mean ratio alone is blind to a residual that points the
+        same way along the column, which the plates read as a difference of loads.
+
+        Once the mean ratio is met and the net one is not, at most every
+        ``CORRECTION_INTERVAL`` evaluations, a Newton step on the rigid translation of all
+        the pellets (:func:`shared.dem.rigid_translation`, its 3 x 3 tangent from finite
+        differences of the whole force field, 4-8 evaluations) removes the net resultant:
+        that mode is held only by the container and the powder, soft against the masses
+        the contacts set, and FIRE alone took hundreds of steps per relaxation for it in the
+        longer columns (docs/macro.md).
 
         The contacts' slip and yield are committed when the relaxation ends, from its
         final positions (a return mapping): FIRE's steps are a solver's iterations, not
@@ -210,7 +223,36 @@ class Mechanics(ModelState):
         moved: FloatArray = np.zeros((n_p, 3))
         turned: FloatArray = np.zeros((n_p, 3))
         anchor = self.positions.copy()
-        k = remeshes = 0
+        k = remeshes = last_correction = 0
+        still = np.zeros((n_p, 3))
+
+        def contact_forces(positions: FloatArray, moved: FloatArray, turned: FloatArray, forces: FloatArray,
+                           stiffness: FloatArray, slip: FloatArray,
+                           wall_slip: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+            """Adds the contacts' forces, torques and stiffness at ``positions`` to ``forces``
+            and ``stiffness``; the trial arrays written, ``slip`` and ``wall_slip`` advanced
+            by the step ``moved``, ``turned``. Returns the torques and the normal forces of
+            the pairs, on the curved wall and on the lower and upper plates [N]."""
+            torques = np.zeros((n_p, 3))
+            normal = yielding_hertz_mindlin(positions, moved, turned, self.radii, young, nu, self.material.friction,
+                                            pairs, trial_shear, forces, torques, stiffness, strength, trial_plastic,
+                                            shear, plastic, slip)
+            radial, lower, upper = cylinder_contacts(
+                positions, moved, turned, self.radii, young, nu, s.wall_friction, s.radius, z_lo, z_hi, forces,
+                torques, stiffness, strength, wall_plastic, wall_shear, self.contacts.wall_plastic,
+                self.contacts.wall_shear, wall_slip)
+            return torques, normal, radial, lower, upper
+
+        def translated(shift: FloatArray) -> tuple[FloatArray, float]:
+            """The pellets' net resultant [N] and net ratio with all of them moved by
+            ``shift`` (3,) [m] from where they are; the slips are left as they were."""
+            at, move = self.positions + shift, np.tile(shift, (n_p, 1))
+            forces = push(at)[0]
+            lower, upper = contact_forces(at, move, still, forces, np.zeros(n_p), slip.copy(), wall_slip.copy())[3:]
+            plates = 0.5 * float(lower.sum() + upper.sum())
+            resultant = forces.sum(axis=0)
+            return resultant, float(np.linalg.norm(resultant) / plates) if plates > 0.0 else np.inf
+
         while True:
             # the push follows the pellets (voids reopen as they move apart); where an
             # active cell has inverted, the mesh no longer holds the pellets' cells: a new
@@ -237,25 +279,31 @@ class Mechanics(ModelState):
             # past an inversion, the push linearised about its last positions with the
             # isotropic stiffness k = sum dP/dV_c A^2, the bound of its rank-one terms
             forces = external - powder_stiffness[:, None] * (self.positions - anchor)
-            torques = np.zeros((n_p, 3))
             stiffness = powder_stiffness.copy()
-            normal = yielding_hertz_mindlin(self.positions, moved, turned, self.radii, young, nu,
-                                            self.material.friction, pairs, trial_shear, forces, torques,
-                                            stiffness, strength, trial_plastic, shear, plastic, slip)
-            radial, lower, upper = cylinder_contacts(
-                self.positions, moved, turned, self.radii, young, nu, s.wall_friction, s.radius, z_lo, z_hi,
-                forces, torques, stiffness, strength, wall_plastic, wall_shear, self.contacts.wall_plastic,
-                self.contacts.wall_shear, wall_slip)
+            torques, normal, radial, lower, upper = contact_forces(self.positions, moved, turned, forces, stiffness,
+                                                                   slip, wall_slip)
             carried = np.concatenate([normal[normal > 0.0], radial[radial > 0.0],
                                       lower[lower > 0.0], upper[upper > 0.0]])
             resultant = np.sqrt((forces**2).sum(axis=1)).mean()
             unbalanced = float(resultant / carried.mean()) if carried.size else 0.0
             plates = 0.5 * float(lower.sum() + upper.sum())
             net = float(np.linalg.norm(forces.sum(axis=0)) / plates) if plates > 0.0 else 0.0
-            if k == substeps:
+            if k >= substeps:
                 break
             if unbalanced < s.dem_balance_tolerance and net < s.dem_balance_tolerance:
                 break
+            # balanced pellet by pellet but not as a whole: the residual that pushes all the
+            # pellets one way is the column's soft rigid mode, solved by its own Newton step
+            if (unbalanced < s.dem_balance_tolerance and not frozen
+                    and k - last_correction >= CORRECTION_INTERVAL):
+                shift, evaluations = rigid_translation(translated, forces.sum(axis=0), net,
+                                                       CORRECTION_STEP * float(self.radii.mean()))
+                k += evaluations
+                last_correction = k
+                if shift is not None:
+                    moved, turned = np.tile(shift, (n_p, 1)), still
+                    self.positions += shift
+                    continue
             mass = np.tile(np.maximum(stiffness, floor), 2)
             step = fire_step(fire, rates, np.concatenate([forces, torques / self.radii[:, None]]), mass, cap)
             moved, turned = step[:n_p], step[n_p:] / self.radii[:, None]

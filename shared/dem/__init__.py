@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 from shared.lazy import lazy_package
 
 if TYPE_CHECKING:
+    from shared.dem.coarse import rigid_translation
     from shared.dem.contacts import (
         bond_pairs,
         contacts_need_update,
