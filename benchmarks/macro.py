@@ -30,7 +30,7 @@ if TYPE_CHECKING:
 
 OUT = Path("results/benchmarks")
 
-__all__ = ["bench_macro_scaling", "bench_macro_steps", "synthetic_table"]
+__all__ = ["bench_macro_scaling", "bench_macro_scaling_rigid", "bench_macro_steps", "synthetic_table"]
 
 
 def synthetic_table() -> xr.Dataset:
@@ -54,11 +54,13 @@ def synthetic_table() -> xr.Dataset:
     )
 
 
-def bench_macro_steps(steps: int = 100, pellet_radius: float | None = None, days: float = 0.0) -> dict:
+def bench_macro_steps(steps: int = 100, pellet_radius: float | None = None, days: float = 0.0,
+                      rigid_correction: bool = False) -> dict:
     """Steps per second and seconds per phase of the default macro case over its first
     ``steps`` coupled steps (optionally with another pellet radius [m], the container
-    unchanged); ``step_rows`` holds each step's end time [s], FIRE steps and wall time [s],
-    continued until the model has simulated ``days`` days."""
+    unchanged, and the relaxation's ``dem_rigid_correction``); ``step_rows`` holds each
+    step's end time [s], force evaluations and wall time [s], continued until the model
+    has simulated ``days`` days."""
     import copy
 
     from macro.run import build_model
@@ -66,6 +68,7 @@ def bench_macro_steps(steps: int = 100, pellet_radius: float | None = None, days
     config = copy.deepcopy(CONFIG)
     if pellet_radius is not None:
         config["macro"]["pellet_radius_m"] = pellet_radius
+    config["macro"]["numerics"]["dem_rigid_correction"] = rigid_correction
     case = sorted(config["macro"]["cases"])[0]
     with tempfile.TemporaryDirectory() as folder:
         path = write_dataset(synthetic_table(), Path(folder) / "table.nc", stage="upscaling", title="synthetic")
@@ -107,13 +110,13 @@ def _timed_step(model: MacroModel) -> list[float]:
 
 
 def bench_macro_scaling(steps: int = 100, radii: tuple[float, ...] = (5.99e-3, 4.73e-3, 3.65e-3, 3.0e-3),
-                        days: float = 3.0) -> dict:
+                        days: float = 3.0, rigid_correction: bool = False) -> dict:
     """Cost per step against the pellet count (the Appendix .1 radii and a smaller one)
     and the exponent of a power-law fit, per phase, in total and of the FIRE steps per step,
     over the first ``steps`` steps; and over the steps of the first ``days`` days, the
     same stage of the hydration at every size (a smaller cell takes smaller time steps,
     so a fixed count of steps ends earlier in the larger columns)."""
-    rows = [bench_macro_steps(steps, r, days) for r in radii]
+    rows = [bench_macro_steps(steps, r, days, rigid_correction) for r in radii]
     count = np.array([r["n_pellets"] for r in rows], dtype=float)
     same_time = []
     for r in rows:
@@ -141,12 +144,19 @@ def bench_macro_scaling(steps: int = 100, radii: tuple[float, ...] = (5.99e-3, 4
     ax.set_title("macro model: cost per step (2 cores)")
     ax.legend(fontsize=7)
     OUT.mkdir(parents=True, exist_ok=True)
-    save_figure(fig, OUT / "macro_scaling.png")
+    save_figure(fig, OUT / f"macro_scaling{'_rigid' if rigid_correction else ''}.png")
     fire = np.array([r["fire_steps_per_step"] for r in rows])
-    return {"runs": rows, "exponent_per_step": fits, "exponent_fire_steps_per_step": exponent(list(fire)),
+    return {"dem_rigid_correction": rigid_correction, "runs": rows, "exponent_per_step": fits,
+            "exponent_fire_steps_per_step": exponent(list(fire)),
             "same_time": {"days": days, "runs": same_time,
                           "exponent_per_step": exponent(same),
                           "exponent_fire_steps_per_step": exponent([r["fire_steps_per_step"] for r in same_time])}}
+
+
+def bench_macro_scaling_rigid(steps: int = 100) -> dict:
+    """:func:`bench_macro_scaling` with the relaxation's rigid correction
+    (``dem_rigid_correction``)."""
+    return bench_macro_scaling(steps, rigid_correction=True)
 
 
 def main() -> None:

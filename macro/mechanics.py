@@ -149,13 +149,15 @@ class Mechanics(ModelState):
         ``dem_substeps_used``). The mean ratio alone is blind to a residual that points the
         same way along the column, which the plates read as a difference of loads.
 
-        Once the mean ratio is met and the net one is not, at most every
-        ``CORRECTION_INTERVAL`` evaluations, a Newton step on the rigid translation of all
-        the pellets (:func:`shared.dem.rigid_translation`, its 3 x 3 tangent from finite
-        differences of the whole force field, 4-8 evaluations) removes the net resultant:
-        that mode is held only by the container and the powder, soft against the masses
-        the contacts set, and FIRE alone took hundreds of steps per relaxation for it in the
-        longer columns (docs/macro.md).
+        With ``dem_rigid_correction``, once the mean ratio is met and the net one is not, at
+        most every ``CORRECTION_INTERVAL`` evaluations, a Newton step on the rigid
+        translation of all the pellets (:func:`shared.dem.rigid_translation`, its 3 x 3
+        tangent from finite differences of the whole force field, 4-8 evaluations)
+        removes the net resultant: that mode is held only by the container and the
+        powder, soft against the masses the contacts set, and FIRE alone takes hundreds of
+        steps per relaxation for it in the longer columns. Off by default: the relaxations
+        then stop with the mean ratio just under the tolerance, and the readings at 0.01
+        move further from those at 0.001 (docs/macro.md).
 
         The contacts' slip and yield are committed when the relaxation ends, from its
         final positions (a return mapping): FIRE's steps are a solver's iterations, not
@@ -187,7 +189,8 @@ class Mechanics(ModelState):
         while FIRE needs only the forces the damped relaxation already computed, and its
         power test stops the motion whenever it turns uphill instead of overshooting.
         With the exact push it balances the default case in 81 FIRE steps per coupled
-        step on average (docs/macro.md), and FIRE has no damping coefficient to choose.
+        step on average (66 force evaluations with the rigid correction; docs/macro.md),
+        and FIRE has no damping coefficient to choose.
         """
         s = self.settings
         n_p = self.n_pellets
@@ -294,7 +297,7 @@ class Mechanics(ModelState):
                 break
             # balanced pellet by pellet but not as a whole: the residual that pushes all the
             # pellets one way is the column's soft rigid mode, solved by its own Newton step
-            if (unbalanced < s.dem_balance_tolerance and not frozen
+            if (s.dem_rigid_correction and unbalanced < s.dem_balance_tolerance and not frozen
                     and k - last_correction >= CORRECTION_INTERVAL):
                 shift, evaluations = rigid_translation(translated, forces.sum(axis=0), net,
                                                        CORRECTION_STEP * float(self.radii.mean()))

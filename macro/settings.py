@@ -106,6 +106,7 @@ class MacroSettings:
     container_spacing: float
     dem_substeps: int
     dem_balance_tolerance: float
+    dem_rigid_correction: bool
     wall_friction: float
     stress_relaxation: float
     extrusion: ExtrusionSettings
@@ -181,6 +182,7 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         container_spacing=float(num["container_point_spacing"]),
         dem_substeps=int(num["dem_substeps"]),
         dem_balance_tolerance=float(num["dem_balance_tolerance"]),
+        dem_rigid_correction=bool(num["dem_rigid_correction"]),
         wall_friction=float(np.tan(np.radians(float(macro["wall_friction_angle_deg"])))),
         stress_relaxation=float(num["stress_relaxation"]),
         extrusion=extrusion_settings(macro, over),

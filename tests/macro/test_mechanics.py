@@ -60,11 +60,14 @@ def test_relaxation_of_the_small_column_balances_to_the_tolerance(model, toleran
     assert model.counters.dem_substeps - used < 400
 
 
-def test_net_resultant_is_that_of_the_push_and_the_container_alone(model):
+@pytest.mark.parametrize("rigid_correction", [False, True])
+def test_net_resultant_is_that_of_the_push_and_the_container_alone(model, rigid_correction):
     """Newton's third law: the pair contacts cancel in the pellets' net resultant, so the
     relaxation's net ratio equals the one of the powder's push and the container's
     contacts alone, evaluated apart at the balanced positions; once the plates carry
-    the column it is below the tolerance."""
+    the column it is below the tolerance, with FIRE alone and with the rigid correction
+    (:func:`shared.dem.rigid_translation`) that removes it."""
+    model.settings = replace(model.settings, dem_rigid_correction=rigid_correction)
     for _ in range(8):
         model.step()
     readings = model.relax(400)
