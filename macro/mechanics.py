@@ -248,9 +248,12 @@ class Mechanics(ModelState):
 
         def translated(shift: FloatArray) -> tuple[FloatArray, float]:
             """The pellets' net resultant [N] and net ratio with all of them moved by
-            ``shift`` (3,) [m] from where they are; the slips are left as they were."""
+            ``shift`` (3,) [m] from where they are (infinite where the shift inverts an
+            active cell); the slips are left as they were."""
             at, move = self.positions + shift, np.tile(shift, (n_p, 1))
-            forces = push(at)[0]
+            forces, _, _, inverted = push(at)
+            if inverted:  # the shift inverts an active cell: refused
+                return forces.sum(axis=0), np.inf
             lower, upper = contact_forces(at, move, still, forces, np.zeros(n_p), slip.copy(), wall_slip.copy())[3:]
             plates = 0.5 * float(lower.sum() + upper.sum())
             resultant = forces.sum(axis=0)
