@@ -155,9 +155,8 @@ class Mechanics(ModelState):
         tangent from finite differences of the whole force field, 4-8 evaluations)
         removes the net resultant: that mode is held only by the container and the
         powder, soft against the masses the contacts set, and FIRE alone takes hundreds of
-        steps per relaxation for it in the longer columns. Off by default: the relaxations
-        then stop with the mean ratio just under the tolerance, and the readings at 0.01
-        move further from those at 0.001 (docs/macro.md).
+        steps per relaxation for it in the longer columns (on by default; ``false``
+        leaves the mode to FIRE, docs/macro.md).
 
         The contacts' slip and yield are committed when the relaxation ends, from its
         final positions (a return mapping): FIRE's steps are a solver's iterations, not
@@ -188,9 +187,9 @@ class Mechanics(ModelState):
         non-smooth and history dependent, so its tangent matrix changes at every step,
         while FIRE needs only the forces the damped relaxation already computed, and its
         power test stops the motion whenever it turns uphill instead of overshooting.
-        With the exact push it balances the default case in 81 FIRE steps per coupled
-        step on average (66 force evaluations with the rigid correction; docs/macro.md),
-        and FIRE has no damping coefficient to choose.
+        With the exact push and the rigid correction it balances the default case in 53
+        force evaluations per coupled step on average (81 with FIRE alone;
+        docs/macro.md), and FIRE has no damping coefficient to choose.
         """
         s = self.settings
         n_p = self.n_pellets
