@@ -62,3 +62,23 @@ def test_no_stiffness_gives_no_step():
     shift, evaluations = rigid_translation(lambda shift: (resultant, 1.0), resultant, 1.0, 1e-6)
     assert shift is None
     assert evaluations == 3
+
+
+def test_a_refused_shift_is_halved_until_it_is_allowed():
+    """Linear springs whose ratio is infinite beyond a third of the Newton step (as the
+    macro relaxation refuses a shift that inverts a cell): the step is halved twice, to a
+    quarter of K^-1 R0, which lowers the ratio by 1 - 1/4."""
+    stiffness = np.diag([2.0, 3.0, 5.0])  # [N/m]
+    offset = np.array([1e-3, -2e-3, 5e-4])  # [m]
+    newton = -offset
+
+    def resultant_at(shift):
+        resultant = -stiffness @ (offset + shift)
+        inverted = np.linalg.norm(shift) > np.linalg.norm(newton) / 3.0
+        return resultant, np.inf if inverted else float(np.linalg.norm(resultant))
+
+    start, ratio = resultant_at(np.zeros(3))
+    shift, evaluations = rigid_translation(resultant_at, start, ratio, 1e-9)
+    assert shift == pytest.approx(0.25 * newton, rel=1e-6)
+    assert evaluations == 3 + 3
+    assert resultant_at(shift)[1] == pytest.approx(0.75 * ratio, rel=1e-6)
