@@ -290,7 +290,11 @@ class Mechanics(ModelState):
             carried = np.concatenate([normal[normal > 0.0], radial[radial > 0.0],
                                       lower[lower > 0.0], upper[upper > 0.0]])
             resultant = np.sqrt((forces**2).sum(axis=1)).mean()
-            unbalanced = float(resultant / carried.mean()) if carried.size else 0.0
+            if carried.size:
+                unbalanced = float(resultant / carried.mean())
+            else:  # no contact yet: balanced only where nothing pushes the pellets
+                pushed = float(np.sqrt((external**2).sum(axis=1)).mean())
+                unbalanced = float(resultant / pushed) if pushed > 0.0 else 0.0
             plates = 0.5 * float(lower.sum() + upper.sum())
             net = float(np.linalg.norm(forces.sum(axis=0)) / plates) if plates > 0.0 else 0.0
             if k >= substeps:

@@ -118,9 +118,9 @@ def test_a_run_killed_three_times_resumes_to_the_uninterrupted_result(table_path
     drifting ones twice.)"""
     steps = 36
     config = _swelling_config(steps)
-    # a packing that remeshes early and often (steps 5, 8 and 18); with most seeds this
+    # a packing that remeshes early and twice (steps 9 and 10); with most seeds this
     # loose column remeshes once or never in 36 steps
-    config["macro"]["seed"] = 14
+    config["macro"]["seed"] = 4
     monkeypatch.setattr("macro.mock_up.THIN_ABOVE", THIN_ABOVE)
     whole, remeshed = _remesh_steps(monkeypatch, table_path, config, tmp_path / "whole.nc")
     assert remeshed and remeshed[0] + 6 < steps, remeshed
