@@ -143,8 +143,10 @@ class Mechanics(ModelState):
     def relax(self, substeps: int) -> Readings:
         """Quasi-static DEM under the current radii, moduli and powder: FIRE steps
         (:func:`shared.dem.fire_step`) until both the unbalanced force ratio (mean
-        resultant over mean contact force) and the net one (the pellets' net resultant over
-        the plates' mean load; 0 while the plates carry nothing) are below
+        resultant over mean contact force; over the powder's mean push while no contact
+        carries, so that pushed pellets touching nothing are not balanced) and the net
+        one (the pellets' net resultant over the plates' mean load; 0 while the plates
+        carry nothing) are below
         ``dem_balance_tolerance``, at most ``substeps`` force evaluations (counted in
         ``dem_substeps_used``). The mean ratio alone is blind to a residual that points the
         same way along the column, which the plates read as a difference of loads.

@@ -184,7 +184,7 @@ def records_dataset(model: MacroModel, rows: Mapping[str, list[Any]], edges: Flo
         "suction_profile": (("time", "z"), pick["suction_profile"], {"units": "Pa", "long_name": "mean suction along the axis"}),
         "pellet_suction": (("time", "pellet"), pick["pellet_suction"], {"units": "Pa", "long_name": "suction of each pellet (field snapshots)"}),
         "stop_distance": (("time",), pick["stop_distance"], {"units": "1", "long_name": "largest relative rate of the monitored quantities over its tolerance (1 = stop; NaN: too few records in the window)"}),
-        "unbalanced_force": (("time",), pick["unbalanced"], {"units": "1", "long_name": "mean resultant over mean contact force"}),
+        "unbalanced_force": (("time",), pick["unbalanced"], {"units": "1", "long_name": "mean resultant over mean contact force (over the powder's mean push while no contact carries)"}),
         "net_unbalanced_force": (("time",), pick["net_unbalanced"], {"units": "1", "long_name": "the pellets' net resultant over the plates' mean load"}),
         "time_step": (("time",), pick["dt"], {"units": "s", "long_name": "time step that ended at this record"}),
         "step": (("time",), pick["step"], {"units": "1", "long_name": "coupled steps so far"}),
