@@ -34,7 +34,7 @@ from benchmarks.parameters import CONFIG
 from shared.io import write_dataset
 from shared.upscaling import PermeabilityTable
 
-__all__ = ["bench_macro_balance", "bench_macro_balance_fire_only"]
+__all__ = ["bench_macro_balance", "bench_macro_balance_fire_only", "bench_macro_balance_seeds"]
 
 DAY = 86400.0
 TOLERANCES = (0.01, 0.001)
@@ -47,9 +47,10 @@ SUBSTEPS_AT_TIGHTEST = 2000
 
 
 def _run(days: float, tolerance: float, substeps: int, rebalance: float | None = None,
-         rigid_correction: bool = True) -> dict:
+         rigid_correction: bool = True, seed: int | None = None) -> dict:
     """One run of the default case to ``days`` at ``tolerance`` (with the relaxation's
-    ``dem_rigid_correction`` as given); with ``rebalance``, a copy of the model at each
+    ``dem_rigid_correction`` as given, and another packing ``seed`` if given); with
+    ``rebalance``, a copy of the model at each
     record balanced further to that tolerance (at most ``SUBSTEPS_AT_TIGHTEST`` force
     evaluations) is read too: the same state, a tighter balance, and the run goes on from
     the original."""
@@ -59,6 +60,8 @@ def _run(days: float, tolerance: float, substeps: int, rebalance: float | None =
     config["macro"]["numerics"]["dem_balance_tolerance"] = tolerance
     config["macro"]["numerics"]["dem_substeps"] = substeps
     config["macro"]["numerics"]["dem_rigid_correction"] = rigid_correction
+    if seed is not None:
+        config["macro"]["seed"] = seed
     case = sorted(config["macro"]["cases"])[0]
     with tempfile.TemporaryDirectory() as folder:
         path = write_dataset(synthetic_table(), Path(folder) / "table.nc", stage="upscaling", title="synthetic")
@@ -148,3 +151,23 @@ def bench_macro_balance_fire_only(days: int = 20) -> dict:
     """:func:`bench_macro_balance` without the relaxation's rigid correction
     (``dem_rigid_correction`` false: FIRE alone)."""
     return bench_macro_balance(days, rigid_correction=False)
+
+
+def bench_macro_balance_seeds(days: int = 20, seeds: tuple[int, ...] = (1, 2)) -> dict:
+    """The tolerances' gap of :func:`bench_macro_balance` over other packings (seeds of
+    the packing and the powder field), without its rebalanced copies and control run."""
+    members = []
+    for seed in seeds:
+        loose, tight = (_run(float(days), tolerance, substeps, seed=seed) for tolerance, substeps in
+                        ((TOLERANCES[0], int(CONFIG["macro"]["numerics"]["dem_substeps"])),
+                         (TOLERANCES[1], SUBSTEPS_AT_TIGHTEST)))
+        a, b = np.asarray(loose["readings_mpa"]), np.asarray(tight["readings_mpa"])
+        difference = np.abs(a - b) / np.maximum(np.abs(b), 1e-12)
+        members.append({"seed": seed, "balanced_fraction": [loose["balanced_fraction"], tight["balanced_fraction"]],
+                        "fire_steps_per_step": [loose["fire_steps_per_step"], tight["fire_steps_per_step"]],
+                        "reading_names": loose["reading_names"],
+                        "relative_difference_max_over_records": difference.max(axis=0).tolist(),
+                        "record_day_of_max": (np.asarray(loose["record_days"])[difference.argmax(axis=0)]).tolist(),
+                        "relative_difference_final": difference[-1].tolist()})
+    return {"macro_case": sorted(CONFIG["macro"]["cases"])[0], "days": days, "members": members}
+
