@@ -112,6 +112,11 @@ def _run(days: float, tolerance: float, substeps: int, rebalance: float | None =
     }
 
 
+def _relative_difference(readings: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """|readings - reference| relative to the reference, per record and reading."""
+    return np.abs(readings - reference) / np.maximum(np.abs(reference), 1e-12)
+
+
 def bench_macro_balance(days: int = 20, rigid_correction: bool = True) -> dict:
     """The default case at dem_balance_tolerance 0.01 and 0.001, and the control at
     0.0099: balance, cost, readings."""
@@ -123,11 +128,7 @@ def bench_macro_balance(days: int = 20, rigid_correction: bool = True) -> dict:
     rebalanced = np.asarray(runs[0]["readings_rebalanced_mpa"])
     late = np.asarray(runs[0]["record_days"]) >= 5.0
 
-    def difference_to(reference: np.ndarray, readings: np.ndarray = loose) -> np.ndarray:
-        """Relative to the reference reading, per record and reading."""
-        return np.abs(readings - reference) / np.maximum(np.abs(reference), 1e-12)
-
-    difference, drift = difference_to(tight), difference_to(control)
+    difference, drift = _relative_difference(loose, tight), _relative_difference(loose, control)
     return {
         "macro_case": sorted(CONFIG["macro"]["cases"])[0],
         "dem_rigid_correction": rigid_correction,
@@ -137,8 +138,9 @@ def bench_macro_balance(days: int = 20, rigid_correction: bool = True) -> dict:
         "relative_difference_max_from_day_5": difference[late].max(axis=0).tolist(),
         # the balance error at a record (the 0.01 run's states balanced to 0.001) against
         # the path's (the 0.001 run against those same states at 0.001)
-        "relative_difference_rebalanced_max_over_records": difference_to(rebalanced).max(axis=0).tolist(),
-        "relative_difference_rebalanced_to_tight_max_over_records": difference_to(tight, rebalanced)
+        "relative_difference_rebalanced_max_over_records": _relative_difference(loose, rebalanced)
+        .max(axis=0).tolist(),
+        "relative_difference_rebalanced_to_tight_max_over_records": _relative_difference(rebalanced, tight)
         .max(axis=0).tolist(),
         # two paths at (nearly) one tolerance: 0.01 against 0.0099
         "control_difference_final": drift[-1].tolist(),
@@ -161,8 +163,7 @@ def bench_macro_balance_seeds(days: int = 20, seeds: tuple[int, ...] = (1, 2)) -
         loose, tight = (_run(float(days), tolerance, substeps, seed=seed) for tolerance, substeps in
                         ((TOLERANCES[0], int(CONFIG["macro"]["numerics"]["dem_substeps"])),
                          (TOLERANCES[1], SUBSTEPS_AT_TIGHTEST)))
-        a, b = np.asarray(loose["readings_mpa"]), np.asarray(tight["readings_mpa"])
-        difference = np.abs(a - b) / np.maximum(np.abs(b), 1e-12)
+        difference = _relative_difference(np.asarray(loose["readings_mpa"]), np.asarray(tight["readings_mpa"]))
         members.append({"seed": seed, "balanced_fraction": [loose["balanced_fraction"], tight["balanced_fraction"]],
                         "fire_steps_per_step": [loose["fire_steps_per_step"], tight["fire_steps_per_step"]],
                         "reading_names": loose["reading_names"],

@@ -29,12 +29,19 @@ def hand_placed_model(table_path, **macro):
                   z - 0.5 * height] for z, azimuth, overlap in PRESSING]
     positions.append([0.0, 0.0, 0.035 - 0.5 * height])
     positions = np.array(positions)
+    return config, placed_model(table_path, config, positions)
+
+
+def placed_model(table_path, config, positions):
+    """The small column (``config``) with pellets at ``positions`` (n, 3) [m], none
+    touching another."""
+    settings = macro_settings(config["macro"], "small")
+    r = settings.pellet_radius
     gaps = np.linalg.norm(positions[:, None] - positions[None], axis=-1) + np.eye(len(positions))
     assert gaps.min() > 2.0 * r
     packing = Packing(positions, np.full(len(positions), r), 0.1, 0.0)
     material = mixture_parameters(config["materials"], settings.powder)
-    model = MacroModel.create(settings, material, PermeabilityTable.from_file(table_path, "free"), packing)
-    return config, model
+    return MacroModel.create(settings, material, PermeabilityTable.from_file(table_path, "free"), packing)
 
 
 def hertz_forces(config):

@@ -9,15 +9,13 @@ import numpy as np
 import pytest
 
 from macro._kernels import incidence
-from macro.laws import mixture_parameters, yield_force, young_modulus
+from macro.laws import yield_force, young_modulus
 from macro.mechanics import Mechanics
-from macro.model import MacroModel
-from macro.packing import Packing
 from macro.settings import macro_settings
 from shared.dem import cylinder_contacts
 from shared.mesh import build_mesh
-from shared.upscaling import PermeabilityTable
 from tests._macro_cases import small_config
+from tests.macro._hand_placed import placed_model
 
 
 class _Octahedron(Mechanics):
@@ -152,11 +150,9 @@ def test_pellets_pushed_before_any_contact_are_not_balanced(table_path):
     r, half = settings.pellet_radius, 0.5 * settings.height
     positions = np.array([[0.0, 0.0, z] for z in (-0.6, -0.2, 0.2, 0.6)]) * half \
         + np.array([[0.3, 0.0, 0.0], [0.0, 0.3, 0.0], [-0.3, 0.0, 0.0], [0.0, -0.3, 0.0]]) * settings.radius
-    gaps = np.linalg.norm(positions[:, None] - positions[None], axis=-1) + np.eye(4)
-    assert gaps.min() > 2.0 * r and np.all(np.abs(positions[:, 2]) < half - r)
-    material = mixture_parameters(config["materials"], settings.powder)
-    model = MacroModel.create(settings, material, PermeabilityTable.from_file(table_path, "free"),
-                              Packing(positions, np.full(4, r), 0.1, 0.0))
+    assert np.all(np.abs(positions[:, 2]) < half - r)
+    assert np.all(np.hypot(positions[:, 0], positions[:, 1]) < settings.radius - r)
+    model = placed_model(table_path, config, positions)
     assert np.abs(model.push_field()(model.positions)[0]).max() > 0.0
     assert model.readings.unbalanced == pytest.approx(1.0, rel=1e-12)
     before = model.positions.copy()
