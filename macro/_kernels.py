@@ -132,14 +132,15 @@ def incidence(entries, n_rows):
 
 @njit(cache=True, parallel=True)
 def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sphere_radii, n_pellets,
-                solid_mass, densest, free, candidate, bound, scale, alpha, void_floor, cell_incidence,
-                facet_incidence):
+                solid_mass, densest, free, candidate, bound, scale, alpha, onset_strain, void_floor,
+                cell_incidence, facet_incidence):
     """The powder's push on the pellets at the mesh's current points, in one pass.
 
     Per cell: the void (tetrahedron less the clay spheres' solid-angle shares, floored
     at ``void_floor`` of the tetrahedron), the volume it holds, max(void, densest), and
     its pressure P = scale exp(alpha m_s / held) where the cell is a ``candidate`` and
-    its clay is held below its ``free`` volume, at most ``bound``; per interior
+    its clay is held below its ``free`` volume, times min(1, (free - held) / (onset_strain
+    free)) (:func:`macro.laws.onset_ramp`), at most ``bound``; per interior
     triangle: each pellet's sector theta r^2 / 2 pushed by the pressure jump across it
     along the normal from the first cell to the second (as :meth:`macro.mechanics.
     Mechanics.hydro_forces`). ``cell_incidence`` and ``facet_incidence`` are
@@ -198,12 +199,17 @@ def powder_push(points, tetrahedra, facet_vertices, facet_cells, clay_radii, sph
         held = max(void, densest[c])
         if free[c] <= held:
             continue
-        value = scale[c] * np.exp(alpha * solid_mass[c] / held)
+        # the law, reached linearly over the onset strain below the free volume
+        law = scale[c] * np.exp(alpha * solid_mass[c] / held)
+        ramp = min(1.0, (free[c] - held) / (onset_strain * free[c]))
+        value = law * ramp
         if value > bound[c]:
             pressure[c] = bound[c]
         else:
             pressure[c] = value
             slope[c] = value * alpha * solid_mass[c] / (held * held)
+            if ramp < 1.0:
+                slope[c] += law / (onset_strain * free[c])
     # each triangle's push on its pellet vertices (read only where the triangle pushes),
     # then gathered per pellet in mesh order (deterministic)
     parts = np.empty((n_facets, 3, 3))

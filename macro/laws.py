@@ -45,6 +45,7 @@ __all__ = [
     "MIXTURE_MATERIALS",
     "case_materials",
     "mixture_parameters",
+    "onset_ramp",
     "saturation",
     "suction",
     "suction_derivative",
@@ -212,6 +213,20 @@ def free_volume(suction: npt.ArrayLike, reference_volume: npt.ArrayLike, m: Mixt
     of clay at suction ``suction`` [Pa] whose volume at the initial suction is
     ``reference_volume`` [m3]."""
     return np.asarray(reference_volume, dtype=np.float64) * (1.0 + swelling_strain(suction, m))
+
+
+def onset_ramp(volume: npt.ArrayLike, free: npt.ArrayLike, strain: float) -> FloatArray:
+    """Share of the swelling-pressure law a clay held at ``volume`` presses [1]:
+    min(1, (V_f - V) / (strain V_f)), 0 at or above its free volume V_f [m3].
+
+    The onset of confinement is set-valued (:func:`confined_pressure`): at V_f the clay
+    holds any stress up to P(m_s / V_f, s). A push that jumps there has no balanced state
+    for the pellets pressing a cell at V_f, as a rigid contact has none; this ramp over
+    the volumetric strain ``strain`` [1] is the penalty regularisation a contact's
+    stiffness is.
+    """
+    free = np.asarray(free, dtype=np.float64)
+    return np.asarray(np.clip((free - np.asarray(volume)) / (strain * free), 0.0, 1.0), dtype=np.float64)
 
 
 def swelling_pressure(dry_density: npt.ArrayLike, suction: npt.ArrayLike, porosity: npt.ArrayLike,

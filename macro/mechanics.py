@@ -19,6 +19,7 @@ from macro._kernels import incidence, powder_push
 from macro.geometry import VOID_FLOOR
 from macro.laws import (
     free_volume,
+    onset_ramp,
     saturation,
     swelling_pressure,
     yield_force,
@@ -83,7 +84,10 @@ class Mechanics(ModelState):
         so that the pellets meet a stiffening powder rather than a pressure that stops
         growing; below its solid at the smallest porosity it presses as at that state. With the
         pellets' yield (Eq. 4.4) on, at most the yield pressure of the cell's weakest
-        pellet. Zero everywhere when ``macro.powder_swelling_pressure`` is off.
+        pellet. The law is reached linearly over ``macro.numerics.powder_onset_strain``
+        below V_f (:func:`macro.laws.onset_ramp`): the onset is set-valued, and a push
+        that jumps at V_f leaves the pellets around such a cell no balanced state. Zero
+        everywhere when ``macro.powder_swelling_pressure`` is off.
         """
         cells = slice(self.n_pellets, None)
         if not self.settings.powder_pressure:
@@ -93,13 +97,16 @@ class Mechanics(ModelState):
         solid_mass = self.solid_mass()[cells]
         free = free_volume(suction, self.reference_volume[cells], self.material)
         active = ~self.inert[cells] & (free > held)
-        pressure = np.where(active, swelling_pressure(solid_mass / held, suction, self.retention_porosity()[cells],
-                                                      self.material), 0.0)
+        law = np.where(active, swelling_pressure(solid_mass / held, suction, self.retention_porosity()[cells],
+                                                 self.material), 0.0)
+        ramp = onset_ramp(held, free, self.settings.powder_onset_strain)
+        pressure = law * ramp
         bound = self._pressure_bound()
         capped = pressure > bound
         pressure = np.where(capped, bound, pressure)
-        # |dP/dV_c| of S p'_vc(m_s / V_c)
-        slope = pressure * self.material.alpha_v * solid_mass / held**2
+        # |dP/dV_c| of ramp S p'_vc(m_s / V_c)
+        slope = pressure * self.material.alpha_v * solid_mass / held**2 \
+            + np.where(ramp < 1.0, law / (self.settings.powder_onset_strain * free), 0.0)
         return pressure, np.where(active & ~capped, slope, 0.0)
 
     def _pressure_bound(self) -> FloatArray:
@@ -363,7 +370,8 @@ class Mechanics(ModelState):
             mesh.tetrahedra, mesh.facet_vertices, mesh.facet_cells, self.clay_radii(), self.vertex_radii(), n_p,
             self.solid_mass()[cells], self.densest_volume(cells, with_water=False),
             free_volume(suction, self.reference_volume[cells], m), candidate, self._pressure_bound(),
-            m.beta_v * saturation(suction, self.retention_porosity()[cells], m), m.alpha_v, VOID_FLOOR,
+            m.beta_v * saturation(suction, self.retention_porosity()[cells], m), m.alpha_v,
+            self.settings.powder_onset_strain, VOID_FLOOR,
             incidence(mesh.tetrahedra, n_p), incidence(mesh.facet_vertices, n_p))
         container = self.container
 

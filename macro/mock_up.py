@@ -55,7 +55,8 @@ def build_model(config: Mapping[str, Any], case: str, table: PermeabilityTable) 
 
 
 def new_model(settings: MacroSettings, material: MixtureParameters, table: PermeabilityTable) -> MacroModel:
-    """The initial model: the pellets packed in the container, the powder between them.
+    """The initial model: the pellets packed in the container, the powder between them,
+    balanced (:meth:`macro.model.MacroModel.balance`).
 
     Raises
     ------
@@ -74,6 +75,7 @@ def new_model(settings: MacroSettings, material: MixtureParameters, table: Perme
             "lower the packing fraction or raise the iterations")
     model = MacroModel.create(settings, material, table, packing)
     model.packing = packing
+    model.balance()
     return model
 
 

@@ -38,6 +38,9 @@ __all__ = ["MacroModel"]
 
 FloatArray = npt.NDArray[np.float64]
 
+INITIAL_BALANCE = 10
+"""Force evaluations of :meth:`MacroModel.balance`, in ``dem_substeps``."""
+
 
 @dataclass
 class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, WallReadings):
@@ -99,6 +102,19 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
         model.initial_interior_water = model.interior_water()
         return model
 
+    def balance(self) -> None:
+        """Balance the packing before the hydration, as the thesis script's
+        resolveUnbalanced does: the pellets as packed touch little and the dry powder
+        pushes them. At most ``INITIAL_BALANCE`` times ``dem_substeps`` force evaluations;
+        the water its motion moves to the held cells is not inflow (the hydration has
+        not begun)."""
+        if self.steps:
+            raise RuntimeError("a model is balanced before its hydration, not after a step")
+        self.latest_readings = self.relax(INITIAL_BALANCE * self.settings.dem_substeps)
+        self._settle()
+        self.boundary_inflow = 0.0
+        self.initial_interior_water = self.interior_water()
+
 
     def step(self, max_dt: float = float("inf")) -> float:
         """Advance one coupled step; returns the time step used [s].
@@ -128,15 +144,20 @@ class MacroModel(Geometry, Hydraulics, Extrusion, PressureVolume, Mechanics, Wal
             assert self.occupied_loss is not None
             self.radii = np.cbrt(3.0 * self.volume[:n_p] / (4.0 * np.pi * (1.0 - self.occupied_loss)))
             self.latest_readings = self.relax(self.settings.dem_substeps)
+        self._settle()
+        self.time += dt
+        self.steps += 1
+        return dt
+
+    def _settle(self) -> None:
+        """The state made consistent with the pellets' relaxed positions: their cells'
+        geometry, the held cells at the boundary, every cell within its void."""
         with self._phase("remesh"):
             self.update_geometry()
             self.hold_boundary()
         with self._phase("extrusion"):
             if self.settings.extrusion.enabled:
                 self.overflow()
-        self.time += dt
-        self.steps += 1
-        return dt
 
     @contextmanager
     def _phase(self, name: str) -> Iterator[None]:

@@ -107,6 +107,7 @@ class MacroSettings:
     dem_substeps: int
     dem_balance_tolerance: float
     dem_rigid_correction: bool
+    powder_onset_strain: float
     wall_friction: float
     stress_relaxation: float
     extrusion: ExtrusionSettings
@@ -183,6 +184,7 @@ def macro_settings(macro: Mapping[str, Any], case: str) -> MacroSettings:
         dem_substeps=int(num["dem_substeps"]),
         dem_balance_tolerance=float(num["dem_balance_tolerance"]),
         dem_rigid_correction=bool(num["dem_rigid_correction"]),
+        powder_onset_strain=float(num["powder_onset_strain"]),
         wall_friction=float(np.tan(np.radians(float(macro["wall_friction_angle_deg"])))),
         stress_relaxation=float(num["stress_relaxation"]),
         extrusion=extrusion_settings(macro, over),

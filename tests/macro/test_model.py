@@ -15,7 +15,7 @@ from tests._macro_cases import small_config
 
 def test_a_new_model_is_at_the_initial_suction_except_its_held_ends(model):
     """Held cells at the boundary suction, every other system at the initial suction with
-    the retention law's water; pellets are spheres of their radii at rest."""
+    the retention law's water; pellets are spheres of their radii."""
     s0, s_b = model.material.initial_suction, model.settings.boundary_suction
     held = model.held
     assert held.any() and not held[:model.n_pellets].any()
@@ -27,7 +27,6 @@ def test_a_new_model_is_at_the_initial_suction_except_its_held_ends(model):
     np.testing.assert_allclose(model.water_mass[~held], water[~held], rtol=1e-12)
     np.testing.assert_allclose(model.volume[:model.n_pellets], 4.0 / 3.0 * np.pi * model.radii**3, rtol=1e-12)
     assert (model.time, model.steps) == (0.0, 0)
-    assert not model.velocities.any()
 
 
 def test_steps_add_up_to_the_models_time_and_honour_max_dt(model):
